@@ -1,0 +1,66 @@
+# The two-command quickstart: `make demo` and `make test`. Every target that
+# needs Python depends on the venv and on a release build of the extension,
+# so a fresh clone needs nothing but Rust and Python 3.10+.
+
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+PY := $(BIN)/python
+# maturin develop installs into the environment named by VIRTUAL_ENV.
+export VIRTUAL_ENV := $(abspath $(VENV))
+
+RUST_SOURCES := $(shell find rust -name '*.rs' -o -name Cargo.toml) Cargo.toml
+BUILT := $(VENV)/.built-release
+
+.DEFAULT_GOAL := help
+
+.PHONY: help
+help: ## list the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  %-8s %s\n", $$1, $$2}'
+
+# A real file target: a missing or broken venv is rebuilt.
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+
+$(VENV)/.deps: | $(PY)
+	$(PY) -m pip install --quiet "maturin>=1.7,<2" "ruff>=0.6" "mypy>=1.10"
+	touch $@
+
+$(BUILT): $(VENV)/.deps $(RUST_SOURCES) pyproject.toml
+	# -E test installs the runtime and test dependencies named in pyproject.toml.
+	$(BIN)/maturin develop --release --quiet -E test
+	touch $@
+
+.PHONY: build
+build: $(BUILT) ## build the extension (release) into .venv
+
+.PHONY: demo
+demo: $(BUILT) ## run the main job on the built-in sample; results under out/
+	$(BIN)/imgform demo --out out
+
+.PHONY: test
+test: $(BUILT) ## cargo test (core) and pytest
+	cargo test --quiet
+	$(PY) -m pytest -q
+
+.PHONY: test-slow
+test-slow: $(BUILT) ## the slow tests too
+	$(PY) -m pytest -q -m "slow or not slow"
+
+.PHONY: bench
+bench: $(BUILT) ## side-by-side benchmarks against the peers
+	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+
+.PHONY: lint
+lint: $(VENV)/.deps ## cargo fmt, clippy -D warnings, ruff, stubtest
+	cargo fmt --all -- --check
+	cargo clippy --workspace --all-targets -- -D warnings
+	$(BIN)/ruff check python tests benchmarks
+	$(BIN)/ruff format --check python tests benchmarks
+	$(MAKE) --no-print-directory $(BUILT)
+	$(PY) -m mypy.stubtest imgform_rs._native
+
+.PHONY: clean
+clean: ## remove build products and the venv
+	rm -rf target $(VENV) out python/imgform_rs/*.so

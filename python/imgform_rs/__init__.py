@@ -1,0 +1,16 @@
+"""imgform-rs: how a photograph is formed, in Rust, for NumPy.
+
+Camera geometry and lens optics, colour filter arrays and demosaicing,
+three-colour alignment and raw development. Conventions (axis order, colour
+order, camera frame, CFA patterns, shift sign) are documented in
+``CONVENTIONS.md``.
+"""
+
+from ._native import RawError
+from .projection import project_orthographic, project_pinhole
+
+__all__ = [
+    "RawError",
+    "project_orthographic",
+    "project_pinhole",
+]

@@ -1,0 +1,56 @@
+"""Input coercion shared by the public facade.
+
+The native layer checks everything again; this layer turns the convenient forms
+users pass (lists, a single point, int or float32 arrays) into the float64,
+C-contiguous arrays the kernels take, and says clearly what it refused.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+Float64Array = npt.NDArray[np.float64]
+
+
+def _numeric(value: Any, name: str) -> np.ndarray:
+    if value is None:
+        raise TypeError(f"{name} must be an array of numbers, got None")
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be an array of real numbers, got dtype {arr.dtype}")
+    return arr
+
+
+def as_points(points: Any, dim: int, name: str = "points") -> tuple[Float64Array, bool]:
+    """Returns ``points`` as a contiguous float64 (N, dim) array, and whether a
+    single point of shape (dim,) was given (the caller then returns one point)."""
+    arr = _numeric(points, name)
+    single = arr.ndim == 1
+    if single:
+        arr = arr.reshape(1, -1)
+    if arr.ndim != 2 or arr.shape[1] != dim:
+        raise ValueError(f"{name} must have shape (N, {dim}) or ({dim},), got {np.shape(points)}")
+    return np.ascontiguousarray(arr, dtype=np.float64), single
+
+
+def unbatch(out: Float64Array, single: bool) -> Float64Array:
+    """Undoes the batching of a single point."""
+    return out[0] if single else out
+
+
+def as_matrix(value: Any, shape: tuple[int, ...], name: str) -> Float64Array:
+    """A float64 array of exactly ``shape`` with finite entries."""
+    arr = _numeric(value, name).astype(np.float64)
+    if arr.shape != shape:
+        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must contain only finite numbers, got {arr.tolist()}")
+    return np.ascontiguousarray(arr)
+
+
+def as_float_array(value: Any, name: str) -> Float64Array:
+    """Any real scalar or array as float64, for the vectorised optics formulas."""
+    return _numeric(value, name).astype(np.float64)

@@ -1,0 +1,15 @@
+# Stubs of the private native module; the documented API is the package itself.
+# Checked against the built module by `make lint` (mypy.stubtest).
+
+import numpy as np
+import numpy.typing as npt
+
+class RawError(ValueError): ...
+
+# --- projection ---
+def project_pinhole(
+    points_cam: npt.NDArray[np.float64], f: float, invert: bool = True
+) -> npt.NDArray[np.float64]: ...
+def project_orthographic(
+    points_cam: npt.NDArray[np.float64], scale: float = 1.0
+) -> npt.NDArray[np.float64]: ...

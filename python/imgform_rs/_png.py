@@ -1,0 +1,36 @@
+"""A minimal PNG encoder (8-bit grey or RGB) on the standard library's zlib.
+
+The demo writes pictures without pulling an imaging library into the runtime
+dependencies; the raw pipeline's ``write_image`` uses a full one.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+
+def _chunk(kind: bytes, payload: bytes) -> bytes:
+    body = kind + payload
+    return struct.pack(">I", len(payload)) + body + struct.pack(">I", zlib.crc32(body))
+
+
+def write_png(path: str | Path, image: np.ndarray) -> Path:
+    """Write a uint8 (H, W) or (H, W, 3) array as a PNG file and return its path."""
+    img = np.asarray(image)
+    if img.dtype != np.uint8 or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
+        raise ValueError(f"write_png takes uint8 (H, W) or (H, W, 3), got {img.dtype} {img.shape}")
+    height, width = img.shape[:2]
+    colour_type = 2 if img.ndim == 3 else 0
+    # Each scanline starts with filter type 0 (none); zlib does the compression.
+    rows = np.ascontiguousarray(img).reshape(height, -1)
+    raw = np.hstack([np.zeros((height, 1), np.uint8), rows]).tobytes()
+    header = struct.pack(">IIBBBBB", width, height, 8, colour_type, 0, 0, 0)
+    data = b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", header)
+    data += _chunk(b"IDAT", zlib.compress(raw, 6)) + _chunk(b"IEND", b"")
+    path = Path(path)
+    path.write_bytes(data)
+    return path

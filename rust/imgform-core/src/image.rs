@@ -1,0 +1,188 @@
+//! Borrowed image views and the sample types kernels are generic over.
+
+use crate::error::{CoreError, Result};
+
+/// A pixel sample type: `u8`, `u16` or `f32`.
+///
+/// Kernels compute in `f32` and convert back once per output sample: integers
+/// are rounded half up and clamped to their type's range, floats pass through
+/// unchanged (never clipped, as CONVENTIONS.md asks).
+pub trait Sample: Copy + Send + Sync + Default + PartialEq + std::fmt::Debug + 'static {
+    /// Largest value of the type's nominal range (1.0 for floats).
+    const FULL_SCALE: f32;
+    /// The sample as `f32`.
+    fn to_f32(self) -> f32;
+    /// Rounds and clamps `v` into the type (floats: identity).
+    fn from_f32(v: f32) -> Self;
+}
+
+impl Sample for u8 {
+    const FULL_SCALE: f32 = 255.0;
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        f32::from(self)
+    }
+    #[inline(always)]
+    fn from_f32(v: f32) -> Self {
+        // `as` saturates (and maps NaN to 0), so adding 0.5 then truncating
+        // rounds half up and clamps to 0..=255 in one step.
+        (v + 0.5) as u8
+    }
+}
+
+impl Sample for u16 {
+    const FULL_SCALE: f32 = 65535.0;
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        f32::from(self)
+    }
+    #[inline(always)]
+    fn from_f32(v: f32) -> Self {
+        (v + 0.5) as u16
+    }
+}
+
+impl Sample for f32 {
+    const FULL_SCALE: f32 = 1.0;
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+    #[inline(always)]
+    fn from_f32(v: f32) -> Self {
+        v
+    }
+}
+
+/// A read-only, row-strided view of an `(height, width, channels)` image.
+#[derive(Debug, Clone, Copy)]
+pub struct ImageView<'a, T> {
+    data: &'a [T],
+    width: usize,
+    height: usize,
+    channels: usize,
+    /// Elements between the starts of two consecutive rows (>= width * channels).
+    stride: usize,
+}
+
+impl<'a, T: Copy> ImageView<'a, T> {
+    /// Wraps `data` as an image.
+    ///
+    /// # Errors
+    /// [`CoreError::Shape`] when a dimension is zero, the stride is shorter
+    /// than a row, or `data` is too short for the last row.
+    pub fn new(
+        data: &'a [T],
+        width: usize,
+        height: usize,
+        channels: usize,
+        stride: usize,
+    ) -> Result<Self> {
+        if width == 0 || height == 0 || channels == 0 {
+            return Err(CoreError::Shape(format!(
+                "image must be non-empty, got height {height}, width {width}, channels {channels}"
+            )));
+        }
+        let row = width * channels;
+        if stride < row {
+            return Err(CoreError::Shape(format!(
+                "row stride {stride} is shorter than a row of {row} samples"
+            )));
+        }
+        let needed = (height - 1) * stride + row;
+        if data.len() < needed {
+            return Err(CoreError::Shape(format!(
+                "image buffer holds {} samples, a {height}x{width}x{channels} image with stride {stride} needs {needed}",
+                data.len()
+            )));
+        }
+        Ok(Self {
+            data,
+            width,
+            height,
+            channels,
+            stride,
+        })
+    }
+
+    /// A contiguous image (stride = width * channels).
+    ///
+    /// # Errors
+    /// As [`ImageView::new`].
+    pub fn contiguous(data: &'a [T], width: usize, height: usize, channels: usize) -> Result<Self> {
+        Self::new(data, width, height, channels, width * channels)
+    }
+
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+    /// Samples in one output row (`width * channels`).
+    pub fn row_len(&self) -> usize {
+        self.width * self.channels
+    }
+
+    /// Row `y` (`width * channels` samples).
+    #[inline(always)]
+    pub fn row(&self, y: usize) -> &'a [T] {
+        let start = y * self.stride;
+        &self.data[start..start + self.width * self.channels]
+    }
+
+    /// Sample `c` of pixel `(x, y)`.
+    #[inline(always)]
+    pub fn at(&self, x: usize, y: usize, c: usize) -> T {
+        self.data[y * self.stride + x * self.channels + c]
+    }
+}
+
+/// Reflects index `i` into `0..n` about the edge samples, without repeating
+/// them (`-1 -> 1`, `n -> n - 2`): the mirror that keeps a CFA's parity and
+/// has no seam. Indices further out than one period are reflected again.
+#[inline(always)]
+pub fn mirror(i: isize, n: usize) -> usize {
+    let n = n as isize;
+    if n == 1 {
+        return 0;
+    }
+    let period = 2 * (n - 1);
+    let m = i.rem_euclid(period);
+    (if m < n { m } else { period - m }) as usize
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn integer_conversion_rounds_half_up_and_clamps() {
+        assert_eq!(u8::from_f32(-3.0), 0);
+        assert_eq!(u8::from_f32(1.49), 1);
+        assert_eq!(u8::from_f32(1.5), 2);
+        assert_eq!(u8::from_f32(300.0), 255);
+        assert_eq!(u8::from_f32(f32::NAN), 0);
+        assert_eq!(u16::from_f32(70000.0), 65535);
+        assert_eq!(f32::from_f32(-0.25), -0.25);
+    }
+
+    #[test]
+    fn mirror_reflects_without_repeating_the_edge() {
+        let got: Vec<usize> = (-3..8).map(|i| mirror(i, 5)).collect();
+        assert_eq!(got, vec![3, 2, 1, 0, 1, 2, 3, 4, 3, 2, 1]);
+        assert_eq!(mirror(-7, 1), 0);
+    }
+
+    #[test]
+    fn view_rejects_short_buffers_and_strides() {
+        let data = [0u8; 11];
+        assert!(ImageView::new(&data, 2, 2, 3, 6).is_err());
+        assert!(ImageView::new(&data, 2, 2, 3, 5).is_err());
+        assert!(ImageView::new(&data, 2, 2, 2, 6).is_ok());
+        assert!(ImageView::<u8>::contiguous(&[], 0, 1, 1).is_err());
+    }
+}

@@ -1,0 +1,21 @@
+//! Image-formation kernels over plain slices.
+//!
+//! Every public kernel takes `&[T]` / `&mut [T]` plus its dimensions, validates
+//! them, and returns [`Result`]; none of them panics on bad input. Work is
+//! spread over rayon row bands (or point chunks) whose results never depend on
+//! the number of threads. Conventions (axis order, camera frame, CFA patterns,
+//! shift sign) are those of `shared/CONVENTIONS.md`.
+
+pub mod error;
+pub mod image;
+pub mod parallel;
+
+pub mod camera;
+pub mod chromatic;
+pub mod defocus;
+pub mod distortion;
+pub mod optics;
+pub mod projection;
+pub mod remap;
+
+pub use error::{CoreError, Result};

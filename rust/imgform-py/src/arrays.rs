@@ -1,0 +1,157 @@
+//! Taking and returning NumPy arrays.
+//!
+//! The typed Python facade coerces lists and dtypes; this layer still checks
+//! everything it receives, so a direct call into `_native` gets a `TypeError`
+//! or `ValueError` too, never a panic.
+
+use std::borrow::Cow;
+
+use numpy::ndarray::{ArrayD, IxDyn};
+use numpy::{
+    Element, IntoPyArray, PyArrayDyn, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+
+/// The slice behind an array: borrowed when C-contiguous, else one
+/// standard-layout copy (never two).
+pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
+    arr: &'a numpy::PyReadonlyArray<'_, T, D>,
+) -> Cow<'a, [T]> {
+    match arr.as_slice() {
+        Ok(s) => Cow::Borrowed(s),
+        Err(_) => Cow::Owned(arr.as_array().iter().copied().collect()),
+    }
+}
+
+/// The dtype name of any object, for error messages.
+fn describe(obj: &Bound<'_, PyAny>) -> String {
+    match obj.downcast::<PyUntypedArray>() {
+        Ok(a) => format!("an array of dtype {} and shape {:?}", a.dtype(), a.shape()),
+        Err(_) => format!(
+            "an object of type {}",
+            obj.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ),
+    }
+}
+
+/// A float64 point set of shape `(N, dim)`.
+pub fn points<'py>(
+    obj: &Bound<'py, PyAny>,
+    dim: usize,
+    name: &str,
+) -> PyResult<PyReadonlyArray2<'py, f64>> {
+    let arr = obj.extract::<PyReadonlyArray2<'py, f64>>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{name} must be a float64 array of shape (N, {dim}), got {}",
+            describe(obj)
+        ))
+    })?;
+    let shape = arr.shape();
+    if shape[1] != dim {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape (N, {dim}), got {:?}",
+            shape
+        )));
+    }
+    Ok(arr)
+}
+
+/// A float64 array of exactly `shape`, as a contiguous vector.
+pub fn fixed<'py>(obj: &Bound<'py, PyAny>, shape: &[usize], name: &str) -> PyResult<Vec<f64>> {
+    let arr = obj.extract::<PyReadonlyArrayDyn<'py, f64>>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{name} must be a float64 array of shape {shape:?}, got {}",
+            describe(obj)
+        ))
+    })?;
+    if arr.shape() != shape {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape {shape:?}, got {:?}",
+            arr.shape()
+        )));
+    }
+    Ok(contiguous(&arr).into_owned())
+}
+
+/// Hands a vector to NumPy without copying, shaped `shape`.
+pub fn to_numpy<'py, T: Element>(
+    py: Python<'py>,
+    data: Vec<T>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    let arr = ArrayD::from_shape_vec(IxDyn(shape), data)
+        .map_err(|e| PyValueError::new_err(format!("internal shape mismatch: {e}")))?;
+    Ok(arr.into_pyarray(py))
+}
+
+/// An image of one of the sample types the kernels accept.
+pub enum AnyImage<'py> {
+    U8(PyReadonlyArrayDyn<'py, u8>),
+    U16(PyReadonlyArrayDyn<'py, u16>),
+    F32(PyReadonlyArrayDyn<'py, f32>),
+}
+
+impl<'py> AnyImage<'py> {
+    /// Accepts a uint8, uint16 or float32 array of shape (H, W) or (H, W, C).
+    pub fn extract(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Self> {
+        let img = if let Ok(a) = obj.extract() {
+            Self::U8(a)
+        } else if let Ok(a) = obj.extract() {
+            Self::U16(a)
+        } else if let Ok(a) = obj.extract() {
+            Self::F32(a)
+        } else {
+            return Err(PyTypeError::new_err(format!(
+                "{name} must be a uint8, uint16 or float32 array, got {}",
+                describe(obj)
+            )));
+        };
+        image_dims(img.shape(), name)?;
+        Ok(img)
+    }
+
+    pub fn shape(&self) -> &[usize] {
+        match self {
+            Self::U8(a) => a.shape(),
+            Self::U16(a) => a.shape(),
+            Self::F32(a) => a.shape(),
+        }
+    }
+}
+
+/// `(height, width, channels)` of an image shape (H, W) or (H, W, C).
+pub fn image_dims(shape: &[usize], name: &str) -> PyResult<(usize, usize, usize)> {
+    let dims = match *shape {
+        [h, w] => (h, w, 1),
+        [h, w, c] => (h, w, c),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "{name} must have shape (H, W) or (H, W, C), got {shape:?}"
+            )))
+        }
+    };
+    if dims.0 == 0 || dims.1 == 0 || dims.2 == 0 {
+        return Err(PyValueError::new_err(format!(
+            "{name} must not be empty, got shape {shape:?}"
+        )));
+    }
+    Ok(dims)
+}
+
+/// Calls the generic function `$f::<T>(array, args...)` for whichever sample
+/// type an [`AnyImage`] holds: one generic body, no per-dtype copies.
+#[macro_export]
+macro_rules! dispatch_image {
+    ($img:expr, $f:ident ( $($arg:expr),* $(,)? )) => {
+        match $img {
+            $crate::arrays::AnyImage::U8(a) => $f(a, $($arg),*),
+            $crate::arrays::AnyImage::U16(a) => $f(a, $($arg),*),
+            $crate::arrays::AnyImage::F32(a) => $f(a, $($arg),*),
+        }
+    };
+}

@@ -1,0 +1,19 @@
+//! Python bindings of `imgform-core`, loaded as `imgform_rs._native`.
+//!
+//! Bindings only: each file mirrors one core module, checks arrays, releases
+//! the GIL around the kernel and maps errors. The public, documented API is
+//! the Python package `imgform_rs`, which wraps these functions.
+
+mod arrays;
+mod errors;
+
+mod projection;
+
+use pyo3::prelude::*;
+
+#[pymodule(gil_used = false)]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    projection::register(m)?;
+    Ok(())
+}
