@@ -7,10 +7,13 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .distortion import distort_points, undistort_points
 from .projection import project_orthographic, project_pinhole
 
 __all__ = [
     "RawError",
+    "distort_points",
     "project_orthographic",
     "project_pinhole",
+    "undistort_points",
 ]

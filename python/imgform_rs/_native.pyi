@@ -13,3 +13,12 @@ def project_pinhole(
 def project_orthographic(
     points_cam: npt.NDArray[np.float64], scale: float = 1.0
 ) -> npt.NDArray[np.float64]: ...
+
+# --- distortion ---
+def remap_lens_points(
+    pts: npt.NDArray[np.float64],
+    coeffs: list[float],
+    model_name: str,
+    k: npt.NDArray[np.float64] | None = None,
+    undistort: bool = False,
+) -> tuple[npt.NDArray[np.float64], int]: ...

@@ -7,6 +7,7 @@
 mod arrays;
 mod errors;
 
+mod distortion;
 mod projection;
 
 use pyo3::prelude::*;
@@ -14,6 +15,7 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    distortion::register(m)?;
     projection::register(m)?;
     Ok(())
 }
