@@ -4,6 +4,8 @@
 import numpy as np
 import numpy.typing as npt
 
+__all__: list[str]
+
 class RawError(ValueError): ...
 
 # --- projection ---
