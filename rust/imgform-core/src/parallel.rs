@@ -50,16 +50,33 @@ pub fn map_points<F>(
 where
     F: Fn(&[f64], &mut [f64]) -> bool + Sync,
 {
+    map_points_indexed(input, in_dim, out, out_dim, |_, p, q| f(p, q))
+}
+
+/// [`map_points`] that also passes the index of each point to `f`, for
+/// kernels that read a second per-point input (a depth, a weight) beside the
+/// records of `input`.
+pub fn map_points_indexed<F>(
+    input: &[f64],
+    in_dim: usize,
+    out: &mut [f64],
+    out_dim: usize,
+    f: F,
+) -> Option<usize>
+where
+    F: Fn(usize, &[f64], &mut [f64]) -> bool + Sync,
+{
     input
         .par_chunks(in_dim * POINTS_PER_TASK)
         .zip(out.par_chunks_mut(out_dim * POINTS_PER_TASK))
         .enumerate()
         .filter_map(|(chunk, (src, dst))| {
+            let first = chunk * POINTS_PER_TASK;
             src.chunks_exact(in_dim)
                 .zip(dst.chunks_exact_mut(out_dim))
                 .enumerate()
-                .fold(None, |bad, (i, (p, q))| match (f(p, q), bad) {
-                    (false, None) => Some(chunk * POINTS_PER_TASK + i),
+                .fold(None, |bad, (i, (p, q))| match (f(first + i, p, q), bad) {
+                    (false, None) => Some(first + i),
                     _ => bad,
                 })
         })
@@ -91,5 +108,20 @@ mod tests {
         });
         assert_eq!(bad, Some(POINTS_PER_TASK + 7));
         assert_eq!(out[2 * (n - 1) + 1], -((n - 1) as f64));
+    }
+
+    #[test]
+    fn map_points_indexed_passes_the_global_index() {
+        let n = 2 * POINTS_PER_TASK + 3;
+        let input = vec![0.0; n];
+        let mut out = vec![0.0; n];
+        assert_eq!(
+            map_points_indexed(&input, 1, &mut out, 1, |i, _, q| {
+                q[0] = i as f64;
+                true
+            }),
+            None
+        );
+        assert!(out.iter().enumerate().all(|(i, &v)| v == i as f64));
     }
 }
