@@ -101,7 +101,8 @@ impl Camera {
         let bad = if self.dist.is_identity() {
             self.project_with(points, out, |x, y| Some((x, y)))
         } else {
-            self.project_with(points, out, |x, y| self.dist.distort(x, y))
+            let dist = self.dist;
+            self.project_with(points, out, move |x, y| dist.distort(x, y))
         };
         reject_non_finite(bad, "points")
     }
@@ -112,14 +113,15 @@ impl Camera {
     {
         let [r0, r1, r2, r3, r4, r5, r6, r7, r8] = self.r;
         let [t0, t1, t2] = self.t;
-        map_points(points, 3, out, 2, |p, q| {
+        let k = self.k;
+        map_points(points, 3, out, 2, move |p, q| {
             let (x, y, z) = (p[0], p[1], p[2]);
             let zc = r6 * x + r7 * y + r8 * z + t2;
             let w = if zc > 0.0 { 1.0 / zc } else { f64::NAN };
             let xn = (r0 * x + r1 * y + r2 * z + t0) * w;
             let yn = (r3 * x + r4 * y + r5 * z + t1) * w;
             let (u, v) = match lens(xn, yn) {
-                Some((xd, yd)) => self.k.to_pixel(xd, yd),
+                Some((xd, yd)) => k.to_pixel(xd, yd),
                 None => (f64::NAN, f64::NAN),
             };
             q[0] = u;
@@ -143,11 +145,12 @@ impl Camera {
             )));
         }
         reject_non_finite(depth.iter().position(|z| !z.is_finite()), "depth")?;
-        let bad = map_points_indexed(pixels, 2, out, 3, |i, p, q| {
+        let cam = *self;
+        let bad = map_points_indexed(pixels, 2, out, 3, move |i, p, q| {
             let z = if depth[i] > 0.0 { depth[i] } else { f64::NAN };
-            let world = match self.ray_camera(p[0], p[1]) {
+            let world = match cam.ray_camera(p[0], p[1]) {
                 Some([x, y, _]) => {
-                    self.rotate_back([x * z - self.t[0], y * z - self.t[1], z - self.t[2]])
+                    cam.rotate_back([x * z - cam.t[0], y * z - cam.t[1], z - cam.t[2]])
                 }
                 None => [f64::NAN; 3],
             };
@@ -165,9 +168,10 @@ impl Camera {
     /// Non-finite pixels or mismatched lengths.
     pub fn rays(&self, pixels: &[f64], out: &mut [f64]) -> Result<()> {
         check_points(pixels, 2, out, 3)?;
-        let bad = map_points(pixels, 2, out, 3, |p, q| {
-            let dir = match self.ray_camera(p[0], p[1]) {
-                Some(d) => self.rotate_back(normalized(d)),
+        let cam = *self;
+        let bad = map_points(pixels, 2, out, 3, move |p, q| {
+            let dir = match cam.ray_camera(p[0], p[1]) {
+                Some(d) => cam.rotate_back(normalized(d)),
                 None => [f64::NAN; 3],
             };
             q.copy_from_slice(&dir);
