@@ -1,6 +1,8 @@
 # Stubs of the private native module; the documented API is the package itself.
 # Checked against the built module by `make lint` (mypy.stubtest).
 
+from typing import final
+
 import numpy as np
 import numpy.typing as npt
 
@@ -26,6 +28,7 @@ def remap_lens_points(
 ) -> tuple[npt.NDArray[np.float64], int]: ...
 
 # --- camera ---
+@final
 class NativeCamera:
     def __new__(
         cls,
