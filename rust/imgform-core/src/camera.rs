@@ -35,6 +35,58 @@ const ROTATION_TOLERANCE: f64 = 1e-9;
 /// sub-pixel information; reporting "at infinity" is the honest answer.
 const PARALLEL_TOLERANCE: f64 = 1e-12;
 
+/// A lens as the batch kernels see it: the camera's [`Distortion`], or
+/// [`NoLens`] when that is the identity, so an undistorted camera's loops are
+/// compiled without any distortion code instead of paying a model evaluation
+/// (or a Newton step) per point.
+trait Lens: Copy + Sync {
+    fn distort(self, x: f64, y: f64) -> Option<(f64, f64)>;
+    fn undistort(self, x: f64, y: f64) -> Option<(f64, f64)>;
+}
+
+/// The identity lens.
+#[derive(Clone, Copy)]
+struct NoLens;
+
+impl Lens for NoLens {
+    #[inline(always)]
+    fn distort(self, x: f64, y: f64) -> Option<(f64, f64)> {
+        Some((x, y))
+    }
+
+    #[inline(always)]
+    fn undistort(self, x: f64, y: f64) -> Option<(f64, f64)> {
+        Some((x, y))
+    }
+}
+
+impl Lens for Distortion {
+    #[inline(always)]
+    fn distort(self, x: f64, y: f64) -> Option<(f64, f64)> {
+        Distortion::distort(&self, x, y)
+    }
+
+    #[inline(always)]
+    fn undistort(self, x: f64, y: f64) -> Option<(f64, f64)> {
+        Distortion::undistort(&self, x, y)
+    }
+}
+
+/// Evaluates `$body` with `$lens` bound to the camera's lens: [`NoLens`] when
+/// the distortion is the identity, else the [`Distortion`] itself. The body
+/// is compiled once for each.
+macro_rules! with_lens {
+    ($cam:expr, |$lens:ident| $body:expr) => {
+        if $cam.dist.is_identity() {
+            let $lens = NoLens;
+            $body
+        } else {
+            let $lens = $cam.dist;
+            $body
+        }
+    };
+}
+
 /// A pinhole camera with pose and lens distortion.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -96,21 +148,11 @@ impl Camera {
     /// Non-finite coordinates or mismatched lengths.
     pub fn project(&self, points: &[f64], out: &mut [f64]) -> Result<()> {
         check_points(points, 3, out, 2)?;
-        // The identity lens gets its own monomorphised loop, so an undistorted
-        // camera pays nothing for the distortion model.
-        let bad = if self.dist.is_identity() {
-            self.project_with(points, out, |x, y| Some((x, y)))
-        } else {
-            let dist = self.dist;
-            self.project_with(points, out, move |x, y| dist.distort(x, y))
-        };
+        let bad = with_lens!(self, |lens| self.project_with(lens, points, out));
         reject_non_finite(bad, "points")
     }
 
-    fn project_with<L>(&self, points: &[f64], out: &mut [f64], lens: L) -> Option<usize>
-    where
-        L: Fn(f64, f64) -> Option<(f64, f64)> + Sync,
-    {
+    fn project_with<L: Lens>(&self, lens: L, points: &[f64], out: &mut [f64]) -> Option<usize> {
         let [r0, r1, r2, r3, r4, r5, r6, r7, r8] = self.r;
         let [t0, t1, t2] = self.t;
         let k = self.k;
@@ -120,7 +162,7 @@ impl Camera {
             let w = if zc > 0.0 { 1.0 / zc } else { f64::NAN };
             let xn = (r0 * x + r1 * y + r2 * z + t0) * w;
             let yn = (r3 * x + r4 * y + r5 * z + t1) * w;
-            let (u, v) = match lens(xn, yn) {
+            let (u, v) = match lens.distort(xn, yn) {
                 Some((xd, yd)) => k.to_pixel(xd, yd),
                 None => (f64::NAN, f64::NAN),
             };
@@ -145,10 +187,21 @@ impl Camera {
             )));
         }
         reject_non_finite(depth.iter().position(|z| !z.is_finite()), "depth")?;
+        let bad = with_lens!(self, |lens| self.unproject_with(lens, pixels, depth, out));
+        reject_non_finite(bad, "pixels")
+    }
+
+    fn unproject_with<L: Lens>(
+        &self,
+        lens: L,
+        pixels: &[f64],
+        depth: &[f64],
+        out: &mut [f64],
+    ) -> Option<usize> {
         let cam = *self;
-        let bad = map_points_indexed(pixels, 2, out, 3, move |i, p, q| {
+        map_points_indexed(pixels, 2, out, 3, move |i, p, q| {
             let z = if depth[i] > 0.0 { depth[i] } else { f64::NAN };
-            let world = match cam.ray_camera(p[0], p[1]) {
+            let world = match cam.ray_camera(lens, p[0], p[1]) {
                 Some([x, y, _]) => {
                     cam.rotate_back([x * z - cam.t[0], y * z - cam.t[1], z - cam.t[2]])
                 }
@@ -156,8 +209,7 @@ impl Camera {
             };
             q.copy_from_slice(&world);
             p[0].is_finite() & p[1].is_finite()
-        });
-        reject_non_finite(bad, "pixels")
+        })
     }
 
     /// Unit world directions `out` `(N, 3)` of the rays through pixels
@@ -168,16 +220,20 @@ impl Camera {
     /// Non-finite pixels or mismatched lengths.
     pub fn rays(&self, pixels: &[f64], out: &mut [f64]) -> Result<()> {
         check_points(pixels, 2, out, 3)?;
+        let bad = with_lens!(self, |lens| self.rays_with(lens, pixels, out));
+        reject_non_finite(bad, "pixels")
+    }
+
+    fn rays_with<L: Lens>(&self, lens: L, pixels: &[f64], out: &mut [f64]) -> Option<usize> {
         let cam = *self;
-        let bad = map_points(pixels, 2, out, 3, move |p, q| {
-            let dir = match cam.ray_camera(p[0], p[1]) {
+        map_points(pixels, 2, out, 3, move |p, q| {
+            let dir = match cam.ray_camera(lens, p[0], p[1]) {
                 Some(d) => cam.rotate_back(normalized(d)),
                 None => [f64::NAN; 3],
             };
             q.copy_from_slice(&dir);
             p[0].is_finite() & p[1].is_finite()
-        });
-        reject_non_finite(bad, "pixels")
+        })
     }
 
     /// Horizontal, vertical and diagonal field of view (radians) of a
@@ -199,8 +255,8 @@ impl Camera {
         let (right, bottom) = (width as f64 - 0.5, height as f64 - 0.5);
         let (cx, cy) = (self.k.cx, self.k.cy);
         let angle = |a: (f64, f64), b: (f64, f64)| match (
-            self.ray_camera(a.0, a.1),
-            self.ray_camera(b.0, b.1),
+            self.ray_camera(self.dist, a.0, a.1),
+            self.ray_camera(self.dist, b.0, b.1),
         ) {
             (Some(p), Some(q)) => angle_between(p, q),
             _ => f64::NAN,
@@ -282,10 +338,10 @@ impl Camera {
     }
 
     /// The undistorted camera-frame ray `(x, y, 1)` through pixel `(u, v)`.
-    #[inline]
-    fn ray_camera(&self, u: f64, v: f64) -> Option<[f64; 3]> {
+    #[inline(always)]
+    fn ray_camera<L: Lens>(&self, lens: L, u: f64, v: f64) -> Option<[f64; 3]> {
         let (xd, yd) = self.k.to_normalized(u, v);
-        let (x, y) = self.dist.undistort(xd, yd)?;
+        let (x, y) = lens.undistort(xd, yd)?;
         Some([x, y, 1.0])
     }
 
