@@ -268,6 +268,20 @@ def test_opencv_shaped_parameters_are_accepted():
         cam.K[0, 0] = 2.0
 
 
+def test_camera_pickles_and_reprs():
+    import pickle
+
+    cam = ig.Camera.from_fov(1.2, (480, 640), dist=[0.5], model="division").look_at(
+        [1.0, 2.0, 3.0], [0.0, 0.0, 9.0]
+    )
+    back = pickle.loads(pickle.dumps(cam))
+    for name in ("K", "R", "t", "dist"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(cam, name))
+    assert (back.model, back.image_size) == ("division", (480, 640))
+    np.testing.assert_array_equal(back.project([0.0, 0.0, 9.0]), cam.project([0.0, 0.0, 9.0]))
+    assert repr(cam).startswith("Camera(fx=") and "model='division'" in repr(cam)
+
+
 def test_results_do_not_depend_on_the_thread_count():
     code = """
         import sys

@@ -418,6 +418,11 @@ class Camera:
         R, t = look_at(eye, target, up)
         return Camera(self._K, R, t, self._dist, model=self._model, image_size=self._image_size)
 
+    def __reduce__(self):
+        # The native object cannot be pickled; rebuilding from the parameters
+        # re-validates them and works across processes (multiprocessing).
+        return _rebuild, (self._K, self._R, self._t, self._dist, self._model, self._image_size)
+
     def __repr__(self) -> str:
         fx, fy, cx, cy = self._K[0, 0], self._K[1, 1], self._K[0, 2], self._K[1, 2]
         return (
@@ -425,6 +430,10 @@ class Camera:
             f"center={self.center.tolist()}, dist={self._dist.tolist()}, "
             f"model={self._model!r}, image_size={self._image_size})"
         )
+
+
+def _rebuild(K, R, t, dist, model, image_size) -> Camera:
+    return Camera(K, R, t, dist, model=model, image_size=image_size)
 
 
 def vanishing_point(camera: Camera, direction: Any) -> VanishingPoint:
