@@ -1,6 +1,8 @@
 # Stubs of the private native module; the documented API is the package itself.
 # Checked against the built module by `make lint` (mypy.stubtest).
 
+from typing import final
+
 import numpy as np
 import numpy.typing as npt
 
@@ -24,3 +26,28 @@ def remap_lens_points(
     k: npt.NDArray[np.float64] | None = None,
     undistort: bool = False,
 ) -> tuple[npt.NDArray[np.float64], int]: ...
+
+# --- camera ---
+@final
+class NativeCamera:
+    def __new__(
+        cls,
+        k: npt.NDArray[np.float64],
+        r: npt.NDArray[np.float64],
+        t: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+    ) -> NativeCamera: ...
+    def project(self, points_world: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def unproject(
+        self, pixels: npt.NDArray[np.float64], depth: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]: ...
+    def rays(self, pixels: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def fov(self, width: int, height: int) -> tuple[float, float, float]: ...
+    def center(self) -> tuple[float, float, float]: ...
+    def vanishing_point(
+        self, direction: npt.NDArray[np.float64]
+    ) -> tuple[tuple[float, float], tuple[float, float, float], bool]: ...
+    def vanishing_line(
+        self, plane_normal: npt.NDArray[np.float64]
+    ) -> tuple[float, float, float]: ...
