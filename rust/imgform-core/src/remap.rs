@@ -83,31 +83,75 @@ fn keys_weights(t: f32) -> [f32; 4] {
     [far(t), near(t), near(1.0 - t), far(1.0 - t)]
 }
 
-/// Source positions of output pixels.
-pub trait Coords: Sync {
-    /// Where output pixel `(x, y)` is read from, in source pixels (NaN: nowhere).
-    fn at(&self, x: usize, y: usize) -> (f32, f32);
+/// Fractional bits of a stored position: 1/256 px. Finer than OpenCV's
+/// 1/32 px fixed-point maps; the rounding error (<= 1/512 px) moves a u8 edge
+/// of full contrast by at most half a grey level.
+pub const FRAC_BITS: u32 = 8;
+const ONE: f64 = (1 << FRAC_BITS) as f64;
+/// Weight tables have one entry per representable fraction.
+const STEPS: usize = 1 << FRAC_BITS;
+const FRAC_MASK: i32 = (1 << FRAC_BITS) - 1;
+
+/// Positions are clamped to ±2^22 px so they fit an `i32` with [`FRAC_BITS`]
+/// fractional bits; images are limited to that size per side.
+pub const MAX_SIDE: usize = 1 << 22;
+
+/// The stored form of "no source" (a NaN position).
+const NOWHERE: i32 = i32::MIN;
+
+/// A position in pixels to fixed point, rounded half up; NaN to [`NOWHERE`].
+#[inline(always)]
+pub(crate) fn to_fixed(v: f64) -> i32 {
+    if v.is_nan() {
+        return NOWHERE;
+    }
+    // Shifted positive so that truncation is floor (`f64::floor` is a libm
+    // call on baseline x86-64); the clamp keeps infinities in range too.
+    let limit = MAX_SIDE as f64;
+    let shifted = (v.clamp(-limit, limit) + limit) * ONE + 0.5;
+    (shifted as i64 - (MAX_SIDE as i64) * (STEPS as i64)) as i32
 }
 
-/// A dense map of source positions, one `(x, y)` pair per output pixel,
-/// stored interleaved so that one output row reads one contiguous run.
+/// A fixed-point position back to pixels (NaN for [`NOWHERE`]).
+fn from_fixed(v: i32) -> f32 {
+    if v == NOWHERE {
+        f32::NAN
+    } else {
+        (f64::from(v) / ONE) as f32
+    }
+}
+
+/// Source positions of output pixels, in fixed point with [`FRAC_BITS`]
+/// fractional bits (see [`RemapMap`]).
+pub trait Coords: Sync {
+    /// Where output pixel `(x, y)` is read from; `x == i32::MIN` for nowhere.
+    fn at(&self, x: usize, y: usize) -> (i32, i32);
+}
+
+/// A dense map of source positions, one `(x, y)` pair per output pixel.
 ///
 /// Built once per camera and image size, it makes every further frame a pure
-/// resampling pass: the lens model is never evaluated again.
+/// resampling pass: the lens model is never evaluated again. Positions are
+/// stored interleaved (one output row reads one contiguous run) as `i32` in
+/// fixed point with [`FRAC_BITS`] fractional bits: the same 8 bytes per pixel
+/// as two `f32` planes, but each frame then splits a position into its tap
+/// index and weight-table entry with a shift and a mask instead of float
+/// rounding and conversion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RemapMap {
     width: usize,
     height: usize,
-    xy: Vec<f32>,
+    xy: Vec<i32>,
 }
 
 impl RemapMap {
-    /// Wraps interleaved `(x, y)` positions for a `height x width` output.
+    /// A map for a `height x width` output from `(x, y)` positions in
+    /// pixels, interleaved; NaN marks pixels without a source.
     ///
     /// # Errors
     /// [`CoreError::Shape`] when the size is zero or `xy` does not hold
     /// `2 * width * height` values.
-    pub fn from_interleaved(xy: Vec<f32>, width: usize, height: usize) -> Result<Self> {
+    pub fn from_interleaved(xy: &[f32], width: usize, height: usize) -> Result<Self> {
         check_size(width, height)?;
         if xy.len() != 2 * width * height {
             return Err(CoreError::Shape(format!(
@@ -116,10 +160,13 @@ impl RemapMap {
                 xy.len()
             )));
         }
-        Ok(Self { width, height, xy })
+        Self::from_fn(width, height, |u, v| {
+            let i = 2 * (v * width + u);
+            (f64::from(xy[i]), f64::from(xy[i + 1]))
+        })
     }
 
-    /// Joins separate `map_x` and `map_y` planes (OpenCV's layout).
+    /// Joins separate `map_x` and `map_y` planes (OpenCV's float layout).
     ///
     /// # Errors
     /// [`CoreError::Shape`] when the size is zero or a plane's length is not
@@ -134,12 +181,10 @@ impl RemapMap {
                 map_y.len()
             )));
         }
-        let xy = map_x
-            .iter()
-            .zip(map_y)
-            .flat_map(|(&x, &y)| [x, y])
-            .collect();
-        Ok(Self { width, height, xy })
+        Self::from_fn(width, height, |u, v| {
+            let i = v * width + u;
+            (f64::from(map_x[i]), f64::from(map_y[i]))
+        })
     }
 
     /// The map that undistorts: output pixel `(u, v)` is an ideal pinhole
@@ -158,8 +203,9 @@ impl RemapMap {
         height: usize,
     ) -> Result<Self> {
         Self::from_fn(width, height, |u, v| {
-            let (x, y) = new_k.to_normalized(u, v);
-            dist.distort(x, y).map(|(xd, yd)| k.to_pixel(xd, yd))
+            let (x, y) = new_k.to_normalized(u as f64, v as f64);
+            dist.distort(x, y)
+                .map_or((f64::NAN, f64::NAN), |(xd, yd)| k.to_pixel(xd, yd))
         })
     }
 
@@ -178,24 +224,28 @@ impl RemapMap {
         height: usize,
     ) -> Result<Self> {
         Self::from_fn(width, height, |u, v| {
-            let (xd, yd) = k.to_normalized(u, v);
-            dist.undistort(xd, yd).map(|(x, y)| new_k.to_pixel(x, y))
+            let (xd, yd) = k.to_normalized(u as f64, v as f64);
+            dist.undistort(xd, yd)
+                .map_or((f64::NAN, f64::NAN), |(x, y)| new_k.to_pixel(x, y))
         })
     }
 
-    /// Evaluates `source(u, v)` in f64 for every output pixel, in parallel
-    /// over rows; `None` becomes NaN.
+    /// Evaluates `source(u, v)` (in pixels, NaN for none) for every output
+    /// pixel, in parallel over rows.
     fn from_fn<F>(width: usize, height: usize, source: F) -> Result<Self>
     where
-        F: Fn(f64, f64) -> Option<(f64, f64)> + Sync,
+        F: Fn(usize, usize) -> (f64, f64) + Sync,
     {
         check_size(width, height)?;
-        let mut xy = vec![0.0f32; 2 * width * height];
+        let mut xy = vec![0i32; 2 * width * height];
         for_each_row(&mut xy, 2 * width, |v, row| {
             for (u, out) in row.chunks_exact_mut(2).enumerate() {
-                let (x, y) = source(u as f64, v as f64).unwrap_or((f64::NAN, f64::NAN));
-                out[0] = x as f32;
-                out[1] = y as f32;
+                let (x, y) = source(u, v);
+                let (fx, fy) = (to_fixed(x), to_fixed(y));
+                // One NaN coordinate leaves the pixel without a source.
+                let none = fx == NOWHERE || fy == NOWHERE;
+                out[0] = if none { NOWHERE } else { fx };
+                out[1] = fy;
             }
         });
         Ok(Self { width, height, xy })
@@ -207,15 +257,27 @@ impl RemapMap {
     pub fn height(&self) -> usize {
         self.height
     }
-    /// The interleaved `(x, y)` positions, row by row.
-    pub fn interleaved(&self) -> &[f32] {
-        &self.xy
+
+    /// The positions as OpenCV's two float planes `(map_x, map_y)`, each
+    /// `height * width` long, NaN where there is no source. Values are the
+    /// stored ones, i.e. rounded to 1/256 px.
+    pub fn planes(&self) -> (Vec<f32>, Vec<f32>) {
+        self.xy
+            .chunks_exact(2)
+            .map(|p| {
+                if p[0] == NOWHERE {
+                    (f32::NAN, f32::NAN)
+                } else {
+                    (from_fixed(p[0]), from_fixed(p[1]))
+                }
+            })
+            .unzip()
     }
 }
 
 impl Coords for RemapMap {
     #[inline(always)]
-    fn at(&self, x: usize, y: usize) -> (f32, f32) {
+    fn at(&self, x: usize, y: usize) -> (i32, i32) {
         let i = 2 * (y * self.width + x);
         (self.xy[i], self.xy[i + 1])
     }
@@ -306,6 +368,13 @@ pub(crate) fn resample<T: Sample, S: Coords>(
             src.channels()
         )));
     }
+    if src.width() > MAX_SIDE || src.height() > MAX_SIDE {
+        return Err(CoreError::Shape(format!(
+            "images are limited to {MAX_SIDE} pixels per side, got {}x{}",
+            src.height(),
+            src.width()
+        )));
+    }
     let job = Job {
         src,
         coords,
@@ -328,59 +397,70 @@ struct Job<'a, T, S> {
 }
 
 impl<T: Sample, S: Coords> Job<'_, T, S> {
-    /// Picks a kernel specialised for the number of sampled channels, so the
-    /// common 1, 3 and 4 get fully unrolled inner loops.
-    fn run<const TAPS: usize, W>(&self, out: &mut [T], row_len: usize, weights: W)
-    where
-        W: Fn(f32) -> [f32; TAPS] + Sync + Copy,
-    {
-        match self.channels.len() {
-            1 => self.rows::<TAPS, 1, W>(out, row_len, weights),
-            3 => self.rows::<TAPS, 3, W>(out, row_len, weights),
-            4 => self.rows::<TAPS, 4, W>(out, row_len, weights),
-            _ => self.rows::<TAPS, 0, W>(out, row_len, weights),
+    /// Tabulates the kernel's weights for every representable fraction, then
+    /// picks a loop specialised for the channel layout, so the common ones
+    /// (1, 3 or 4 channels remapped together; one of 3 for chromatic
+    /// aberration) get fully unrolled inner loops.
+    fn run<const TAPS: usize>(
+        &self,
+        out: &mut [T],
+        row_len: usize,
+        weights: fn(f32) -> [f32; TAPS],
+    ) {
+        // k / 256 is exact in f32, so entry 0 is exactly the identity's weights.
+        let table: [[f32; TAPS]; STEPS] = std::array::from_fn(|k| weights(k as f32 / ONE as f32));
+        match (self.src.channels(), self.channels.len()) {
+            (1, 1) => self.rows::<TAPS, 1, 1>(out, row_len, &table),
+            (3, 3) => self.rows::<TAPS, 3, 3>(out, row_len, &table),
+            (4, 4) => self.rows::<TAPS, 4, 4>(out, row_len, &table),
+            (3, 1) => self.rows::<TAPS, 3, 1>(out, row_len, &table),
+            _ => self.rows::<TAPS, 0, 0>(out, row_len, &table),
         }
     }
 
-    /// All output rows in parallel. `N` is the number of channels sampled,
-    /// or 0 for "as many as `self.channels` says" (the unspecialised case).
-    fn rows<const TAPS: usize, const N: usize, W>(&self, out: &mut [T], row_len: usize, weights: W)
-    where
-        W: Fn(f32) -> [f32; TAPS] + Sync + Copy,
-    {
+    /// All output rows in parallel. `NC` is the image's channel count and `N`
+    /// the number of channels sampled; 0 means "read it at run time" (the
+    /// unspecialised case).
+    fn rows<const TAPS: usize, const NC: usize, const N: usize>(
+        &self,
+        out: &mut [T],
+        row_len: usize,
+        table: &[[f32; TAPS]; STEPS],
+    ) {
+        let nc = if NC > 0 { NC } else { self.src.channels() };
         let n = if N > 0 { N } else { self.channels.len() };
         let c0 = self.channels.start;
-        let nc = self.src.channels();
-        let (w, h) = (self.src.width() as isize, self.src.height() as isize);
+        // Both fit i32: sides are at most MAX_SIDE.
+        let (w, h) = (self.src.width() as i32, self.src.height() as i32);
+        let taps = TAPS as i32;
         // Offset of the first tap from floor(position): 0 for 2 taps, -1 for 4.
-        let lead = (TAPS / 2 - 1) as isize;
-        // Positions further out than this touch no tap; the test also rejects NaN.
-        let reach = TAPS as f32;
-        let (x_lo, x_hi) = (-reach, w as f32 + reach);
-        let (y_lo, y_hi) = (-reach, h as f32 + reach);
+        let lead = taps / 2 - 1;
+        let fill = T::from_f32(self.fill);
         for_each_row(out, row_len, |y, row| {
             for (x, px) in row.chunks_exact_mut(nc).enumerate() {
                 let px = &mut px[c0..c0 + n];
                 let (sx, sy) = self.coords.at(x, y);
-                if !(sx > x_lo && sx < x_hi && sy > y_lo && sy < y_hi) {
-                    px.iter_mut().for_each(|p| *p = T::from_f32(self.fill));
+                // The arithmetic shift is floor; NOWHERE lands far outside.
+                let (ix, iy) = ((sx >> FRAC_BITS) - lead, (sy >> FRAC_BITS) - lead);
+                if ix <= -taps || iy <= -taps || ix >= w || iy >= h {
+                    // No tap touches the image.
+                    px.fill(fill);
                     continue;
                 }
-                let (fx, fy) = (floor(sx), floor(sy));
-                let (wx, wy) = (weights(sx - fx as f32), weights(sy - fy as f32));
-                let (ix, iy) = (fx as isize - lead, fy as isize - lead);
-                if ix >= 0 && iy >= 0 && ix + TAPS as isize <= w && iy + TAPS as isize <= h {
+                let wx = &table[(sx & FRAC_MASK) as usize];
+                let wy = &table[(sy & FRAC_MASK) as usize];
+                if ix >= 0 && iy >= 0 && ix + taps <= w && iy + taps <= h {
                     let (ix, iy) = (ix as usize, iy as usize);
+                    let rows: [&[T]; TAPS] = std::array::from_fn(|j| {
+                        &self.src.row(iy + j)[ix * nc + c0..(ix + TAPS) * nc]
+                    });
                     for (c, p) in px.iter_mut().enumerate() {
-                        let base = ix * nc + c0 + c;
-                        *p = T::from_f32(convolve(&wx, &wy, |i, j| {
-                            self.src.row(iy + j)[base + i * nc].to_f32()
-                        }));
+                        *p = T::from_f32(convolve(wx, wy, |i, j| rows[j][i * nc + c].to_f32()));
                     }
                 } else {
                     for (c, p) in px.iter_mut().enumerate() {
-                        *p = T::from_f32(convolve(&wx, &wy, |i, j| {
-                            let (tx, ty) = (ix + i as isize, iy + j as isize);
+                        *p = T::from_f32(convolve(wx, wy, |i, j| {
+                            let (tx, ty) = (ix + i as i32, iy + j as i32);
                             if tx >= 0 && ty >= 0 && tx < w && ty < h {
                                 self.src.at(tx as usize, ty as usize, c0 + c).to_f32()
                             } else {
@@ -392,14 +472,6 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
             }
         });
     }
-}
-
-/// `floor` by truncation: `f32::floor` is a libm call on baseline x86-64
-/// (no SSE4.1), and positions here are already known to be in range.
-#[inline(always)]
-fn floor(v: f32) -> i32 {
-    let t = v as i32;
-    t - i32::from((t as f32) > v)
 }
 
 /// `Σ_j wy[j] Σ_i wx[i] tap(i, j)`: the separable tensor-product sample.
@@ -430,9 +502,9 @@ mod tests {
 
     fn identity(w: usize, h: usize) -> RemapMap {
         RemapMap::from_interleaved(
-            (0..h)
+            &(0..h)
                 .flat_map(|y| (0..w).flat_map(move |x| [x as f32, y as f32]))
-                .collect(),
+                .collect::<Vec<f32>>(),
             w,
             h,
         )
@@ -471,7 +543,7 @@ mod tests {
         let img = [10u8, 20, 30];
         let view = ImageView::contiguous(&img, 3, 1, 1).unwrap();
         let map = RemapMap::from_interleaved(
-            vec![0.5, 0.0, 2.5, 0.0, -0.5, 0.0, f32::NAN, 0.0, 1e30, 0.0],
+            &[0.5, 0.0, 2.5, 0.0, -0.5, 0.0, f32::NAN, 0.0, 1e30, 0.0],
             5,
             1,
         )
@@ -487,14 +559,14 @@ mod tests {
         // Keys a = -0.5 is exact on quadratics away from the border.
         let img: Vec<f32> = (0..12).map(|x| (x * x) as f32).collect();
         let view = ImageView::contiguous(&img, 12, 1, 1).unwrap();
-        let map = RemapMap::from_interleaved(vec![5.25, 0.0], 1, 1).unwrap();
+        let map = RemapMap::from_interleaved(&[5.25, 0.0], 1, 1).unwrap();
         let mut out = [0f32; 1];
         remap(&view, &map, Interpolation::Bicubic, 0.0, &mut out).unwrap();
         assert!((out[0] - 5.25 * 5.25).abs() < 1e-4, "{}", out[0]);
         // A step 0 -> 255 overshoots past 255 just after the edge; u8 clamps it.
         let step = [0u8, 0, 0, 255, 255, 255, 255];
         let view = ImageView::contiguous(&step, 7, 1, 1).unwrap();
-        let map = RemapMap::from_interleaved(vec![3.25, 0.0, 2.75, 0.0], 2, 1).unwrap();
+        let map = RemapMap::from_interleaved(&[3.25, 0.0, 2.75, 0.0], 2, 1).unwrap();
         let mut out = [0u8; 2];
         remap(&view, &map, Interpolation::Bicubic, 0.0, &mut out).unwrap();
         assert_eq!(out[0], 255);
@@ -513,20 +585,29 @@ mod tests {
         let und = RemapMap::undistort(&k, &dist, &k, 64, 48).unwrap();
         let dis = RemapMap::distort(&k, &dist, &k, 64, 48).unwrap();
         // distort map at the undistort map's source lands back on the output pixel.
-        let (sx, sy) = und.at(10, 7);
-        let (bx, by) = dis.at(sx.round() as usize, sy.round() as usize);
-        assert!(
-            (bx - 10.0).abs() < 1.0 && (by - 7.0).abs() < 1.0,
-            "{bx} {by}"
-        );
-        let (cx, cy) = und.at(31, 23);
-        assert!((cx - 31.0).abs() < 0.01 && (cy - 23.0).abs() < 0.01);
+        let ((ux, uy), (dx, dy)) = (und.planes(), dis.planes());
+        let i = 7 * 64 + 10;
+        let j = uy[i].round() as usize * 64 + ux[i].round() as usize;
+        assert!((dx[j] - 10.0).abs() < 1.0 && (dy[j] - 7.0).abs() < 1.0);
+        let c = 23 * 64 + 31;
+        assert!((ux[c] - 31.0).abs() < 0.01 && (uy[c] - 23.0).abs() < 0.01);
+    }
+
+    #[test]
+    fn fixed_point_rounds_half_up_and_keeps_nan() {
+        assert_eq!(to_fixed(1.5), 384);
+        assert_eq!(to_fixed(-0.5 / 256.0), 0);
+        assert_eq!(to_fixed(-1.0 / 256.0), -1);
+        assert_eq!(to_fixed(f64::NAN), NOWHERE);
+        assert_eq!(to_fixed(f64::INFINITY), (MAX_SIDE * STEPS) as i32);
+        assert!(from_fixed(NOWHERE).is_nan());
+        assert_eq!(from_fixed(-384), -1.5);
     }
 
     #[test]
     fn bad_arguments_are_refused() {
         assert!(Interpolation::from_name("nearest").is_err());
-        assert!(RemapMap::from_interleaved(vec![0.0; 5], 2, 1).is_err());
+        assert!(RemapMap::from_interleaved(&[0.0; 5], 2, 1).is_err());
         assert!(RemapMap::from_planes(&[0.0; 2], &[0.0; 3], 2, 1).is_err());
         assert!(check_fill::<u8>(0.5).is_err());
         assert!(check_fill::<u8>(256.0).is_err());

@@ -7,15 +7,19 @@
 mod arrays;
 mod errors;
 
+mod chromatic;
 mod distortion;
 mod projection;
+mod remap;
 
 use pyo3::prelude::*;
 
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    chromatic::register(m)?;
     distortion::register(m)?;
     projection::register(m)?;
+    remap::register(m)?;
     Ok(())
 }
