@@ -7,13 +7,30 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .chromatic import add_lateral_ca, correct_lateral_ca
 from .distortion import distort_points, undistort_points
 from .projection import project_orthographic, project_pinhole
+from .remap import (
+    RemapMap,
+    distort_image,
+    distort_map,
+    remap,
+    undistort_image,
+    undistort_map,
+)
 
 __all__ = [
     "RawError",
+    "RemapMap",
+    "add_lateral_ca",
+    "correct_lateral_ca",
+    "distort_image",
+    "distort_map",
     "distort_points",
     "project_orthographic",
     "project_pinhole",
+    "remap",
+    "undistort_image",
+    "undistort_map",
     "undistort_points",
 ]

@@ -7,7 +7,7 @@ use numpy::{Element, PyArrayDyn, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntyped
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, image_dims, to_numpy, AnyImage};
+use crate::arrays::{contiguous, describe, image_dims, to_numpy, AnyImage};
 use crate::dispatch_image;
 use crate::distortion::{intrinsics, model};
 use crate::errors::{detached, to_pyerr};
@@ -24,7 +24,7 @@ fn plane<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<PyReadonlyArray2<
     obj.extract().map_err(|_| {
         PyTypeError::new_err(format!(
             "{name} must be a float32 array of shape (H, W), got {}",
-            obj.repr().map(|r| r.to_string()).unwrap_or_default()
+            describe(obj)
         ))
     })
 }
