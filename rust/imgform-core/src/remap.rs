@@ -409,27 +409,31 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
     ) {
         // k / 256 is exact in f32, so entry 0 is exactly the identity's weights.
         let table: [[f32; TAPS]; STEPS] = std::array::from_fn(|k| weights(k as f32 / ONE as f32));
+        let c0 = self.channels.start;
         match (self.src.channels(), self.channels.len()) {
-            (1, 1) => self.rows::<TAPS, 1, 1>(out, row_len, &table),
-            (3, 3) => self.rows::<TAPS, 3, 3>(out, row_len, &table),
-            (4, 4) => self.rows::<TAPS, 4, 4>(out, row_len, &table),
-            (3, 1) => self.rows::<TAPS, 3, 1>(out, row_len, &table),
-            _ => self.rows::<TAPS, 0, 0>(out, row_len, &table),
+            (1, 1) => self.rows::<TAPS, 1, 1>(out, row_len, &table, c0),
+            (3, 3) => self.rows::<TAPS, 3, 3>(out, row_len, &table, c0),
+            (4, 4) => self.rows::<TAPS, 4, 4>(out, row_len, &table, c0),
+            (3, 1) => self.rows::<TAPS, 3, 1>(out, row_len, &table, c0),
+            // Other layouts: one channel per pass.
+            _ => {
+                for c in self.channels.clone() {
+                    self.rows::<TAPS, 0, 1>(out, row_len, &table, c);
+                }
+            }
         }
     }
 
-    /// All output rows in parallel. `NC` is the image's channel count and `N`
-    /// the number of channels sampled; 0 means "read it at run time" (the
-    /// unspecialised case).
+    /// All output rows in parallel, sampling channels `c0..c0 + N`. `NC` is
+    /// the image's channel count, 0 for "read it at run time".
     fn rows<const TAPS: usize, const NC: usize, const N: usize>(
         &self,
         out: &mut [T],
         row_len: usize,
         table: &[[f32; TAPS]; STEPS],
+        c0: usize,
     ) {
         let nc = if NC > 0 { NC } else { self.src.channels() };
-        let n = if N > 0 { N } else { self.channels.len() };
-        let c0 = self.channels.start;
         // Both fit i32: sides are at most MAX_SIDE.
         let (w, h) = (self.src.width() as i32, self.src.height() as i32);
         let taps = TAPS as i32;
@@ -438,7 +442,7 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
         let fill = T::from_f32(self.fill);
         for_each_row(out, row_len, |y, row| {
             for (x, px) in row.chunks_exact_mut(nc).enumerate() {
-                let px = &mut px[c0..c0 + n];
+                let px = &mut px[c0..c0 + N];
                 let (sx, sy) = self.coords.at(x, y);
                 // The arithmetic shift is floor; NOWHERE lands far outside.
                 let (ix, iy) = ((sx >> FRAC_BITS) - lead, (sy >> FRAC_BITS) - lead);
@@ -449,45 +453,54 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
                 }
                 let wx = &table[(sx & FRAC_MASK) as usize];
                 let wy = &table[(sy & FRAC_MASK) as usize];
-                if ix >= 0 && iy >= 0 && ix + taps <= w && iy + taps <= h {
+                let value = if ix >= 0 && iy >= 0 && ix + taps <= w && iy + taps <= h {
                     let (ix, iy) = (ix as usize, iy as usize);
-                    let rows: [&[T]; TAPS] = std::array::from_fn(|j| {
-                        &self.src.row(iy + j)[ix * nc + c0..(ix + TAPS) * nc]
-                    });
-                    for (c, p) in px.iter_mut().enumerate() {
-                        *p = T::from_f32(convolve(wx, wy, |i, j| rows[j][i * nc + c].to_f32()));
-                    }
+                    let rows: [&[T]; TAPS] =
+                        std::array::from_fn(|j| &self.src.row(iy + j)[ix * nc + c0..]);
+                    convolve::<TAPS, N>(wx, wy, |i, j| {
+                        let tap = &rows[j][i * nc..i * nc + N];
+                        std::array::from_fn(|c| tap[c].to_f32())
+                    })
                 } else {
-                    for (c, p) in px.iter_mut().enumerate() {
-                        *p = T::from_f32(convolve(wx, wy, |i, j| {
-                            let (tx, ty) = (ix + i as i32, iy + j as i32);
+                    convolve::<TAPS, N>(wx, wy, |i, j| {
+                        let (tx, ty) = (ix + i as i32, iy + j as i32);
+                        std::array::from_fn(|c| {
                             if tx >= 0 && ty >= 0 && tx < w && ty < h {
                                 self.src.at(tx as usize, ty as usize, c0 + c).to_f32()
                             } else {
                                 self.fill
                             }
-                        }));
-                    }
+                        })
+                    })
+                };
+                for (p, v) in px.iter_mut().zip(value) {
+                    *p = T::from_f32(v);
                 }
             }
         });
     }
 }
 
-/// `Σ_j wy[j] Σ_i wx[i] tap(i, j)`: the separable tensor-product sample.
+/// `Σ_j wy[j] Σ_i wx[i] tap(i, j)` for `N` channels at once: the separable
+/// tensor-product sample. Channels are the innermost loop so that their
+/// arithmetic maps onto one SIMD register.
 #[inline(always)]
-fn convolve<const TAPS: usize>(
+fn convolve<const TAPS: usize, const N: usize>(
     wx: &[f32; TAPS],
     wy: &[f32; TAPS],
-    tap: impl Fn(usize, usize) -> f32,
-) -> f32 {
-    let mut acc = 0.0;
+    tap: impl Fn(usize, usize) -> [f32; N],
+) -> [f32; N] {
+    let mut acc = [0.0; N];
     for (j, &b) in wy.iter().enumerate() {
-        let mut line = 0.0;
+        let mut line = [0.0; N];
         for (i, &a) in wx.iter().enumerate() {
-            line += a * tap(i, j);
+            for (l, v) in line.iter_mut().zip(tap(i, j)) {
+                *l += a * v;
+            }
         }
-        acc += b * line;
+        for (s, l) in acc.iter_mut().zip(line) {
+            *s += b * l;
+        }
     }
     acc
 }
