@@ -10,9 +10,9 @@
 //! (taps outside the image read `fill`) and rounding.
 
 use crate::error::{finite, positive, CoreError, Result};
-use crate::image::{ImageView, Sample};
+use crate::image::ImageView;
 use crate::parallel::for_each_row;
-use crate::remap::{check_fill, resample, to_fixed, Coords, Interpolation};
+use crate::remap::{check_fill, resample, to_fixed, Coords, Interpolation, Resample};
 
 /// Magnification by `factor` about `(cx, cy)`: output pixel `p` reads the
 /// source at `c + (p - c) / factor`.
@@ -48,7 +48,7 @@ impl LateralCa {
     ///
     /// # Errors
     /// See [`LateralCa::apply`].
-    pub fn add<T: Sample>(
+    pub fn add<T: Resample>(
         &self,
         src: &ImageView<T>,
         interpolation: Interpolation,
@@ -63,7 +63,7 @@ impl LateralCa {
     ///
     /// # Errors
     /// See [`LateralCa::apply`].
-    pub fn correct<T: Sample>(
+    pub fn correct<T: Resample>(
         &self,
         src: &ImageView<T>,
         interpolation: Interpolation,
@@ -80,7 +80,7 @@ impl LateralCa {
     /// A scale that is not finite and positive, a non-finite centre, an
     /// image without exactly 3 channels, a `fill` the sample type cannot
     /// hold, or `out` of the wrong length.
-    pub fn apply<T: Sample>(
+    pub fn apply<T: Resample>(
         &self,
         src: &ImageView<T>,
         interpolation: Interpolation,

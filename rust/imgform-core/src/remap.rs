@@ -29,7 +29,7 @@
 //! clamped to their type's range (bicubic overshoots at edges), float outputs
 //! are neither rounded nor clamped.
 
-use std::ops::Range;
+use std::ops::{Add, Mul, Range};
 
 use crate::distortion::Distortion;
 use crate::error::{CoreError, Result};
@@ -81,6 +81,70 @@ fn keys_weights(t: f32) -> [f32; 4] {
     let near = |d: f32| ((a + 2.0) * d - (a + 3.0)) * d * d + 1.0;
     let far = |s: f32| a * s * (s - 1.0) * (s - 1.0);
     [far(t), near(t), near(1.0 - t), far(1.0 - t)]
+}
+
+/// The arithmetic a sample type is interpolated in: `f32` for everything
+/// bicubic and for float images; exact integers for bilinear u8/u16.
+pub trait Arith<T>:
+    Copy + Default + Add<Output = Self> + Mul<Output = Self> + Send + Sync + 'static
+{
+    /// Weights of the two bilinear taps at fraction `k / 256`.
+    fn bilinear(k: usize) -> [Self; 2];
+    fn load(t: T) -> Self;
+    /// Rounds half up and converts back (see [`Sample::from_f32`] for floats).
+    fn store(self) -> T;
+}
+
+impl<T: Sample> Arith<T> for f32 {
+    fn bilinear(k: usize) -> [f32; 2] {
+        bilinear_weights(k as f32 / ONE as f32)
+    }
+    #[inline(always)]
+    fn load(t: T) -> f32 {
+        t.to_f32()
+    }
+    #[inline(always)]
+    fn store(self) -> T {
+        T::from_f32(self)
+    }
+}
+
+/// Bilinear weights in 256ths for integer images: the two stages multiply
+/// to 2^16, so `65535 * 2^16 + 2^15` (the largest u16 sum plus the rounding
+/// half) still fits a `u32`, and a convex combination needs no clamping.
+/// Integer products also skip two float conversions per sample.
+macro_rules! fixed_point_bilinear {
+    ($($t:ty),*) => {$(
+        impl Arith<$t> for u32 {
+            fn bilinear(k: usize) -> [u32; 2] {
+                [(STEPS - k) as u32, k as u32]
+            }
+            #[inline(always)]
+            fn load(t: $t) -> u32 {
+                u32::from(t)
+            }
+            #[inline(always)]
+            fn store(self) -> $t {
+                ((self + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as $t
+            }
+        }
+    )*};
+}
+fixed_point_bilinear!(u8, u16);
+
+/// A sample type the sampler accepts, with the arithmetic its bilinear
+/// interpolation runs in.
+pub trait Resample: Sample {
+    type Bilinear: Arith<Self>;
+}
+impl Resample for u8 {
+    type Bilinear = u32;
+}
+impl Resample for u16 {
+    type Bilinear = u32;
+}
+impl Resample for f32 {
+    type Bilinear = f32;
 }
 
 /// Fractional bits of a stored position: 1/256 px. Finer than OpenCV's
@@ -315,7 +379,7 @@ pub fn check_fill<T: Sample>(fill: f64) -> Result<f32> {
 /// # Errors
 /// `fill` not representable in `T` (see [`check_fill`]) or `out` of the
 /// wrong length.
-pub fn remap<T: Sample>(
+pub fn remap<T: Resample>(
     src: &ImageView<T>,
     map: &RemapMap,
     interpolation: Interpolation,
@@ -344,7 +408,7 @@ pub fn remap<T: Sample>(
 /// [`CoreError::Shape`] when `out` is not `width * height * channels` long or
 /// the channel range is outside the image.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn resample<T: Sample, S: Coords>(
+pub(crate) fn resample<T: Resample, S: Coords>(
     src: &ImageView<T>,
     coords: &S,
     width: usize,
@@ -382,8 +446,17 @@ pub(crate) fn resample<T: Sample, S: Coords>(
         fill,
     };
     match interpolation {
-        Interpolation::Bilinear => job.run(out, row_len, bilinear_weights),
-        Interpolation::Bicubic => job.run(out, row_len, keys_weights),
+        Interpolation::Bilinear => job.run::<2, T::Bilinear>(
+            out,
+            row_len,
+            &std::array::from_fn(<T::Bilinear as Arith<T>>::bilinear),
+        ),
+        // k / 256 is exact in f32, so entry 0 is exactly the identity's weights.
+        Interpolation::Bicubic => job.run::<4, f32>(
+            out,
+            row_len,
+            &std::array::from_fn(|k| keys_weights(k as f32 / ONE as f32)),
+        ),
     }
     Ok(())
 }
@@ -396,29 +469,27 @@ struct Job<'a, T, S> {
     fill: f32,
 }
 
-impl<T: Sample, S: Coords> Job<'_, T, S> {
-    /// Tabulates the kernel's weights for every representable fraction, then
-    /// picks a loop specialised for the channel layout, so the common ones
-    /// (1, 3 or 4 channels remapped together; one of 3 for chromatic
-    /// aberration) get fully unrolled inner loops.
-    fn run<const TAPS: usize>(
+impl<T: Resample, S: Coords> Job<'_, T, S> {
+    /// Samples with weights `table` (one entry per representable fraction)
+    /// in arithmetic `V`, through a loop specialised for the channel layout,
+    /// so the common ones (1, 3 or 4 channels remapped together; one of 3 for
+    /// chromatic aberration) get fully unrolled inner loops.
+    fn run<const TAPS: usize, V: Arith<T>>(
         &self,
         out: &mut [T],
         row_len: usize,
-        weights: fn(f32) -> [f32; TAPS],
+        table: &[[V; TAPS]; STEPS],
     ) {
-        // k / 256 is exact in f32, so entry 0 is exactly the identity's weights.
-        let table: [[f32; TAPS]; STEPS] = std::array::from_fn(|k| weights(k as f32 / ONE as f32));
         let c0 = self.channels.start;
         match (self.src.channels(), self.channels.len()) {
-            (1, 1) => self.rows::<TAPS, 1, 1>(out, row_len, &table, c0),
-            (3, 3) => self.rows::<TAPS, 3, 3>(out, row_len, &table, c0),
-            (4, 4) => self.rows::<TAPS, 4, 4>(out, row_len, &table, c0),
-            (3, 1) => self.rows::<TAPS, 3, 1>(out, row_len, &table, c0),
+            (1, 1) => self.rows::<TAPS, 1, 1, V>(out, row_len, table, c0),
+            (3, 3) => self.rows::<TAPS, 3, 3, V>(out, row_len, table, c0),
+            (4, 4) => self.rows::<TAPS, 4, 4, V>(out, row_len, table, c0),
+            (3, 1) => self.rows::<TAPS, 3, 1, V>(out, row_len, table, c0),
             // Other layouts: one channel per pass.
             _ => {
                 for c in self.channels.clone() {
-                    self.rows::<TAPS, 0, 1>(out, row_len, &table, c);
+                    self.rows::<TAPS, 0, 1, V>(out, row_len, table, c);
                 }
             }
         }
@@ -426,11 +497,11 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
 
     /// All output rows in parallel, sampling channels `c0..c0 + N`. `NC` is
     /// the image's channel count, 0 for "read it at run time".
-    fn rows<const TAPS: usize, const NC: usize, const N: usize>(
+    fn rows<const TAPS: usize, const NC: usize, const N: usize, V: Arith<T>>(
         &self,
         out: &mut [T],
         row_len: usize,
-        table: &[[f32; TAPS]; STEPS],
+        table: &[[V; TAPS]; STEPS],
         c0: usize,
     ) {
         let nc = if NC > 0 { NC } else { self.src.channels() };
@@ -440,6 +511,7 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
         // Offset of the first tap from floor(position): 0 for 2 taps, -1 for 4.
         let lead = taps / 2 - 1;
         let fill = T::from_f32(self.fill);
+        let fill_v = V::load(fill);
         for_each_row(out, row_len, |y, row| {
             for (x, px) in row.chunks_exact_mut(nc).enumerate() {
                 let px = &mut px[c0..c0 + N];
@@ -454,27 +526,29 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
                 let wx = &table[(sx & FRAC_MASK) as usize];
                 let wy = &table[(sy & FRAC_MASK) as usize];
                 let value = if ix >= 0 && iy >= 0 && ix + taps <= w && iy + taps <= h {
-                    let (ix, iy) = (ix as usize, iy as usize);
+                    // Windows of exactly the samples the taps read, so that the
+                    // tap indices below are provably in bounds and unchecked.
+                    let start = ix as usize * nc + c0;
+                    let len = (TAPS - 1) * nc + N;
                     let rows: [&[T]; TAPS] =
-                        std::array::from_fn(|j| &self.src.row(iy + j)[ix * nc + c0..]);
-                    convolve::<TAPS, N>(wx, wy, |i, j| {
-                        let tap = &rows[j][i * nc..i * nc + N];
-                        std::array::from_fn(|c| tap[c].to_f32())
+                        std::array::from_fn(|j| &self.src.row(iy as usize + j)[start..start + len]);
+                    convolve::<TAPS, N, V>(wx, wy, |i, j| {
+                        std::array::from_fn(|c| V::load(rows[j][i * nc + c]))
                     })
                 } else {
-                    convolve::<TAPS, N>(wx, wy, |i, j| {
+                    convolve::<TAPS, N, V>(wx, wy, |i, j| {
                         let (tx, ty) = (ix + i as i32, iy + j as i32);
                         std::array::from_fn(|c| {
                             if tx >= 0 && ty >= 0 && tx < w && ty < h {
-                                self.src.at(tx as usize, ty as usize, c0 + c).to_f32()
+                                V::load(self.src.at(tx as usize, ty as usize, c0 + c))
                             } else {
-                                self.fill
+                                fill_v
                             }
                         })
                     })
                 };
                 for (p, v) in px.iter_mut().zip(value) {
-                    *p = T::from_f32(v);
+                    *p = v.store();
                 }
             }
         });
@@ -485,21 +559,24 @@ impl<T: Sample, S: Coords> Job<'_, T, S> {
 /// tensor-product sample. Channels are the innermost loop so that their
 /// arithmetic maps onto one SIMD register.
 #[inline(always)]
-fn convolve<const TAPS: usize, const N: usize>(
-    wx: &[f32; TAPS],
-    wy: &[f32; TAPS],
-    tap: impl Fn(usize, usize) -> [f32; N],
-) -> [f32; N] {
-    let mut acc = [0.0; N];
+fn convolve<const TAPS: usize, const N: usize, V>(
+    wx: &[V; TAPS],
+    wy: &[V; TAPS],
+    tap: impl Fn(usize, usize) -> [V; N],
+) -> [V; N]
+where
+    V: Copy + Default + Add<Output = V> + Mul<Output = V>,
+{
+    let mut acc = [V::default(); N];
     for (j, &b) in wy.iter().enumerate() {
-        let mut line = [0.0; N];
+        let mut line = [V::default(); N];
         for (i, &a) in wx.iter().enumerate() {
             for (l, v) in line.iter_mut().zip(tap(i, j)) {
-                *l += a * v;
+                *l = *l + a * v;
             }
         }
         for (s, l) in acc.iter_mut().zip(line) {
-            *s += b * l;
+            *s = *s + b * l;
         }
     }
     acc

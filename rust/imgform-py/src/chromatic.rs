@@ -1,8 +1,7 @@
 //! Bindings of `imgform_core::chromatic`.
 
 use imgform_core::chromatic::LateralCa;
-use imgform_core::image::Sample;
-use imgform_core::remap::Interpolation;
+use imgform_core::remap::{Interpolation, Resample};
 use numpy::{Element, PyReadonlyArrayDyn};
 use pyo3::prelude::*;
 
@@ -11,7 +10,7 @@ use crate::dispatch_image;
 use crate::errors::to_pyerr;
 use crate::remap::resample_into;
 
-fn lateral_ca_typed<'py, T: Sample + Element>(
+fn lateral_ca_typed<'py, T: Resample + Element>(
     arr: PyReadonlyArrayDyn<'py, T>,
     py: Python<'py>,
     ca: LateralCa,

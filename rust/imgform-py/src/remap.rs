@@ -2,7 +2,7 @@
 //! resampling pass.
 
 use imgform_core::image::{ImageView, Sample};
-use imgform_core::remap::{self, Interpolation};
+use imgform_core::remap::{self, Interpolation, Resample};
 use numpy::{Element, PyArrayDyn, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -163,7 +163,7 @@ where
     Ok(to_numpy(py, out, &shape)?.into_any())
 }
 
-fn remap_typed<'py, T: Sample + Element>(
+fn remap_typed<'py, T: Resample + Element>(
     arr: PyReadonlyArrayDyn<'py, T>,
     py: Python<'py>,
     map: &remap::RemapMap,
