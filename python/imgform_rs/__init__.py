@@ -8,17 +8,34 @@ order, camera frame, CFA patterns, shift sign) are documented in
 
 from ._native import RawError
 from .camera import Camera, VanishingPoint, look_at, vanishing_line, vanishing_point
+from .chromatic import add_lateral_ca, correct_lateral_ca
 from .distortion import distort_points, undistort_points
 from .projection import project_orthographic, project_pinhole
+from .remap import (
+    RemapMap,
+    distort_image,
+    distort_map,
+    remap,
+    undistort_image,
+    undistort_map,
+)
 
 __all__ = [
     "Camera",
     "RawError",
     "VanishingPoint",
+    "RemapMap",
+    "add_lateral_ca",
+    "correct_lateral_ca",
+    "distort_image",
+    "distort_map",
     "distort_points",
     "look_at",
     "project_orthographic",
     "project_pinhole",
+    "remap",
+    "undistort_image",
+    "undistort_map",
     "undistort_points",
     "vanishing_line",
     "vanishing_point",

@@ -1,7 +1,7 @@
 # Stubs of the private native module; the documented API is the package itself.
 # Checked against the built module by `make lint` (mypy.stubtest).
 
-from typing import final
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
@@ -51,3 +51,43 @@ class NativeCamera:
     def vanishing_line(
         self, plane_normal: npt.NDArray[np.float64]
     ) -> tuple[float, float, float]: ...
+# --- remap ---
+@final
+class RemapMap:
+    def __new__(
+        cls, map_x: npt.NDArray[np.float32], map_y: npt.NDArray[np.float32]
+    ) -> RemapMap: ...
+    @staticmethod
+    def undistort(
+        k: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+        shape: tuple[int, int],
+        new_k: npt.NDArray[np.float64] | None = None,
+    ) -> RemapMap: ...
+    @staticmethod
+    def distort(
+        k: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+        shape: tuple[int, int],
+        new_k: npt.NDArray[np.float64] | None = None,
+    ) -> RemapMap: ...
+    @property
+    def shape(self) -> tuple[int, int]: ...
+    def planes(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...
+
+def remap_image(
+    image: npt.NDArray[Any], map: RemapMap, interpolation: str = "bilinear", fill: float = 0.0
+) -> npt.NDArray[Any]: ...
+
+# --- chromatic ---
+def lateral_ca(
+    image: npt.NDArray[Any],
+    scale_r: float,
+    scale_b: float,
+    center: tuple[float, float] | None = None,
+    correct: bool = False,
+    interpolation: str = "bilinear",
+    fill: float = 0.0,
+) -> npt.NDArray[Any]: ...

@@ -8,8 +8,10 @@ mod arrays;
 mod errors;
 
 mod camera;
+mod chromatic;
 mod distortion;
 mod projection;
+mod remap;
 
 use pyo3::prelude::*;
 
@@ -17,7 +19,9 @@ use pyo3::prelude::*;
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
     camera::register(m)?;
+    chromatic::register(m)?;
     distortion::register(m)?;
     projection::register(m)?;
+    remap::register(m)?;
     Ok(())
 }
