@@ -7,10 +7,28 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .optics import (
+    circle_of_confusion,
+    depth_of_field,
+    dolly_zoom_focal_length,
+    field_of_view,
+    hyperfocal_distance,
+    image_distance,
+    magnification,
+    render_defocus,
+)
 from .projection import project_orthographic, project_pinhole
 
 __all__ = [
     "RawError",
+    "circle_of_confusion",
+    "depth_of_field",
+    "dolly_zoom_focal_length",
+    "field_of_view",
+    "hyperfocal_distance",
+    "image_distance",
+    "magnification",
     "project_orthographic",
     "project_pinhole",
+    "render_defocus",
 ]

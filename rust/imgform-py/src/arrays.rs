@@ -26,7 +26,7 @@ pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
 }
 
 /// The dtype name of any object, for error messages.
-fn describe(obj: &Bound<'_, PyAny>) -> String {
+pub fn describe(obj: &Bound<'_, PyAny>) -> String {
     match obj.downcast::<PyUntypedArray>() {
         Ok(a) => format!("an array of dtype {} and shape {:?}", a.dtype(), a.shape()),
         Err(_) => format!(

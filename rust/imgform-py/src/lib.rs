@@ -7,6 +7,8 @@
 mod arrays;
 mod errors;
 
+mod defocus;
+mod optics;
 mod projection;
 
 use pyo3::prelude::*;
@@ -15,5 +17,7 @@ use pyo3::prelude::*;
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
     projection::register(m)?;
+    optics::register(m)?;
+    defocus::register(m)?;
     Ok(())
 }
