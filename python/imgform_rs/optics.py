@@ -154,7 +154,9 @@ def depth_of_field(f: Any, N: Any, focus_distance: Any, coc: Any) -> tuple[Float
     Parameters
     ----------
     f, N, coc : array_like
-        Focal length (mm), f-number, acceptable circle of confusion (mm), > 0.
+        Focal length (mm), f-number, acceptable circle of confusion (mm), > 0;
+        ``coc`` below the aperture diameter ``f / N`` (in front of the focus
+        the blur never reaches it, so a larger tolerance has no near limit).
     focus_distance : array_like
         Focused distance (mm), finite and > ``f``.
 

@@ -97,15 +97,28 @@ pub fn hyperfocal_distance(f: f64, n: f64, coc: f64) -> Result<f64> {
 /// distance). Always `f < near < S < far`.
 ///
 /// # Errors
-/// `f`, `N`, `coc` not finite and positive, or `S` not finite or not beyond `f`.
+/// `f`, `N`, `coc` not finite and positive, `coc >= f/N`, or `S` not finite
+/// or not beyond `f`.
 pub fn depth_of_field(f: f64, n: f64, focus_distance: f64, coc: f64) -> Result<[f64; 2]> {
     let h = hyperfocal_distance(f, n, coc)?;
     let s = beyond_focal_length("focus_distance", focus_distance, f)?;
-    let near = s * (h - f) / (h + s - 2.0 * f);
+    // In front of the focus the blur never exceeds the aperture diameter
+    // (it tends to A as D -> f), so a tolerance of A or more has no near limit.
+    let aperture = f / n;
+    if coc >= aperture {
+        return Err(invalid!(
+            "coc must be smaller than the aperture diameter f/N = {aperture} \
+             (no object beyond f is blurred more than that), got coc = {coc}"
+        ));
+    }
+    // H - f computed directly: for long lenses H is much larger than f and
+    // the difference would lose digits.
+    let k = f * f / (n * coc);
+    let near = s * k / (k + (s - f));
     let far = if s >= h {
         f64::INFINITY
     } else {
-        s * (h - f) / (h - s)
+        s * k / (h - s)
     };
     Ok([near, far])
 }
