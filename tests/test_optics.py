@@ -193,7 +193,8 @@ def test_constant_image_stays_constant_under_any_depth_map(dtype):
     out = _defocus(img, depth)
     assert out.dtype == dtype
     if dtype == np.float32:
-        np.testing.assert_allclose(out, value, rtol=1e-6)
+        # float32 sums of up to ~3000 weighted terms: a few ulp.
+        np.testing.assert_allclose(out, value, rtol=4e-6)
     else:
         np.testing.assert_array_equal(out, img)
 

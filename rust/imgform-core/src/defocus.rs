@@ -184,7 +184,9 @@ fn tile_search_radii(discs: &[Disc], w: usize, h: usize) -> (Vec<usize>, usize) 
                     }
                 }
             }
-            radii[ty * tw + tx] = best.ceil() as usize;
+            // Neighbours are at least 1 px away: a reach of 1 or less
+            // (every disc narrower than 1 px) needs no search at all.
+            radii[ty * tw + tx] = if best <= 1.0 { 0 } else { best.ceil() as usize };
         }
     }
     let max = radii.iter().copied().max().unwrap_or(0);
@@ -199,59 +201,151 @@ fn mirrored(n: usize, pad: usize) -> Vec<usize> {
         .collect()
 }
 
-/// The gather itself, row bands in parallel.
-fn gather<T: Sample>(image: ImageView<'_, T>, discs: &[Disc], out: &mut [T]) {
-    let (w, h, c) = (image.width(), image.height(), image.channels());
-    let (radii, g_max) = tile_search_radii(discs, w, h);
-    let (cols, rows) = (mirrored(w, g_max), mirrored(h, g_max));
-    // Distance of every offset within the largest search window.
-    let side = 2 * g_max + 1;
-    let dist: Vec<f32> = (0..side * side)
-        .map(|i| {
-            let (dy, dx) = (
-                (i / side) as f32 - g_max as f32,
-                (i % side) as f32 - g_max as f32,
-            );
-            (dx * dx + dy * dy).sqrt()
-        })
-        .collect();
-    let tiles_w = w.div_ceil(TILE);
-    for_each_row(out, w * c, |y, out_row| {
-        // Accumulated in f64 so that a pixel gathering only itself is
-        // returned exactly: (w I) / w rounds back to I in f32.
-        let mut acc = vec![0.0f64; c];
-        for (x, out_px) in out_row.chunks_exact_mut(c).enumerate() {
-            let p = discs[y * w + x];
-            let g = radii[(y / TILE) * tiles_w + x / TILE];
-            acc.fill(0.0);
-            let mut wsum = 0.0f64;
-            for oy in g_max - g..=g_max + g {
-                let qy = rows[y + oy];
-                let dy = oy.abs_diff(g_max);
-                let span = ((g * g - dy * dy) as f32).sqrt() as usize;
-                let (disc_row, img_row) = (&discs[qy * w..(qy + 1) * w], image.row(qy));
-                let dist_row = &dist[oy * side..(oy + 1) * side];
-                for ox in g_max - span..=g_max + span {
-                    let qx = cols[x + ox];
-                    let q = disc_row[qx];
-                    let r = if q.z > p.z { q.r.min(p.r) } else { q.r };
-                    let cov = (r + 0.5 - dist_row[ox]).min(1.0);
-                    if cov > 0.0 {
-                        let wt = f64::from(cov * q.w);
-                        wsum += wt;
-                        let src = &img_row[qx * c..(qx + 1) * c];
-                        for (a, s) in acc.iter_mut().zip(src) {
-                            *a += wt * f64::from(s.to_f32());
-                        }
-                    }
-                }
+/// Everything the per-pixel gather reads, shared by all row bands.
+struct Gather<'a, T> {
+    image: ImageView<'a, T>,
+    discs: &'a [Disc],
+    /// Search radius of each tile, row-major over `tiles_w` tiles a row.
+    radii: Vec<usize>,
+    tiles_w: usize,
+    /// The largest search radius: the padding of the tables below.
+    g_max: usize,
+    /// Mirrored column / row of `i - g_max`.
+    cols: Vec<usize>,
+    rows: Vec<usize>,
+    /// `|(dy, dx)|` for offsets in `-g_max..=g_max`, row-major.
+    dist: Vec<f32>,
+}
+
+impl<'a, T: Sample> Gather<'a, T> {
+    fn new(image: ImageView<'a, T>, discs: &'a [Disc]) -> Self {
+        let (w, h) = (image.width(), image.height());
+        let (radii, g_max) = tile_search_radii(discs, w, h);
+        let side = 2 * g_max + 1;
+        let dist = (0..side * side)
+            .map(|i| {
+                let dy = (i / side) as f32 - g_max as f32;
+                let dx = (i % side) as f32 - g_max as f32;
+                (dx * dx + dy * dy).sqrt()
+            })
+            .collect();
+        Self {
+            image,
+            discs,
+            radii,
+            tiles_w: w.div_ceil(TILE),
+            g_max,
+            cols: mirrored(w, g_max),
+            rows: mirrored(h, g_max),
+            dist,
+        }
+    }
+
+    /// Renders every row into `out`. `C` is the channel count when it is a
+    /// common one (1, 3, 4), so the channel loop unrolls; 0 means "read it
+    /// at run time". One body serves all of them.
+    fn run<const C: usize>(&self, out: &mut [T]) {
+        let (w, c) = (self.image.width(), self.image.channels());
+        for_each_row(out, w * c, |y, out_row| {
+            let mut acc = vec![0.0f32; c];
+            for (x, out_px) in out_row.chunks_exact_mut(c).enumerate() {
+                self.pixel::<C>(x, y, &mut acc, out_px);
             }
-            // wsum > 0: p always covers itself (r_p + 1/2 - 0 >= 1/2).
-            for (o, a) in out_px.iter_mut().zip(&acc) {
-                *o = T::from_f32((a / wsum) as f32);
+        });
+    }
+
+    /// Gathers output pixel `(x, y)`.
+    #[inline(always)]
+    fn pixel<const C: usize>(&self, x: usize, y: usize, acc: &mut [f32], out_px: &mut [T]) {
+        let w = self.image.width();
+        let p = self.discs[y * w + x];
+        let g = self.radii[(y / TILE) * self.tiles_w + x / TILE];
+        let g_max = self.g_max;
+        acc.fill(0.0);
+        let mut wsum = 0.0f32;
+        for oy in g_max - g..=g_max + g {
+            let dy = oy.abs_diff(g_max);
+            let span = ((g * g - dy * dy) as f32).sqrt() as usize;
+            let (lo, qy) = (g_max - span, self.rows[y + oy]);
+            // Away from the left and right borders the columns are direct,
+            // which lets the compiler drop the table look-up.
+            wsum += if x >= span && x + span < w {
+                self.row::<C>(p, (qy, oy), lo..=g_max + span, |ox| x + ox - g_max, acc)
+            } else {
+                self.row::<C>(p, (qy, oy), lo..=g_max + span, |ox| self.cols[x + ox], acc)
+            };
+        }
+        // p always covers itself with weight `self_wt` (r_p + 1/2 - 0 >= 1/2).
+        // When nothing else reached it, return it untouched: (wt I) / wt need
+        // not round back to I in f32.
+        let self_wt = (p.r + 0.5).min(1.0) * p.w;
+        if wsum == self_wt {
+            out_px.copy_from_slice(&self.image.row(y)[x * out_px.len()..(x + 1) * out_px.len()]);
+        } else {
+            for (o, a) in out_px.iter_mut().zip(acc.iter()) {
+                *o = T::from_f32(a / wsum);
             }
         }
-    });
+    }
+
+    /// Adds the discs of source row `qy` (offset `oy - g_max` from the pixel)
+    /// at offsets `oxs` that cover `p` into `acc`; returns their total weight.
+    /// `col` maps an offset to the source column.
+    #[inline(always)]
+    fn row<const C: usize>(
+        &self,
+        p: Disc,
+        (qy, oy): (usize, usize),
+        oxs: std::ops::RangeInclusive<usize>,
+        col: impl Fn(usize) -> usize,
+        acc: &mut [f32],
+    ) -> f32 {
+        let c = if C == 0 { self.image.channels() } else { C };
+        let w = self.image.width();
+        let side = 2 * self.g_max + 1;
+        let (disc_row, img_row) = (&self.discs[qy * w..(qy + 1) * w], self.image.row(qy));
+        let dist_row = &self.dist[oy * side..(oy + 1) * side];
+        // Register accumulators for the common channel counts; the run-time
+        // channel count accumulates in `acc` directly.
+        let mut local = [0.0f32; 4];
+        let mut wsum = 0.0f32;
+        for ox in oxs {
+            let qx = col(ox);
+            let q = disc_row[qx];
+            // Occlusion: a farther neighbour reaches p only within p's blur.
+            let r = if q.z > p.z { q.r.min(p.r) } else { q.r };
+            // Branch-free: uncovered neighbours add a zero weight.
+            let wt = (r + 0.5 - dist_row[ox]).clamp(0.0, 1.0) * q.w;
+            wsum += wt;
+            let src = &img_row[qx * c..(qx + 1) * c];
+            if C == 0 {
+                for (a, s) in acc.iter_mut().zip(src) {
+                    *a += wt * s.to_f32();
+                }
+            } else {
+                for (a, s) in local.iter_mut().zip(src) {
+                    *a += wt * s.to_f32();
+                }
+            }
+        }
+        if C != 0 {
+            for (a, l) in acc.iter_mut().zip(local) {
+                *a += l;
+            }
+        }
+        wsum
+    }
+}
+
+/// The gather itself, row bands in parallel.
+fn gather<T: Sample>(image: ImageView<'_, T>, discs: &[Disc], out: &mut [T]) {
+    let g = Gather::new(image, discs);
+    match image.channels() {
+        1 => g.run::<1>(out),
+        3 => g.run::<3>(out),
+        4 => g.run::<4>(out),
+        _ => g.run::<0>(out),
+    }
 }
 
 #[cfg(test)]
