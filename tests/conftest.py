@@ -1,26 +1,40 @@
-"""Shared test helpers."""
+"""Shared test settings and helpers.
+
+Hypothesis profiles follow polars: "ci" (the default) keeps `make test` short,
+"expensive" explores far more; choose with HYPOTHESIS_PROFILE=expensive.
+"""
 
 from __future__ import annotations
 
 import os
 import subprocess
 import sys
-from collections.abc import Callable
+import textwrap
 
-import pytest
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "ci",
+    max_examples=60,
+    deadline=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile("expensive", max_examples=2000, deadline=None, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
-@pytest.fixture
-def run_with_threads() -> Callable[[str, int], bytes]:
-    """Runs a Python snippet in a fresh interpreter with ``RAYON_NUM_THREADS``
-    set (rayon reads it once, at pool start) and returns its stdout; tests
-    compare the bytes of 1 and N threads."""
-
-    def run(code: str, threads: int) -> bytes:
-        env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
-        done = subprocess.run(
-            [sys.executable, "-c", code], env=env, capture_output=True, check=True, timeout=300
-        )
-        return done.stdout
-
-    return run
+def output_with_threads(code: str, threads: int) -> bytes:
+    """Runs ``code`` in a fresh interpreter with RAYON_NUM_THREADS=threads and
+    returns what it wrote to stdout (write the result bytes with
+    ``sys.stdout.buffer.write``). Rayon reads the variable once per process, so
+    thread-count independence can only be tested across processes."""
+    env = dict(os.environ, RAYON_NUM_THREADS=str(threads))
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        env=env,
+        capture_output=True,
+        check=True,
+        timeout=300,
+    )
+    return done.stdout

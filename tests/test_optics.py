@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from conftest import output_with_threads
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -268,7 +269,7 @@ def test_depth_may_be_float32_and_inputs_non_contiguous():
     np.testing.assert_array_equal(got, want)
 
 
-def test_thread_count_does_not_change_the_result(run_with_threads):
+def test_thread_count_does_not_change_the_result():
     code = """
 import hashlib, sys
 import numpy as np
@@ -280,7 +281,7 @@ out = ig.render_defocus(img, depth, f=50.0, N=2.0, focus_distance=1000.0, pixel_
 dist = ig.circle_of_confusion(50.0, 2.0, 1000.0, np.linspace(60.0, 1e6, 200_000))
 sys.stdout.write(hashlib.sha256(out.tobytes() + dist.tobytes()).hexdigest())
 """
-    assert run_with_threads(code, 1) == run_with_threads(code, 2)
+    assert output_with_threads(code, 1) == output_with_threads(code, 2)
 
 
 @pytest.mark.parametrize(

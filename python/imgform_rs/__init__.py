@@ -7,6 +7,7 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .distortion import distort_points, undistort_points
 from .optics import (
     circle_of_confusion,
     depth_of_field,
@@ -23,6 +24,7 @@ __all__ = [
     "RawError",
     "circle_of_confusion",
     "depth_of_field",
+    "distort_points",
     "dolly_zoom_focal_length",
     "field_of_view",
     "hyperfocal_distance",
@@ -31,4 +33,5 @@ __all__ = [
     "project_orthographic",
     "project_pinhole",
     "render_defocus",
+    "undistort_points",
 ]

@@ -4,6 +4,8 @@
 import numpy as np
 import numpy.typing as npt
 
+__all__: list[str]
+
 class RawError(ValueError): ...
 
 # --- projection ---
@@ -35,3 +37,12 @@ def render_defocus(
     focus_distance: float,
     pixel_pitch: float,
 ) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
+
+# --- distortion ---
+def remap_lens_points(
+    pts: npt.NDArray[np.float64],
+    coeffs: list[float],
+    model_name: str,
+    k: npt.NDArray[np.float64] | None = None,
+    undistort: bool = False,
+) -> tuple[npt.NDArray[np.float64], int]: ...

@@ -14,6 +14,7 @@ pub mod camera;
 pub mod chromatic;
 pub mod defocus;
 pub mod distortion;
+pub mod intrinsics;
 pub mod optics;
 pub mod projection;
 pub mod remap;

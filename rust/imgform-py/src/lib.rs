@@ -8,6 +8,7 @@ mod arrays;
 mod errors;
 
 mod defocus;
+mod distortion;
 mod optics;
 mod projection;
 
@@ -16,6 +17,7 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    distortion::register(m)?;
     projection::register(m)?;
     optics::register(m)?;
     defocus::register(m)?;

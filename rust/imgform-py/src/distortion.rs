@@ -1,0 +1,59 @@
+//! Bindings of `imgform_core::distortion`.
+
+use imgform_core::distortion::{remap_points, Direction, Distortion};
+use imgform_core::intrinsics::Intrinsics;
+use numpy::{PyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+use crate::arrays::{contiguous, fixed, points, to_numpy};
+use crate::errors::{detached, to_pyerr};
+
+/// A distortion model from its name and coefficients.
+pub fn model(name: &str, coeffs: Vec<f64>) -> PyResult<Distortion> {
+    Distortion::new(name, &coeffs).map_err(to_pyerr)
+}
+
+/// Intrinsics from an optional (3, 3) float64 matrix.
+pub fn intrinsics(k: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Intrinsics>> {
+    k.map(|k| {
+        let m: [f64; 9] = fixed(k, &[3, 3], "K")?
+            .try_into()
+            .expect("checked shape (3, 3)");
+        Intrinsics::from_matrix(&m).map_err(to_pyerr)
+    })
+    .transpose()
+}
+
+/// Distorts (`undistort=False`) or undistorts points (N, 2); returns the
+/// mapped points (NaN where the model cannot map) and how many failed.
+#[pyfunction]
+#[pyo3(signature = (pts, coeffs, model_name, k=None, undistort=false))]
+fn remap_lens_points<'py>(
+    py: Python<'py>,
+    pts: &Bound<'py, PyAny>,
+    coeffs: Vec<f64>,
+    model_name: &str,
+    k: Option<&Bound<'py, PyAny>>,
+    undistort: bool,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, usize)> {
+    let lens = model(model_name, coeffs)?;
+    let k = intrinsics(k)?;
+    let arr = points(pts, 2, "points")?;
+    let n = arr.shape()[0];
+    let src = contiguous(&arr);
+    let mut out = vec![0.0; 2 * n];
+    let direction = if undistort {
+        Direction::Undistort
+    } else {
+        Direction::Distort
+    };
+    let failed = detached(py, || {
+        remap_points(&src, &lens, k.as_ref(), direction, &mut out)
+    })?;
+    Ok((to_numpy(py, out, &[n, 2])?, failed))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(remap_lens_points, m)?)?;
+    Ok(())
+}
