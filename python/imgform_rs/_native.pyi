@@ -18,6 +18,28 @@ def project_orthographic(
     points_cam: npt.NDArray[np.float64], scale: float = 1.0
 ) -> npt.NDArray[np.float64]: ...
 
+# --- optics ---
+# Every formula takes 1-D float64 arrays of one length (broadcast by the facade).
+_F64 = npt.NDArray[np.float64]
+
+def image_distance(f: _F64, d: _F64) -> _F64: ...
+def magnification(f: _F64, d: _F64) -> _F64: ...
+def circle_of_confusion(f: _F64, n: _F64, focus_distance: _F64, d: _F64) -> _F64: ...
+def depth_of_field(f: _F64, n: _F64, focus_distance: _F64, coc: _F64) -> tuple[_F64, _F64]: ...
+def hyperfocal_distance(f: _F64, n: _F64, coc: _F64) -> _F64: ...
+def field_of_view(f: _F64, sensor_size: _F64) -> _F64: ...
+def dolly_zoom_focal_length(f0: _F64, d0: _F64, d: _F64) -> _F64: ...
+
+# --- defocus ---
+def render_defocus(
+    image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
+    depth: npt.NDArray[np.float32] | npt.NDArray[np.float64],
+    f: float,
+    n: float,
+    focus_distance: float,
+    pixel_pitch: float,
+) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
+
 # --- distortion ---
 def remap_lens_points(
     pts: npt.NDArray[np.float64],
@@ -51,6 +73,7 @@ class NativeCamera:
     def vanishing_line(
         self, plane_normal: npt.NDArray[np.float64]
     ) -> tuple[float, float, float]: ...
+
 # --- remap ---
 @final
 class RemapMap:

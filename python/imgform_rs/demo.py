@@ -24,14 +24,16 @@ import numpy as np
 from . import scene
 from ._png import write_png
 from .camera import Camera, vanishing_line, vanishing_point
+from .chromatic import add_lateral_ca, correct_lateral_ca
 from .optics import circle_of_confusion, field_of_view, hyperfocal_distance, render_defocus
-from .remap import add_lateral_ca, correct_lateral_ca, undistort_image
+from .remap import undistort_image
 
 WIDTH, HEIGHT = 640, 480
-# A full-frame camera (36 mm wide sensor) with a fast 50 mm lens.
-FOCAL_MM, F_NUMBER, SENSOR_MM = 50.0, 1.4, 36.0
+# A full-frame camera (36 mm wide sensor) with a fast 50 mm lens focused on
+# the near (red) box, so the middle and far boxes blur more and more.
+FOCAL_MM, F_NUMBER, SENSOR_MM = 50.0, 1.2, 36.0
 PIXEL_PITCH_MM = SENSOR_MM / WIDTH
-FOCUS_MM = 7600.0
+FOCUS_MM = 6300.0
 BARREL = (-0.32, 0.08, 0.0, 0.0, 0.0)
 EYE, TARGET = (4.5, 1.6, -3.0), (-0.5, 0.9, 9.0)
 # Sky has no depth; put it far enough to be "at infinity" for the lens.
@@ -137,7 +139,11 @@ def run(out: Path, log: Callable[[str], None] = print) -> list[Path]:
         "render_defocus (thin lens)",
         lines,
         lambda: render_defocus(
-            pinhole, depth, f=FOCAL_MM, N=F_NUMBER, focus_distance=FOCUS_MM,
+            pinhole,
+            depth,
+            f=FOCAL_MM,
+            N=F_NUMBER,
+            focus_distance=FOCUS_MM,
             pixel_pitch=PIXEL_PITCH_MM,
         ),
     )
@@ -159,10 +165,12 @@ def run(out: Path, log: Callable[[str], None] = print) -> list[Path]:
         write_png(out / "lateral_ca_corrected.png", correct_lateral_ca(ca, 1.008, 0.992))
     )
     hyper = float(hyperfocal_distance(FOCAL_MM, F_NUMBER, 0.03))
-    log(f"scene {WIDTH}x{HEIGHT}, f = {FOCAL_MM:g} mm, N = {F_NUMBER:g}, "
+    log(
+        f"scene {WIDTH}x{HEIGHT}, f = {FOCAL_MM:g} mm, N = {F_NUMBER:g}, "
         f"focus {FOCUS_MM / 1000:g} m, hyperfocal {hyper / 1000:.1f} m (c = 0.03 mm), "
         f"largest blur {float(coc_px.max()):.1f} px, horizontal fov "
-        f"{math.degrees(float(field_of_view(FOCAL_MM, SENSOR_MM))):.1f} deg")
+        f"{math.degrees(float(field_of_view(FOCAL_MM, SENSOR_MM))):.1f} deg"
+    )
     for line in lines:
         log(line)
     return written

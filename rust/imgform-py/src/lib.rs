@@ -9,7 +9,9 @@ mod errors;
 
 mod camera;
 mod chromatic;
+mod defocus;
 mod distortion;
+mod optics;
 mod projection;
 mod remap;
 
@@ -23,5 +25,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     distortion::register(m)?;
     projection::register(m)?;
     remap::register(m)?;
+    optics::register(m)?;
+    defocus::register(m)?;
     Ok(())
 }
