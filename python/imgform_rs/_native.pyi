@@ -6,8 +6,6 @@ from typing import Any, final
 import numpy as np
 import numpy.typing as npt
 
-__all__: list[str]
-
 class RawError(ValueError): ...
 
 # --- projection ---
