@@ -34,7 +34,7 @@ WIDTH, HEIGHT = 640, 480
 FOCAL_MM, F_NUMBER, SENSOR_MM = 50.0, 1.2, 36.0
 PIXEL_PITCH_MM = SENSOR_MM / WIDTH
 FOCUS_MM = 6300.0
-BARREL = (-0.5, 0.25, 0.0, 0.0, 0.0)
+BARREL = (-0.7, 0.25, 0.0, 0.0, 0.0)
 EYE, TARGET = (4.5, 1.6, -3.0), (-0.5, 0.9, 9.0)
 # Sky has no depth; put it far enough to be "at infinity" for the lens.
 SKY_DEPTH_MM = 1e7
