@@ -7,6 +7,7 @@
 mod arrays;
 mod errors;
 
+mod align;
 mod distortion;
 mod projection;
 
@@ -15,6 +16,7 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    align::register(m)?;
     distortion::register(m)?;
     projection::register(m)?;
     Ok(())

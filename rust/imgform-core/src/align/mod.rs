@@ -359,7 +359,11 @@ mod tests {
             .unwrap();
             assert_eq!(got.shift, (27.0, -21.0), "{features:?}");
             assert_eq!(got.levels.len(), 3);
-            assert!(got.levels.iter().all(|l| l.candidates <= 17 * 17), "{:?}", got.levels);
+            assert!(
+                got.levels.iter().all(|l| l.candidates <= 17 * 17),
+                "{:?}",
+                got.levels
+            );
             assert_eq!(got.side, 5);
         }
     }
