@@ -479,7 +479,8 @@ def read_plate(path: str | Path) -> np.ndarray:
     try:
         img = np.asarray(iio.imread(Path(path)))
     except Exception as exc:  # imageio raises many types for bad files
-        raise ValueError(f"cannot read plate {str(path)!r}: {exc}") from exc
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise ValueError(f"cannot read plate {str(path)!r}: {reason}") from exc
     if img.ndim == 3 and img.shape[2] in (3, 4):
         img = np.floor(img[..., :3].mean(axis=-1, dtype=np.float64) + 0.5).astype(img.dtype)
     if img.ndim != 2 or img.dtype not in _DTYPES:
