@@ -476,8 +476,11 @@ def read_plate(path: str | Path) -> np.ndarray:
     """
     import imageio.v3 as iio
 
+    path = Path(path)
     try:
-        img = np.asarray(iio.imread(Path(path)))
+        # Decoding from bytes: imageio leaves a failed file open otherwise.
+        data = path.read_bytes()
+        img = np.asarray(iio.imread(data, extension=path.suffix or None))
     except Exception as exc:  # imageio raises many types for bad files
         reason = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise ValueError(f"cannot read plate {str(path)!r}: {reason}") from exc
