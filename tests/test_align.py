@@ -242,11 +242,11 @@ def test_bad_input_raises_clear_errors():
         ig.align(a[:6, :6], a[:6, :6], max_shift=5, crop=0.1)
     bad = a.copy()
     bad[3, 4] = np.nan
-    with pytest.raises(ValueError, match="finite.*row 3"):
+    with pytest.raises(ValueError, match=r"finite.*row 3"):
         ig.align(a, bad)
     with pytest.raises(ValueError, match="finite"):
         ig.similarity(bad, a)
-    with pytest.raises(ValueError, match="unknown metric 'mse'|unknown metric \"mse\""):
+    with pytest.raises(ValueError, match=r"unknown metric \"mse\""):
         ig.align(a, a, metric="mse")
     with pytest.raises(ValueError, match="unknown metric"):
         ig.similarity(a, a, "l1")
