@@ -6,12 +6,13 @@
 //! wrap-around. While the shift is smaller than the crop margin every
 //! candidate sees the whole window, so all scores are over the same pixels.
 //!
-//! Work is split into tasks of one candidate row `dy` times one band of
-//! [`BAND_ROWS`] image rows. Inside a task each image row is loaded once and
-//! compared at every `dx` while it sits in L1 cache: the whole candidate row
-//! costs one pass over memory instead of `2r + 1`. The sums of `a`, `a^2`,
-//! `b`, `b^2` over each shift's columns come from per-row prefix sums in
-//! `f64`, so only the cross term is computed per shift, in `f32` with 16
+//! Work is split into tasks of one band of [`BAND_ROWS`] reference rows, each
+//! scoring every candidate. Inside a task each reference row is loaded once
+//! and compared with the moving rows of every `dy` at every `dx` while they
+//! sit in cache, so the search costs about one pass over memory, not one per
+//! candidate. The sums of `a`, `a^2`, `b`, `b^2` over each shift's columns
+//! come from per-row prefix sums in `f64` (computed once per row and band),
+//! so only the cross term is computed per shift, in `f32` with 16
 //! independent accumulators (which the compiler turns into SIMD) and added
 //! to an `f64` total once per row. Bands are fixed by the image, not by the
 //! thread count, and are summed in order, so the scores are bit-identical
@@ -22,9 +23,11 @@ use rayon::prelude::*;
 use super::metric::{Metric, Sums};
 use super::pyramid::Plane;
 
-/// Image rows per task. 32 rows of a 3000-pixel plate are ~0.4 MB of both
-/// images, small enough to stay in L2 across a candidate row and, at ~100 k
-/// multiply-adds per `dx`, far above rayon's per-task cost of a few µs.
+/// Reference rows per task. 32 rows (plus `2r` moving rows) of a 3000-pixel
+/// plate are ~0.5 MB of samples and prefix sums, small enough to stay in L2
+/// while every candidate reads them, and at ~100 k multiply-adds per
+/// candidate far above rayon's per-task cost of a few µs. Bands are fixed by
+/// the window, never by the thread count.
 const BAND_ROWS: usize = 32;
 
 /// Independent accumulators of the row kernels: enough to fill two 8-lane
@@ -122,28 +125,24 @@ pub fn surface(
     cands: Candidates,
 ) -> Vec<f64> {
     let side = cands.side();
+    let dys: Vec<(usize, i64)> = cands.axis(cands.center.0).collect();
     let dxs: Vec<(usize, i64)> = cands.axis(cands.center.1).collect();
-    // One task per (candidate row, band of image rows), in a fixed order.
-    let tasks: Vec<(usize, i64, usize, usize)> = cands
-        .axis(cands.center.0)
-        .flat_map(|(i, dy)| {
-            let (ys, ye) = Window::span(window.y0, window.y1, reference.height, dy);
-            (ys..ye)
-                .step_by(BAND_ROWS)
-                .map(move |b| (i, dy, b, (b + BAND_ROWS).min(ye)))
-        })
+    // One task per band of window rows, for every candidate; the bands depend
+    // on the window only.
+    let bands: Vec<(usize, usize)> = (window.y0..window.y1)
+        .step_by(BAND_ROWS)
+        .map(|b| (b, (b + BAND_ROWS).min(window.y1)))
         .collect();
-    let partial: Vec<(usize, Vec<Sums>)> = tasks
+    let partial: Vec<Vec<Sums>> = bands
         .par_iter()
-        .map(|&(i, dy, ys, ye)| {
-            let band = band_sums(reference, moving, metric, window, dy, ys..ye, &dxs);
-            (i, band)
-        })
+        .map(|&(ys, ye)| band_sums(reference, moving, metric, window, ys..ye, &dys, &dxs))
         .collect();
     let mut totals = vec![Sums::default(); side * side];
-    for (i, band) in &partial {
-        for (&(j, _), s) in dxs.iter().zip(band) {
-            totals[i * side + j].add(s);
+    for band in &partial {
+        for (&(i, _), row) in dys.iter().zip(band.chunks(dxs.len().max(1))) {
+            for (&(j, _), s) in dxs.iter().zip(row) {
+                totals[i * side + j].add(s);
+            }
         }
     }
     totals
@@ -152,85 +151,133 @@ pub fn surface(
         .collect()
 }
 
-/// The sums of one candidate row `dy` over image rows `rows`, one entry per
-/// shift of `dxs`.
+/// The sums of every candidate `(dy, dx)` over the reference rows `rows`
+/// (those of them that have a moving row for `dy`), `dys.len() x dxs.len()`
+/// row-major.
+///
+/// Each reference row's prefix sums are computed once for all candidates,
+/// and each moving row's once per band, so the `f64` prefix work (a serial
+/// chain, slower per sample than the SIMD cross products) stays ~2 passes
+/// over the image instead of 2 per candidate row.
 fn band_sums(
     reference: &Plane,
     moving: &Plane,
     metric: Metric,
     window: Window,
-    dy: i64,
     rows: std::ops::Range<usize>,
+    dys: &[(usize, i64)],
     dxs: &[(usize, i64)],
 ) -> Vec<Sums> {
-    let w = reference.width;
+    let (w, h) = (reference.width, reference.height);
     let spans: Vec<(usize, usize)> = dxs
         .iter()
         .map(|&(_, dx)| Window::span(window.x0, window.x1, w, dx))
         .collect();
-    let mut sums = vec![Sums::default(); dxs.len()];
+    // For each candidate row, the rows of this band that have a moving row.
+    let ranges: Vec<(usize, usize)> = dys
+        .iter()
+        .map(|&(_, dy)| {
+            let (s, e) = Window::span(window.y0, window.y1, h, dy);
+            let s = s.max(rows.start);
+            (s, e.min(rows.end).max(s))
+        })
+        .collect();
+    // The moving rows `y - dy` the band reads.
+    let (mut lo, mut hi) = (usize::MAX, 0);
+    for (&(_, dy), &(s, e)) in dys.iter().zip(&ranges) {
+        if e > s {
+            lo = lo.min((s as i64 - dy) as usize);
+            hi = hi.max((e as i64 - dy) as usize);
+        }
+    }
+    let mut sums = vec![Sums::default(); dys.len() * dxs.len()];
+    if lo >= hi {
+        return sums;
+    }
     // SSD accumulates (a - b)^2 directly: no prefix sums needed, and
     // ssd(a, a) is exactly 0 instead of a difference of rounded sums.
     let prefixed = metric != Metric::Ssd;
-    let mut pa = Prefix::new(if prefixed { w } else { 0 });
-    let mut pb = Prefix::new(if prefixed { w } else { 0 });
+    let (pw, prows) = if prefixed { (w, hi - lo) } else { (0, 0) };
+    let mut pa = Prefix::new(pw, 1);
+    let mut pb = Prefix::new(pw, prows);
+    for r in 0..prows {
+        pb.fill(r, moving.row(lo + r));
+    }
     for y in rows {
         let a = reference.row(y);
-        let b = moving.row((y as i64 - dy) as usize);
         if prefixed {
-            pa.fill(a);
-            pb.fill(b);
+            pa.fill(0, a);
         }
-        for ((&(_, dx), &(xs, xe)), s) in dxs.iter().zip(&spans).zip(sums.iter_mut()) {
-            if xe <= xs {
+        for ((&(_, dy), &(s, e)), out) in dys
+            .iter()
+            .zip(&ranges)
+            .zip(sums.chunks_mut(dxs.len().max(1)))
+        {
+            if y < s || y >= e {
                 continue;
             }
-            let (ms, me) = ((xs as i64 - dx) as usize, (xe as i64 - dx) as usize);
-            let (ar, br) = (&a[xs..xe], &b[ms..me]);
-            s.n += (xe - xs) as f64;
-            if prefixed {
-                s.cross += f64::from(lanes(ar, br, |x, y| x * y));
-                (s.sa, s.saa) = pa.add_range(xs, xe, s.sa, s.saa);
-                (s.sb, s.sbb) = pb.add_range(ms, me, s.sb, s.sbb);
-            } else {
-                s.cross += f64::from(lanes(ar, br, |x, y| (x - y) * (x - y)));
+            let mrow = (y as i64 - dy) as usize;
+            let b = moving.row(mrow);
+            for ((&(_, dx), &(xs, xe)), s) in dxs.iter().zip(&spans).zip(out.iter_mut()) {
+                if xe <= xs {
+                    continue;
+                }
+                let (ms, me) = ((xs as i64 - dx) as usize, (xe as i64 - dx) as usize);
+                let (ar, br) = (&a[xs..xe], &b[ms..me]);
+                s.n += (xe - xs) as f64;
+                if prefixed {
+                    s.cross += f64::from(lanes(ar, br, |x, y| x * y));
+                    (s.sa, s.saa) = pa.add_range(0, xs, xe, s.sa, s.saa);
+                    (s.sb, s.sbb) = pb.add_range(mrow - lo, ms, me, s.sb, s.sbb);
+                } else {
+                    s.cross += f64::from(lanes(ar, br, |x, y| (x - y) * (x - y)));
+                }
             }
         }
     }
     sums
 }
 
-/// Prefix sums of a row and of its squares, in `f64`.
+/// Prefix sums of rows and of their squares, in `f64`, `width + 1` per row.
 struct Prefix {
+    stride: usize,
     s: Vec<f64>,
     ss: Vec<f64>,
 }
 
 impl Prefix {
-    fn new(width: usize) -> Self {
+    fn new(width: usize, rows: usize) -> Self {
+        let stride = width + 1;
         Self {
-            s: vec![0.0; width + 1],
-            ss: vec![0.0; width + 1],
+            stride,
+            s: vec![0.0; stride * rows],
+            ss: vec![0.0; stride * rows],
         }
     }
 
-    fn fill(&mut self, row: &[f32]) {
+    fn fill(&mut self, r: usize, row: &[f32]) {
+        let base = r * self.stride;
+        let (s_out, ss_out) = (
+            &mut self.s[base + 1..base + self.stride],
+            &mut self.ss[base + 1..base + self.stride],
+        );
         let (mut s, mut ss) = (0.0f64, 0.0f64);
-        for (i, &v) in row.iter().enumerate() {
+        for ((&v, o), oo) in row.iter().zip(s_out).zip(ss_out) {
             let v = f64::from(v);
             s += v;
             ss += v * v;
-            self.s[i + 1] = s;
-            self.ss[i + 1] = ss;
+            *o = s;
+            *oo = ss;
         }
     }
 
-    /// `(acc_s + sum row[lo..hi], acc_ss + sum row[lo..hi]^2)`.
+    /// `(acc_s + sum row_r[lo..hi], acc_ss + sum row_r[lo..hi]^2)`.
     #[inline]
-    fn add_range(&self, lo: usize, hi: usize, acc_s: f64, acc_ss: f64) -> (f64, f64) {
+    fn add_range(&self, r: usize, lo: usize, hi: usize, acc_s: f64, acc_ss: f64) -> (f64, f64) {
+        let base = r * self.stride;
         (
-            acc_s + (self.s[hi] - self.s[lo]),
-            acc_ss + (self.ss[hi] - self.ss[lo]),
+            acc_s + (self.s[base + hi] - self.s[base + lo]),
+            acc_ss + (self.ss[base + hi] - self.ss[base + lo]),
         )
     }
 }
