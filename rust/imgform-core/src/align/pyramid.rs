@@ -1,7 +1,7 @@
 //! The `f32` planes the search runs on: conversion, 2x downsampling and
 //! gradient features.
 
-use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::error::{CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
@@ -48,17 +48,26 @@ impl Plane {
         let (w, h) = (view.width(), view.height());
         let offset = T::FULL_SCALE / 2.0;
         let mut data = vec![0.0f32; w * h];
+        // The smallest row holding a NaN or infinity, checked while the row
+        // is in cache; `fetch_min` makes it the same for any thread count.
+        let bad = AtomicUsize::new(usize::MAX);
         for_each_row(&mut data, w, |y, row| {
             for (o, &v) in row.iter_mut().zip(view.row(y)) {
                 *o = v.to_f32() - offset;
             }
+            if row.iter().any(|v| !v.is_finite()) {
+                bad.fetch_min(y, Ordering::Relaxed);
+            }
         });
-        // The smallest bad row whatever the thread count: `position_first`.
-        if let Some(i) = data.par_iter().position_first(|v| !v.is_finite()) {
+        let y = bad.into_inner();
+        if y != usize::MAX {
+            let x = data[y * w..(y + 1) * w]
+                .iter()
+                .position(|v| !v.is_finite())
+                .unwrap_or(0);
             return Err(crate::invalid!(
-                "{name} must contain only finite values, row {} holds {}",
-                i / w,
-                view.at(i % w, i / w, 0).to_f32()
+                "{name} must contain only finite values, row {y} holds {}",
+                view.at(x, y, 0).to_f32()
             ));
         }
         Ok(Self {

@@ -11,7 +11,7 @@
 //! and compared with the moving rows of every `dy` at every `dx` while they
 //! sit in cache, so the search costs about one pass over memory, not one per
 //! candidate. The sums of `a`, `a^2`, `b`, `b^2` over each shift's columns
-//! come from per-row prefix sums in `f64` (computed once per row and band),
+//! come from per-row running sums in `f64` (computed once per row and band),
 //! so only the cross term is computed per shift, in `f32` with 16
 //! independent accumulators (which the compiler turns into SIMD) and added
 //! to an `f64` total once per row. Bands are fixed by the image, not by the
@@ -24,7 +24,7 @@ use super::metric::{Metric, Sums};
 use super::pyramid::Plane;
 
 /// Reference rows per task. 32 rows (plus `2r` moving rows) of a 3000-pixel
-/// plate are ~0.5 MB of samples and prefix sums, small enough to stay in L2
+/// plate are ~0.5 MB of samples, small enough to stay in L2
 /// while every candidate reads them, and at ~100 k multiply-adds per
 /// candidate far above rayon's per-task cost of a few µs. Bands are fixed by
 /// the window, never by the thread count.
@@ -155,10 +155,9 @@ pub fn surface(
 /// (those of them that have a moving row for `dy`), `dys.len() x dxs.len()`
 /// row-major.
 ///
-/// Each reference row's prefix sums are computed once for all candidates,
-/// and each moving row's once per band, so the `f64` prefix work (a serial
-/// chain, slower per sample than the SIMD cross products) stays ~2 passes
-/// over the image instead of 2 per candidate row.
+/// Each reference row's running sums ([`Breaks`]) are computed once for all
+/// candidates, and each moving row's once per band: ~2 passes over the
+/// image instead of 2 per candidate row.
 fn band_sums(
     reference: &Plane,
     moving: &Plane,
@@ -194,18 +193,22 @@ fn band_sums(
     if lo >= hi {
         return sums;
     }
-    // SSD accumulates (a - b)^2 directly: no prefix sums needed, and
+    // SSD accumulates (a - b)^2 directly: no running sums needed, and
     // ssd(a, a) is exactly 0 instead of a difference of rounded sums.
-    let prefixed = metric != Metric::Ssd;
-    let (pw, prows) = if prefixed { (w, hi - lo) } else { (0, 0) };
-    let mut pa = Prefix::new(pw, 1);
-    let mut pb = Prefix::new(pw, prows);
+    let summed = metric != Metric::Ssd;
+    let prows = if summed { hi - lo } else { 0 };
+    let mut pa = Breaks::new(spans.iter().copied(), 1);
+    let moved = dxs
+        .iter()
+        .zip(&spans)
+        .map(|(&(_, dx), &(s, e))| ((s as i64 - dx) as usize, (e as i64 - dx) as usize));
+    let mut pb = Breaks::new(moved, prows);
     for r in 0..prows {
         pb.fill(r, moving.row(lo + r));
     }
     for y in rows {
         let a = reference.row(y);
-        if prefixed {
+        if summed {
             pa.fill(0, a);
         }
         for ((&(_, dy), &(s, e)), out) in dys
@@ -218,17 +221,19 @@ fn band_sums(
             }
             let mrow = (y as i64 - dy) as usize;
             let b = moving.row(mrow);
-            for ((&(_, dx), &(xs, xe)), s) in dxs.iter().zip(&spans).zip(out.iter_mut()) {
+            for (j, ((&(_, dx), &(xs, xe)), s)) in
+                dxs.iter().zip(&spans).zip(out.iter_mut()).enumerate()
+            {
                 if xe <= xs {
                     continue;
                 }
                 let (ms, me) = ((xs as i64 - dx) as usize, (xe as i64 - dx) as usize);
                 let (ar, br) = (&a[xs..xe], &b[ms..me]);
                 s.n += (xe - xs) as f64;
-                if prefixed {
+                if summed {
                     s.cross += f64::from(lanes(ar, br, |x, y| x * y));
-                    (s.sa, s.saa) = pa.add_range(0, xs, xe, s.sa, s.saa);
-                    (s.sb, s.sbb) = pb.add_range(mrow - lo, ms, me, s.sb, s.sbb);
+                    let ((ra, raa), (rb, rbb)) = (pa.span(0, j), pb.span(mrow - lo, j));
+                    (s.sa, s.saa, s.sb, s.sbb) = (s.sa + ra, s.saa + raa, s.sb + rb, s.sbb + rbb);
                 } else {
                     s.cross += f64::from(lanes(ar, br, |x, y| (x - y) * (x - y)));
                 }
@@ -238,48 +243,75 @@ fn band_sums(
     sums
 }
 
-/// Prefix sums of rows and of their squares, in `f64`, `width + 1` per row.
-struct Prefix {
-    stride: usize,
-    s: Vec<f64>,
-    ss: Vec<f64>,
+/// Running sums of rows (and of their squares) at the few columns where
+/// some candidate's span starts or ends.
+///
+/// A full prefix sum would be a serial chain of `f64` additions per sample;
+/// summing only the segments between breakpoints uses independent
+/// accumulators (SIMD) and is several times faster, and its sums over a span
+/// are exact differences of the same running totals.
+struct Breaks {
+    /// Sorted, distinct breakpoints.
+    points: Vec<usize>,
+    /// For each span, the indices of its start and end in `points`.
+    index: Vec<(usize, usize)>,
+    /// Running sums per stored row: `points.len()` pairs `(sum, sum of squares)`.
+    cum: Vec<(f64, f64)>,
 }
 
-impl Prefix {
-    fn new(width: usize, rows: usize) -> Self {
-        let stride = width + 1;
-        Self {
-            stride,
-            s: vec![0.0; stride * rows],
-            ss: vec![0.0; stride * rows],
-        }
+impl Breaks {
+    fn new(spans: impl Iterator<Item = (usize, usize)> + Clone, rows: usize) -> Self {
+        let mut points: Vec<usize> = spans.clone().flat_map(|(s, e)| [s, e]).collect();
+        points.sort_unstable();
+        points.dedup();
+        let at = |x: usize| points.binary_search(&x).unwrap_or(0);
+        let index = spans.map(|(s, e)| (at(s), at(e))).collect();
+        let cum = vec![(0.0, 0.0); points.len() * rows];
+        Self { points, index, cum }
     }
 
+    /// Stores the running sums of `row` as row `r`.
     fn fill(&mut self, r: usize, row: &[f32]) {
-        let base = r * self.stride;
-        let (s_out, ss_out) = (
-            &mut self.s[base + 1..base + self.stride],
-            &mut self.ss[base + 1..base + self.stride],
-        );
-        let (mut s, mut ss) = (0.0f64, 0.0f64);
-        for ((&v, o), oo) in row.iter().zip(s_out).zip(ss_out) {
-            let v = f64::from(v);
-            s += v;
-            ss += v * v;
-            *o = s;
-            *oo = ss;
+        let n = self.points.len();
+        let cum = &mut self.cum[r * n..(r + 1) * n];
+        let mut acc = (0.0, 0.0);
+        for (k, pair) in self.points.windows(2).enumerate() {
+            let (s, ss) = sums64(&row[pair[0]..pair[1]]);
+            acc = (acc.0 + s, acc.1 + ss);
+            cum[k + 1] = acc;
         }
     }
 
-    /// `(acc_s + sum row_r[lo..hi], acc_ss + sum row_r[lo..hi]^2)`.
+    /// `(sum, sum of squares)` of row `r` over span `j`.
     #[inline]
-    fn add_range(&self, r: usize, lo: usize, hi: usize, acc_s: f64, acc_ss: f64) -> (f64, f64) {
-        let base = r * self.stride;
-        (
-            acc_s + (self.s[base + hi] - self.s[base + lo]),
-            acc_ss + (self.ss[base + hi] - self.ss[base + lo]),
-        )
+    fn span(&self, r: usize, j: usize) -> (f64, f64) {
+        let n = self.points.len();
+        let (lo, hi) = self.index[j];
+        let (a, b) = (self.cum[r * n + lo], self.cum[r * n + hi]);
+        (b.0 - a.0, b.1 - a.1)
     }
+}
+
+/// `(sum v, sum v^2)` in `f64` over [`LANES`] independent accumulators.
+fn sums64(v: &[f32]) -> (f64, f64) {
+    let mut s = [0.0f64; LANES];
+    let mut ss = [0.0f64; LANES];
+    let chunks = v.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for k in 0..LANES {
+            let x = f64::from(c[k]);
+            s[k] += x;
+            ss[k] += x * x;
+        }
+    }
+    let (mut ts, mut tss) = (0.0, 0.0);
+    for &x in tail {
+        let x = f64::from(x);
+        ts += x;
+        tss += x * x;
+    }
+    (s.iter().sum::<f64>() + ts, ss.iter().sum::<f64>() + tss)
 }
 
 /// `sum f(a[i], b[i])` over [`LANES`] independent accumulators, combined in
