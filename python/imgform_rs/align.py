@@ -4,6 +4,9 @@ and the colourisation of Prokudin-Gorskii glass-plate scans.
 Shifts follow ``CONVENTIONS.md``: ``(dy, dx)`` is what
 ``np.roll(moving, (dy, dx), axis=(0, 1))`` needs to land ``moving`` on
 ``reference``, the convention of scikit-image's ``phase_cross_correlation``.
+The published shifts of the cathedral plate, G (5, 2) and R (12, 3) relative
+to blue, are (row, column) displacements that move G and R onto B, i.e. this
+convention: ``colorize_plate(scan, reference="b")`` returns exactly them.
 """
 
 from __future__ import annotations

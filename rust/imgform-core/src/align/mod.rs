@@ -120,10 +120,16 @@ pub struct Alignment {
 }
 
 /// Checks that two views have the same size.
-fn same_size<T: Copy>(a: &ImageView<'_, T>, b: &ImageView<'_, T>) -> Result<()> {
+fn same_size<T: Copy>(
+    a: &ImageView<'_, T>,
+    b: &ImageView<'_, T>,
+    names: (&str, &str),
+) -> Result<()> {
     if (a.height(), a.width(), a.channels()) != (b.height(), b.width(), b.channels()) {
         return Err(CoreError::Shape(format!(
-            "reference and moving must have the same shape, got {}x{}x{} and {}x{}x{}",
+            "{} and {} must have the same shape, got {}x{}x{} and {}x{}x{}",
+            names.0,
+            names.1,
             a.height(),
             a.width(),
             a.channels(),
@@ -147,7 +153,7 @@ pub fn similarity<T: Sample>(
     b: &ImageView<'_, T>,
     metric: Metric,
 ) -> Result<f64> {
-    same_size(a, b)?;
+    same_size(a, b, ("a", "b"))?;
     let (pa, pb) = (Plane::from_view(a, "a")?, Plane::from_view(b, "b")?);
     let zero = Candidates {
         center: (0, 0),
@@ -210,7 +216,7 @@ pub fn align<T: Sample>(
     moving: &ImageView<'_, T>,
     opts: &Options,
 ) -> Result<Alignment> {
-    same_size(reference, moving)?;
+    same_size(reference, moving, ("reference", "moving"))?;
     let (w, h) = (reference.width(), reference.height());
     if !(opts.crop.is_finite() && (0.0..0.5).contains(&opts.crop)) {
         return Err(invalid!("crop must be in [0, 0.5), got {}", opts.crop));
