@@ -16,7 +16,7 @@ mod pyramid;
 mod search;
 
 pub use metric::Metric;
-pub use pyramid::Plane;
+use pyramid::Plane;
 
 use crate::error::{CoreError, Result};
 use crate::image::{ImageView, Sample};
