@@ -226,6 +226,14 @@ def test_results_do_not_depend_on_the_thread_count():
     assert b"(17, -21)" in one
 
 
+def test_non_contiguous_and_fortran_ordered_inputs():
+    ref, mov = shifted_pair(2, 60, 64, 6, 3, -2)
+    assert ig.align(ref.T, mov.T, max_shift=6).shift == (-2, 3)
+    assert ig.align(np.asfortranarray(ref), np.asfortranarray(mov), max_shift=6).shift == (3, -2)
+    wide_ref, wide_mov = shifted_pair(2, 60, 128, 6, 3, -4)
+    assert ig.align(wide_ref[:, ::2], wide_mov[:, ::2], max_shift=6).shift == (3, -2)
+
+
 # --- bad input ---------------------------------------------------------------
 
 

@@ -16,12 +16,16 @@ use pyo3::prelude::*;
 
 /// The slice behind an array: borrowed when C-contiguous, else one
 /// standard-layout copy (never two).
+///
+/// `as_slice` alone is not enough: it also accepts Fortran-ordered arrays
+/// (a transposed view, `np.asfortranarray`), whose memory holds the
+/// transpose of the row-major order the kernels read.
 pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
     arr: &'a numpy::PyReadonlyArray<'_, T, D>,
 ) -> Cow<'a, [T]> {
     match arr.as_slice() {
-        Ok(s) => Cow::Borrowed(s),
-        Err(_) => Cow::Owned(arr.as_array().iter().copied().collect()),
+        Ok(s) if arr.is_c_contiguous() => Cow::Borrowed(s),
+        _ => Cow::Owned(arr.as_array().iter().copied().collect()),
     }
 }
 
