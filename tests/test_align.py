@@ -428,3 +428,23 @@ def test_cli_keeps_existing_outputs_unless_overwrite(tmp_path, capsys):
     assert "kept" in capsys.readouterr().out
     assert main(["align", str(good), "-o", str(out), "--overwrite", "--metric", "ssd"]) == 0
     assert target.read_bytes().startswith(b"\x89PNG")
+
+
+def test_cli_draws_a_progress_bar_on_a_terminal(tmp_path, monkeypatch, capsys):
+    import io
+    import sys
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    plates = []
+    for name in ("a", "b", "c"):
+        plates.append(tmp_path / f"{name}.png")
+        write_png(plates[-1], synthetic_plate(seed=len(plates)))
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    assert main(["align", *map(str, plates), "-o", str(tmp_path / "out")]) == 0
+    bar = term.getvalue()
+    assert "1/3 plates" in bar and bar.endswith("3/3 plates\n")
+    assert capsys.readouterr().out.count(" in ") == 3

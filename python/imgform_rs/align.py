@@ -12,7 +12,7 @@ convention: ``colorize_plate(scan, reference="b")`` returns exactly them.
 from __future__ import annotations
 
 import operator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -68,7 +68,7 @@ class Alignment:
 
     shift: tuple[float, float] | tuple[int, int]
     score: float
-    surface: npt.NDArray[np.float64]
+    surface: npt.NDArray[np.float64] = field(repr=False)
     surface_origin: tuple[int, int]
     levels: tuple[Level, ...]
     metric: str
