@@ -2,7 +2,7 @@
 //!
 //! The search accumulates, for every candidate shift, a handful of sums over
 //! the overlapping pixels; each metric is a closed form of those sums. Samples
-//! are stored with an offset `c` subtracted (see [`super::pyramid::Plane`]) so
+//! are read with an offset `c` subtracted (see [`super::pyramid::Rows`]) so
 //! that the `f32` cross products do not cancel catastrophically for 16-bit
 //! data; the formulas below undo the offset where a metric depends on it.
 

@@ -16,7 +16,7 @@ mod pyramid;
 mod search;
 
 pub use metric::Metric;
-use pyramid::Plane;
+use pyramid::{Converted, Plane, Rows};
 
 use crate::error::{CoreError, Result};
 use crate::image::{ImageView, Sample};
@@ -154,13 +154,13 @@ pub fn similarity<T: Sample>(
     metric: Metric,
 ) -> Result<f64> {
     same_size(a, b, ("a", "b"))?;
-    let (pa, pb) = (Plane::from_view(a, "a")?, Plane::from_view(b, "b")?);
+    let (pa, pb) = (Converted::new(a, "a")?, Converted::new(b, "b")?);
     let zero = Candidates {
         center: (0, 0),
         radius: 0,
         limit: 0,
     };
-    let window = Window::cropped(pa.width, pa.height, 0.0);
+    let window = Window::cropped(pa.width(), pa.height(), 0.0);
     Ok(search::surface(&pa, &pb, metric, window, zero)[0])
 }
 
@@ -228,20 +228,23 @@ pub fn align<T: Sample>(
         ));
     }
     let n_levels = level_count(w, h, opts)?;
-    let mut refs = vec![Plane::from_view(reference, "reference")?];
-    let mut movs = vec![Plane::from_view(moving, "moving")?];
-    for l in 0..n_levels {
-        refs.push(refs[l].downsample());
-        movs.push(movs[l].downsample());
+    let (r0, m0) = (
+        Converted::new(reference, "reference")?,
+        Converted::new(moving, "moving")?,
+    );
+    // Levels 1..=n_levels; level 0 is read from the caller's images.
+    let mut coarse: Vec<(Plane, Plane)> = Vec::with_capacity(n_levels);
+    for _ in 0..n_levels {
+        let next = match coarse.last() {
+            None => (Plane::downsample(&r0), Plane::downsample(&m0)),
+            Some((r, m)) => (Plane::downsample(r), Plane::downsample(m)),
+        };
+        coarse.push(next);
     }
     let mut levels = Vec::with_capacity(n_levels + 1);
     let mut found = (0i64, 0i64);
     let mut last = None;
     for l in (0..=n_levels).rev() {
-        let (r, m) = match opts.features {
-            Features::Intensity => (&refs[l], &movs[l]),
-            Features::Gradient => (&refs[l].gradient(), &movs[l].gradient()),
-        };
         let limit = ceil_shift(opts.max_shift, l);
         let cands = if l == n_levels {
             Candidates {
@@ -256,8 +259,13 @@ pub fn align<T: Sample>(
                 limit,
             }
         };
-        let window = Window::cropped(r.width, r.height, opts.crop);
-        let surface = search::surface(r, m, opts.metric, window, cands);
+        let surface = match l {
+            0 => level_surface(&r0, &m0, opts, cands),
+            _ => {
+                let (r, m) = &coarse[l - 1];
+                level_surface(r, m, opts, cands)
+            }
+        };
         // Every level keeps an overlap (checked above), so the centre's
         // in-limit neighbourhood always holds a score.
         let k = search::best(&surface, opts.metric, cands)
@@ -293,6 +301,21 @@ pub fn align<T: Sample>(
         surface_origin: cands.shift(0, 0),
         levels,
     })
+}
+
+/// The scores of `cands` on one level, on intensities or gradients.
+fn level_surface<S: Rows>(r: &S, m: &S, opts: &Options, cands: Candidates) -> Vec<f64> {
+    let window = Window::cropped(r.width(), r.height(), opts.crop);
+    match opts.features {
+        Features::Intensity => search::surface(r, m, opts.metric, window, cands),
+        Features::Gradient => {
+            let (gr, gm) = (
+                Plane::from_rows(r).gradient(),
+                Plane::from_rows(m).gradient(),
+            );
+            search::surface(&gr, &gm, opts.metric, window, cands)
+        }
+    }
 }
 
 /// Offset of the vertex of the parabola through `(-1, m)`, `(0, c)`, `(1, p)`

@@ -1,27 +1,125 @@
-//! The `f32` planes the search runs on: conversion, 2x downsampling and
-//! gradient features.
+//! What the search reads: the caller's image converted row by row, and the
+//! `f32` planes of the coarser levels and of gradient features.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use rayon::prelude::*;
+
 use crate::error::{CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
-use crate::parallel::for_each_row;
+use crate::parallel::{for_each_row, ROWS_PER_TASK};
 
-/// A contiguous single-channel `f32` image whose samples are stored minus
-/// `offset` (`stored = value - offset`).
+/// Rows of `f32` samples with `offset` subtracted (`stored = value -
+/// offset`), the form every kernel of the search reads.
 ///
 /// The offset is the middle of the input type's range (127.5 for `u8`,
 /// 32767.5 for `u16`, 0.5 for `f32`). Centring keeps the `f32` cross
 /// products of the search small next to their sum, so a 16-bit plate with a
 /// large mean does not lose the covariance NCC is made of to rounding; SSD
-/// and NCC do not depend on a common offset, cosine undoes it (see
-/// [`super::metric::Sums::score`]).
+/// and NCC do not depend on a common offset, cosine undoes it.
+pub trait Rows: Sync {
+    fn width(&self) -> usize;
+    fn height(&self) -> usize;
+    fn offset(&self) -> f64;
+    /// Writes row `y` into `out` (`width` samples).
+    fn fill_row(&self, y: usize, out: &mut [f32]);
+}
+
+/// The caller's single-channel image, converted to `f32` one row at a time
+/// when a task reads it: the full-resolution level never exists as a float
+/// copy, which would cost more (allocation, page faults, one more pass over
+/// ~50 MB per plate channel) than converting the rows a band needs.
+pub struct Converted<'a, T> {
+    view: ImageView<'a, T>,
+    offset: f32,
+}
+
+impl<'a, T: Sample> Converted<'a, T> {
+    /// Wraps a view after checking it.
+    ///
+    /// # Errors
+    /// [`CoreError::Shape`] for a multi-channel view;
+    /// [`CoreError::InvalidArgument`] naming the first row holding a NaN or
+    /// an infinity.
+    pub fn new(view: &ImageView<'a, T>, name: &str) -> Result<Self> {
+        if view.channels() != 1 {
+            return Err(CoreError::Shape(format!(
+                "{name} must be a single-channel (H, W) image, got {} channels",
+                view.channels()
+            )));
+        }
+        // The smallest bad row whatever the thread count: bands of rows in
+        // parallel, then `fetch_min`.
+        let bad = AtomicUsize::new(usize::MAX);
+        (0..view.height())
+            .into_par_iter()
+            .with_min_len(ROWS_PER_TASK)
+            .for_each(|y| {
+                if view.row(y).iter().any(|v| !v.to_f32().is_finite()) {
+                    bad.fetch_min(y, Ordering::Relaxed);
+                }
+            });
+        let y = bad.into_inner();
+        if y != usize::MAX {
+            let v = view
+                .row(y)
+                .iter()
+                .map(|v| v.to_f32())
+                .find(|v| !v.is_finite());
+            return Err(crate::invalid!(
+                "{name} must contain only finite values, row {y} holds {}",
+                v.unwrap_or(f32::NAN)
+            ));
+        }
+        Ok(Self {
+            view: *view,
+            offset: T::FULL_SCALE / 2.0,
+        })
+    }
+}
+
+impl<T: Sample> Rows for Converted<'_, T> {
+    fn width(&self) -> usize {
+        self.view.width()
+    }
+    fn height(&self) -> usize {
+        self.view.height()
+    }
+    fn offset(&self) -> f64 {
+        f64::from(self.offset)
+    }
+    #[inline]
+    fn fill_row(&self, y: usize, out: &mut [f32]) {
+        for (o, &v) in out.iter_mut().zip(self.view.row(y)) {
+            *o = v.to_f32() - self.offset;
+        }
+    }
+}
+
+/// A contiguous single-channel `f32` image in the [`Rows`] form: a coarser
+/// level of the pyramid, or gradient features.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Plane {
     pub data: Vec<f32>,
     pub width: usize,
     pub height: usize,
     pub offset: f64,
+}
+
+impl Rows for Plane {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn height(&self) -> usize {
+        self.height
+    }
+    fn offset(&self) -> f64 {
+        self.offset
+    }
+    #[inline]
+    fn fill_row(&self, y: usize, out: &mut [f32]) {
+        out.copy_from_slice(self.row(y));
+    }
 }
 
 impl Plane {
@@ -31,61 +129,32 @@ impl Plane {
         &self.data[y * self.width..(y + 1) * self.width]
     }
 
-    /// Converts a single-channel view to a plane, row band by row band in
-    /// parallel.
-    ///
-    /// # Errors
-    /// [`CoreError::Shape`] for a multi-channel view;
-    /// [`CoreError::InvalidArgument`] naming the first row holding a NaN or
-    /// an infinity.
-    pub fn from_view<T: Sample>(view: &ImageView<'_, T>, name: &str) -> Result<Self> {
-        if view.channels() != 1 {
-            return Err(CoreError::Shape(format!(
-                "{name} must be a single-channel (H, W) image, got {} channels",
-                view.channels()
-            )));
-        }
-        let (w, h) = (view.width(), view.height());
-        let offset = T::FULL_SCALE / 2.0;
+    /// All rows of `src` as a plane.
+    pub fn from_rows(src: &impl Rows) -> Self {
+        let (w, h) = (src.width(), src.height());
         let mut data = vec![0.0f32; w * h];
-        // The smallest row holding a NaN or infinity, checked while the row
-        // is in cache; `fetch_min` makes it the same for any thread count.
-        let bad = AtomicUsize::new(usize::MAX);
-        for_each_row(&mut data, w, |y, row| {
-            for (o, &v) in row.iter_mut().zip(view.row(y)) {
-                *o = v.to_f32() - offset;
-            }
-            if row.iter().any(|v| !v.is_finite()) {
-                bad.fetch_min(y, Ordering::Relaxed);
-            }
-        });
-        let y = bad.into_inner();
-        if y != usize::MAX {
-            let x = data[y * w..(y + 1) * w]
-                .iter()
-                .position(|v| !v.is_finite())
-                .unwrap_or(0);
-            return Err(crate::invalid!(
-                "{name} must contain only finite values, row {y} holds {}",
-                view.at(x, y, 0).to_f32()
-            ));
-        }
-        Ok(Self {
+        for_each_row(&mut data, w, |y, row| src.fill_row(y, row));
+        Self {
             data,
             width: w,
             height: h,
-            offset: f64::from(offset),
-        })
+            offset: src.offset(),
+        }
     }
 
-    /// The 2x2 box average (odd last row/column dropped): halves the
-    /// resolution with the cheapest filter that still suppresses the
+    /// The 2x2 box average of `src` (odd last row/column dropped): halves
+    /// the resolution with the cheapest filter that still suppresses the
     /// aliasing a plain decimation would feed to the coarse search.
-    pub fn downsample(&self) -> Self {
-        let (w, h) = (self.width / 2, self.height / 2);
+    pub fn downsample(src: &impl Rows) -> Self {
+        let (sw, w, h) = (src.width(), src.width() / 2, src.height() / 2);
         let mut data = vec![0.0f32; w * h];
         for_each_row(&mut data, w, |y, row| {
-            let (r0, r1) = (self.row(2 * y), self.row(2 * y + 1));
+            // Two source rows per output row: an allocation per row, not
+            // per pixel, and only for the (4x smaller) coarse levels.
+            let mut r0 = vec![0.0f32; sw];
+            let mut r1 = vec![0.0f32; sw];
+            src.fill_row(2 * y, &mut r0);
+            src.fill_row(2 * y + 1, &mut r1);
             for (x, o) in row.iter_mut().enumerate() {
                 *o = 0.25 * ((r0[2 * x] + r0[2 * x + 1]) + (r1[2 * x] + r1[2 * x + 1]));
             }
@@ -94,7 +163,7 @@ impl Plane {
             data,
             width: w,
             height: h,
-            offset: self.offset,
+            offset: src.offset(),
         }
     }
 
@@ -147,20 +216,25 @@ mod tests {
     #[test]
     fn conversion_subtracts_mid_scale_and_rejects_nan() {
         let px = [0u16, 65535, 100, 7];
-        let p = Plane::from_view(&ImageView::contiguous(&px, 2, 2, 1).unwrap(), "a").unwrap();
+        let view = ImageView::contiguous(&px, 2, 2, 1).unwrap();
+        let p = Plane::from_rows(&Converted::new(&view, "a").unwrap());
         assert_eq!(p.data, vec![-32767.5, 32767.5, -32667.5, -32760.5]);
-        let bad = [0.0f32, 1.0, f32::NAN, 0.0];
-        let err = Plane::from_view(&ImageView::contiguous(&bad, 2, 2, 1).unwrap(), "moving")
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("moving") && err.contains("row 1"), "{err}");
+        assert_eq!(p.offset, 32767.5);
+        let bad = [0.0f32, 1.0, 2.0, f32::NAN, 0.0, f32::INFINITY];
+        let view = ImageView::contiguous(&bad, 2, 3, 1).unwrap();
+        let err = Converted::new(&view, "moving").err().unwrap().to_string();
+        assert!(
+            err.contains("moving") && err.contains("row 1 holds NaN"),
+            "{err}"
+        );
         let rgb = [0u8; 12];
-        assert!(Plane::from_view(&ImageView::contiguous(&rgb, 2, 2, 3).unwrap(), "a").is_err());
+        let view = ImageView::contiguous(&rgb, 2, 2, 3).unwrap();
+        assert!(Converted::new(&view, "a").is_err());
     }
 
     #[test]
     fn downsample_averages_blocks() {
-        let p = plane(5, 3, |x, y| (x + 10 * y) as f32).downsample();
+        let p = Plane::downsample(&plane(5, 3, |x, y| (x + 10 * y) as f32));
         assert_eq!((p.width, p.height), (2, 1));
         // Block (0..2, 0..2): (0 + 1 + 10 + 11) / 4 = 5.5.
         assert_eq!(p.data, vec![5.5, 7.5]);

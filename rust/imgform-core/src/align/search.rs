@@ -21,7 +21,7 @@
 use rayon::prelude::*;
 
 use super::metric::{Metric, Sums};
-use super::pyramid::Plane;
+use super::pyramid::Rows;
 
 /// Reference rows per task. 32 rows (plus `2r` moving rows) of a 3000-pixel
 /// plate are ~0.5 MB of samples, small enough to stay in L2
@@ -117,9 +117,9 @@ impl Candidates {
 
 /// Scores of every candidate, row-major over the square; NaN for shifts
 /// outside the limit or without overlap.
-pub fn surface(
-    reference: &Plane,
-    moving: &Plane,
+pub fn surface<S: Rows>(
+    reference: &S,
+    moving: &S,
     metric: Metric,
     window: Window,
     cands: Candidates,
@@ -147,7 +147,7 @@ pub fn surface(
     }
     totals
         .iter()
-        .map(|s| s.score(metric, reference.offset))
+        .map(|s| s.score(metric, reference.offset()))
         .collect()
 }
 
@@ -158,16 +158,16 @@ pub fn surface(
 /// Each reference row's running sums ([`Breaks`]) are computed once for all
 /// candidates, and each moving row's once per band: ~2 passes over the
 /// image instead of 2 per candidate row.
-fn band_sums(
-    reference: &Plane,
-    moving: &Plane,
+fn band_sums<S: Rows>(
+    reference: &S,
+    moving: &S,
     metric: Metric,
     window: Window,
     rows: std::ops::Range<usize>,
     dys: &[(usize, i64)],
     dxs: &[(usize, i64)],
 ) -> Vec<Sums> {
-    let (w, h) = (reference.width, reference.height);
+    let (w, h) = (reference.width(), reference.height());
     let spans: Vec<(usize, usize)> = dxs
         .iter()
         .map(|&(_, dx)| Window::span(window.x0, window.x1, w, dx))
@@ -203,13 +203,20 @@ fn band_sums(
         .zip(&spans)
         .map(|(&(_, dx), &(s, e))| ((s as i64 - dx) as usize, (e as i64 - dx) as usize));
     let mut pb = Breaks::new(moved, prows);
-    for r in 0..prows {
-        pb.fill(r, moving.row(lo + r));
-    }
-    for y in rows {
-        let a = reference.row(y);
+    // The band's moving rows, converted once; the reference row of the
+    // moment in `a`.
+    let mut band = vec![0.0f32; (hi - lo) * w];
+    for (r, out) in band.chunks_exact_mut(w).enumerate() {
+        moving.fill_row(lo + r, out);
         if summed {
-            pa.fill(0, a);
+            pb.fill(r, out);
+        }
+    }
+    let mut a = vec![0.0f32; w];
+    for y in rows {
+        reference.fill_row(y, &mut a);
+        if summed {
+            pa.fill(0, &a);
         }
         for ((&(_, dy), &(s, e)), out) in dys
             .iter()
@@ -219,8 +226,8 @@ fn band_sums(
             if y < s || y >= e {
                 continue;
             }
-            let mrow = (y as i64 - dy) as usize;
-            let b = moving.row(mrow);
+            let mrow = (y as i64 - dy) as usize - lo;
+            let b = &band[mrow * w..(mrow + 1) * w];
             for (j, ((&(_, dx), &(xs, xe)), s)) in
                 dxs.iter().zip(&spans).zip(out.iter_mut()).enumerate()
             {
@@ -232,7 +239,7 @@ fn band_sums(
                 s.n += (xe - xs) as f64;
                 if summed {
                     s.cross += f64::from(lanes(ar, br, |x, y| x * y));
-                    let ((ra, raa), (rb, rbb)) = (pa.span(0, j), pb.span(mrow - lo, j));
+                    let ((ra, raa), (rb, rbb)) = (pa.span(0, j), pb.span(mrow, j));
                     (s.sa, s.saa, s.sb, s.sbb) = (s.sa + ra, s.saa + raa, s.sb + rb, s.sbb + rbb);
                 } else {
                     s.cross += f64::from(lanes(ar, br, |x, y| (x - y) * (x - y)));
@@ -365,6 +372,7 @@ pub fn best(surface: &[f64], metric: Metric, cands: Candidates) -> Option<usize>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::align::pyramid::Plane;
 
     fn plane(w: usize, h: usize, f: impl Fn(i64, i64) -> f32) -> Plane {
         let data = (0..h as i64)
