@@ -309,10 +309,7 @@ fn level_surface<S: Rows>(r: &S, m: &S, opts: &Options, cands: Candidates) -> Ve
     match opts.features {
         Features::Intensity => search::surface(r, m, opts.metric, window, cands),
         Features::Gradient => {
-            let (gr, gm) = (
-                Plane::from_rows(r).gradient(),
-                Plane::from_rows(m).gradient(),
-            );
+            let (gr, gm) = (Plane::gradient(r), Plane::gradient(m));
             search::surface(&gr, &gm, opts.metric, window, cands)
         }
     }
