@@ -10,6 +10,9 @@ pub mod error;
 pub mod image;
 pub mod parallel;
 
+pub mod cfa;
+pub mod demosaic;
+
 pub mod camera;
 pub mod chromatic;
 pub mod defocus;
