@@ -7,6 +7,8 @@
 mod arrays;
 mod errors;
 
+mod cfa;
+mod demosaic;
 mod distortion;
 mod projection;
 
@@ -15,6 +17,8 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    cfa::register(m)?;
+    demosaic::register(m)?;
     distortion::register(m)?;
     projection::register(m)?;
     Ok(())
