@@ -7,13 +7,30 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .cfa import (
+    channel_masks,
+    mosaic,
+    pattern_cells,
+    pattern_from_rawpy,
+    shift_pattern,
+    simulate_sensor,
+)
+from .demosaic import DEMOSAIC_METHODS, demosaic
 from .distortion import distort_points, undistort_points
 from .projection import project_orthographic, project_pinhole
 
 __all__ = [
+    "DEMOSAIC_METHODS",
     "RawError",
+    "channel_masks",
+    "demosaic",
     "distort_points",
+    "mosaic",
+    "pattern_cells",
+    "pattern_from_rawpy",
     "project_orthographic",
     "project_pinhole",
+    "shift_pattern",
+    "simulate_sensor",
     "undistort_points",
 ]

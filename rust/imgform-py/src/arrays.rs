@@ -18,12 +18,16 @@ use crate::errors::detached;
 
 /// The slice behind an array: borrowed when C-contiguous, else one
 /// standard-layout copy (never two).
+///
+/// `as_slice` alone also accepts Fortran-ordered arrays (it only asks for
+/// *some* contiguity) and would hand their memory over in column-major order,
+/// so C order is checked first.
 pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
     arr: &'a numpy::PyReadonlyArray<'_, T, D>,
 ) -> Cow<'a, [T]> {
     match arr.as_slice() {
-        Ok(s) => Cow::Borrowed(s),
-        Err(_) => Cow::Owned(arr.as_array().iter().copied().collect()),
+        Ok(s) if arr.is_c_contiguous() => Cow::Borrowed(s),
+        _ => Cow::Owned(arr.as_array().iter().copied().collect()),
     }
 }
 
