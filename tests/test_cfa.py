@@ -80,7 +80,7 @@ def test_mosaic_is_the_masked_sum(dtype, p):
         ("RGBG", ValueError, r'unknown CFA pattern "RGBG".*accepted'),
         (None, TypeError, "got None"),
         ([[0, 1], [2, 1]], ValueError, "greens on a diagonal"),
-        ([[0, 1, 1], [2, 1, 0], [1, 1, 1]], ValueError, r"shape \(2, 2\) or \(6, 6\), got \(3, 3\)"),
+        ([[0, 1, 1], [2, 1, 0], [1, 1, 1]], ValueError, r"\(2, 2\) or \(6, 6\), got \(3, 3\)"),
         ([0, 1, 1, 2], ValueError, r"shape \(2, 2\) or \(6, 6\), got \[4\]"),
         ([[0, 1], [1, 3]], ValueError, "channel indices"),
         (np.zeros((6, 6), np.int64), ValueError, "X-Trans"),
