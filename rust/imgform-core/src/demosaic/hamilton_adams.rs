@@ -13,7 +13,7 @@
 //! Green is kept as unrounded `f32` rows in a ring of three, computed once
 //! per row of the band (plus two halo rows per band).
 
-use super::{run_rows, write_row, Estimate, Phase, Ring, Sites, PAD};
+use super::{run_rows, select, shifted, write_row, Packed, Phase, Ring, RowKind, RowPlanes, PAD};
 use crate::image::{ImageView, Sample};
 
 /// The estimate along the better of two directions, or their mean on a tie
@@ -29,92 +29,105 @@ fn choose(class_a: f32, est_a: f32, class_b: f32, est_b: f32) -> f32 {
     }
 }
 
-/// Green of raw row `c` (rows `u2, u1, c, d1, d2` around it) into `g`, for
-/// padded columns `2 .. len - 2`; `green_parity` is the column parity of the
-/// row's green sites.
-fn green_row(r: [&[f32]; 5], green_parity: usize, g: &mut [f32]) {
+/// Green of raw rows `r` = y-2 ..= y+2 into `g`, for padded columns
+/// `2 .. len - 2`; `chroma` marks the chroma sites of row y.
+fn green_row(r: [&[f32]; 5], chroma: &[u32], g: &mut [f32]) {
+    let n = r[2].len() - 4;
+    let at = |row, dx| shifted(row, 2, dx, n);
     let [u2, u1, c, d1, d2] = r;
-    let len = c.len();
-    for x in 2..len - 2 {
-        g[x] = if x & 1 == green_parity {
-            c[x]
-        } else {
-            let twice = 2.0 * c[x];
-            let lap_h = twice - (c[x - 2] + c[x + 2]);
-            let lap_v = twice - (u2[x] + d2[x]);
-            let class_h = (c[x - 1] - c[x + 1]).abs() + lap_h.abs();
-            let class_v = (u1[x] - d1[x]).abs() + lap_v.abs();
-            let est_h = 0.5 * (c[x - 1] + c[x + 1]) + 0.25 * lap_h;
-            let est_v = 0.5 * (u1[x] + d1[x]) + 0.25 * lap_v;
-            choose(class_h, est_h, class_v, est_v)
-        };
+    let (c2l, cl, cc, cr, c2r) = (at(c, -2), at(c, -1), at(c, 0), at(c, 1), at(c, 2));
+    let (uu, uc, dc, dd) = (at(u2, 0), at(u1, 0), at(d1, 0), at(d2, 0));
+    let m = &chroma[2..2 + n];
+    let g = &mut g[2..2 + n];
+    for i in 0..n {
+        let twice = 2.0 * cc[i];
+        let lap_h = twice - (c2l[i] + c2r[i]);
+        let lap_v = twice - (uu[i] + dd[i]);
+        let class_h = (cl[i] - cr[i]).abs() + lap_h.abs();
+        let class_v = (uc[i] - dc[i]).abs() + lap_v.abs();
+        let est_h = 0.5 * (cl[i] + cr[i]) + 0.25 * lap_h;
+        let est_v = 0.5 * (uc[i] + dc[i]) + 0.25 * lap_v;
+        let est = choose(class_h, est_h, class_v, est_v);
+        g[i] = select(m[i], est, cc[i]);
     }
 }
 
-struct ColourDifference<'a> {
-    /// Raw rows y-1, y, y+1.
-    raw: [&'a [f32]; 3],
-    /// Green rows y-1, y, y+1.
-    green: [&'a [f32]; 3],
+/// Fills `p` for row y from raw rows `r` and green rows `g` (y-1 ..= y+1).
+fn colour_planes(r: [&[f32]; 3], gr: [&[f32]; 3], kind: RowKind, p: &mut RowPlanes) {
+    let n = r[1].len() - 2;
+    let at = |row, dx| shifted(row, 1, dx, n);
+    let [ru, rc, rd] = r;
+    let [gu, gc, gd] = gr;
+    let (rul, ruc, rur) = (at(ru, -1), at(ru, 0), at(ru, 1));
+    let (rcl, rcc, rcr) = (at(rc, -1), at(rc, 0), at(rc, 1));
+    let (rdl, rdc, rdr) = (at(rd, -1), at(rd, 0), at(rd, 1));
+    let (gul, guc, gur) = (at(gu, -1), at(gu, 0), at(gu, 1));
+    let (gcl, gcc, gcr) = (at(gc, -1), at(gc, 0), at(gc, 1));
+    let (gdl, gdc, gdr) = (at(gd, -1), at(gd, 0), at(gd, 1));
+    let RowPlanes {
+        own,
+        green,
+        other,
+        chroma,
+    } = p;
+    let m = &chroma[kind.chroma_parity][1..1 + n];
+    let (own, green, other) = (
+        &mut own[1..1 + n],
+        &mut green[1..1 + n],
+        &mut other[1..1 + n],
+    );
+    for i in 0..n {
+        // At a chroma site: the other chroma on the better diagonal
+        // (a: NE-SW, b: NW-SE).
+        let twice = 2.0 * gcc[i];
+        let lap_a = twice - (gur[i] + gdl[i]);
+        let lap_b = twice - (gul[i] + gdr[i]);
+        let class_a = (rur[i] - rdl[i]).abs() + lap_a.abs();
+        let class_b = (rul[i] - rdr[i]).abs() + lap_b.abs();
+        let est_a = 0.5 * (rur[i] + rdl[i]) + 0.5 * lap_a;
+        let est_b = 0.5 * (rul[i] + rdr[i]) + 0.5 * lap_b;
+        let other_at_c = choose(class_a, est_a, class_b, est_b);
+        // At a green site: mean colour difference of the two neighbours
+        // holding each chroma (along the row: own; along the column: other).
+        let x = rcc[i];
+        let own_at_g = x + 0.5 * ((rcl[i] - gcl[i]) + (rcr[i] - gcr[i]));
+        let other_at_g = x + 0.5 * ((ruc[i] - guc[i]) + (rdc[i] - gdc[i]));
+        own[i] = select(m[i], x, own_at_g);
+        green[i] = select(m[i], gcc[i], x);
+        other[i] = select(m[i], other_at_c, other_at_g);
+    }
 }
 
-impl Sites for ColourDifference<'_> {
-    #[inline(always)]
-    fn chroma(&self, x: usize) -> Estimate {
-        let [ru, rc, rd] = self.raw;
-        let [gu, gc, gd] = self.green;
-        let g = gc[x];
-        let twice = 2.0 * g;
-        // NE-SW and NW-SE diagonals hold the other chroma.
-        let lap_a = twice - (gu[x + 1] + gd[x - 1]);
-        let lap_b = twice - (gu[x - 1] + gd[x + 1]);
-        let class_a = (ru[x + 1] - rd[x - 1]).abs() + lap_a.abs();
-        let class_b = (ru[x - 1] - rd[x + 1]).abs() + lap_b.abs();
-        let est_a = 0.5 * (ru[x + 1] + rd[x - 1]) + 0.5 * lap_a;
-        let est_b = 0.5 * (ru[x - 1] + rd[x + 1]) + 0.5 * lap_b;
-        [rc[x], g, choose(class_a, est_a, class_b, est_b)]
-    }
-
-    #[inline(always)]
-    fn green(&self, x: usize) -> Estimate {
-        let [ru, rc, rd] = self.raw;
-        let [gu, gc, gd] = self.green;
-        let g = rc[x];
-        let own = g + 0.5 * ((rc[x - 1] - gc[x - 1]) + (rc[x + 1] - gc[x + 1]));
-        let other = g + 0.5 * ((ru[x] - gu[x]) + (rd[x] - gd[x]));
-        [own, g, other]
-    }
-}
-
-/// Per-band state: the green ring and the next green row to compute.
-struct Greens {
-    ring: Ring,
+/// Per-band state: the output planes (as `f32` and converted), the green ring and the next green
+/// row to compute.
+struct State<T> {
+    planes: RowPlanes,
+    packed: Packed<T>,
+    greens: Ring,
     next: isize,
 }
 
 pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]) {
     let w = raw.width();
-    let init = |y0: usize| Greens {
-        ring: Ring::new(w, 3),
+    let init = |y0: usize| State {
+        planes: RowPlanes::new(w),
+        packed: Packed::new(w),
+        greens: Ring::new(w, 3),
         next: y0 as isize - 1,
     };
-    run_rows(raw, out, 3, init, |greens, ring, y, o| {
-        while greens.next <= y + 1 {
-            let gy = greens.next;
+    run_rows(raw, out, 3, init, |st, ring, y, o| {
+        while st.next <= y + 1 {
+            let gy = st.next;
             let rows = [-2, -1, 0, 1, 2].map(|d| ring.row(gy + d));
-            let green_parity = 1 - phase.row(gy).chroma_parity;
-            green_row(rows, green_parity, greens.ring.row_mut(gy));
-            greens.next += 1;
+            let chroma = &st.planes.chroma[phase.row(gy).chroma_parity];
+            green_row(rows, chroma, st.greens.row_mut(gy));
+            st.next += 1;
         }
-        let k = ColourDifference {
-            raw: [ring.row(y - 1), ring.row(y), ring.row(y + 1)],
-            green: [
-                greens.ring.row(y - 1),
-                greens.ring.row(y),
-                greens.ring.row(y + 1),
-            ],
-        };
-        write_row(&k, phase.row(y), o);
+        let kind = phase.row(y);
+        let raws = [ring.row(y - 1), ring.row(y), ring.row(y + 1)];
+        let greens = [st.greens.row(y - 1), st.greens.row(y), st.greens.row(y + 1)];
+        colour_planes(raws, greens, kind, &mut st.planes);
+        write_row(&st.planes, &mut st.packed, kind, o);
     });
 }
 

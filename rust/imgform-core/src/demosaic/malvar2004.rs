@@ -14,56 +14,63 @@
 //! Symmetric taps are summed in pairs (left + right, up + down), so results
 //! are bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_rows, write_row, Estimate, Phase, Sites};
+use super::{run_rows, select, shifted, write_row, Packed, Phase, RowKind, RowPlanes};
 use crate::image::{ImageView, Sample};
 
-struct Malvar<'a> {
-    /// Rows y-2 ..= y+2.
-    r: [&'a [f32]; 5],
-}
-
-impl Sites for Malvar<'_> {
-    #[inline(always)]
-    fn chroma(&self, x: usize) -> Estimate {
-        let [u2, u1, c, d1, d2] = self.r;
-        let near = (c[x - 1] + c[x + 1]) + (u1[x] + d1[x]);
-        let far = (c[x - 2] + c[x + 2]) + (u2[x] + d2[x]);
-        let diag = (u1[x - 1] + u1[x + 1]) + (d1[x - 1] + d1[x + 1]);
-        let green = 0.125 * (4.0 * c[x] + 2.0 * near - far);
-        let other = 0.125 * (6.0 * c[x] + 2.0 * diag - 1.5 * far);
-        [c[x], green, other]
-    }
-
-    #[inline(always)]
-    fn green(&self, x: usize) -> Estimate {
-        let [u2, u1, c, d1, d2] = self.r;
-        let diag = (u1[x - 1] + u1[x + 1]) + (d1[x - 1] + d1[x + 1]);
-        let base = 5.0 * c[x] - diag;
-        let horiz = 4.0 * (c[x - 1] + c[x + 1]) - (c[x - 2] + c[x + 2]);
-        let vert = 4.0 * (u1[x] + d1[x]) - (u2[x] + d2[x]);
-        let own = 0.125 * (base + horiz + 0.5 * (u2[x] + d2[x]));
-        let other = 0.125 * (base + vert + 0.5 * (c[x - 2] + c[x + 2]));
-        [own, c[x], other]
+/// Fills `p` from raw rows `r` = y-2 ..= y+2 for a row of kind `kind`.
+fn planes(r: [&[f32]; 5], kind: RowKind, p: &mut RowPlanes) {
+    let n = r[2].len() - 4;
+    let at = |row, dx| shifted(row, 2, dx, n);
+    let [u2, u1, c, d1, d2] = r;
+    let (c2l, cl, cc, cr, c2r) = (at(c, -2), at(c, -1), at(c, 0), at(c, 1), at(c, 2));
+    let (ul, uc, ur) = (at(u1, -1), at(u1, 0), at(u1, 1));
+    let (dl, dc, dr) = (at(d1, -1), at(d1, 0), at(d1, 1));
+    let (uu, dd) = (at(u2, 0), at(d2, 0));
+    let RowPlanes {
+        own,
+        green,
+        other,
+        chroma,
+    } = p;
+    let m = &chroma[kind.chroma_parity][2..2 + n];
+    let (own, green, other) = (
+        &mut own[2..2 + n],
+        &mut green[2..2 + n],
+        &mut other[2..2 + n],
+    );
+    for i in 0..n {
+        let x = cc[i];
+        let near_h = cl[i] + cr[i];
+        let near_v = uc[i] + dc[i];
+        let far_h = c2l[i] + c2r[i];
+        let far_v = uu[i] + dd[i];
+        let diag = (ul[i] + ur[i]) + (dl[i] + dr[i]);
+        // At a chroma site.
+        let far = far_h + far_v;
+        let g_at_c = 0.125 * (4.0 * x + 2.0 * (near_h + near_v) - far);
+        let other_at_c = 0.125 * (6.0 * x + 2.0 * diag - 1.5 * far);
+        // At a green site: own chroma along the row, the other along the column.
+        let base = 5.0 * x - diag;
+        let own_at_g = 0.125 * (base + (4.0 * near_h - far_h) + 0.5 * far_v);
+        let other_at_g = 0.125 * (base + (4.0 * near_v - far_v) + 0.5 * far_h);
+        own[i] = select(m[i], x, own_at_g);
+        green[i] = select(m[i], g_at_c, x);
+        other[i] = select(m[i], other_at_c, other_at_g);
     }
 }
 
 pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]) {
+    let w = raw.width();
     run_rows(
         raw,
         out,
         2,
-        |_| (),
-        |_, ring, y, o| {
-            let k = Malvar {
-                r: [
-                    ring.row(y - 2),
-                    ring.row(y - 1),
-                    ring.row(y),
-                    ring.row(y + 1),
-                    ring.row(y + 2),
-                ],
-            };
-            write_row(&k, phase.row(y), o);
+        |_| (RowPlanes::new(w), Packed::new(w)),
+        |(p, packed), ring, y, o| {
+            let kind = phase.row(y);
+            let rows = [-2, -1, 0, 1, 2].map(|d| ring.row(y + d));
+            planes(rows, kind, p);
+            write_row(p, packed, kind, o);
         },
     );
 }
