@@ -17,7 +17,7 @@ pub trait Sample: Copy + Send + Sync + Default + PartialEq + std::fmt::Debug + '
 
     /// [`Sample::from_f32`] over a row: `dst[i] = from_f32(src[i])`. Types
     /// override it where the element-wise form does not vectorise well.
-    #[inline]
+    #[inline(always)]
     fn from_f32_row(dst: &mut [Self], src: &[f32]) {
         for (d, s) in dst.iter_mut().zip(src) {
             *d = Self::from_f32(*s);
@@ -38,7 +38,7 @@ impl Sample for u8 {
         (v + 0.5) as u8
     }
 
-    #[inline]
+    #[inline(always)]
     fn from_f32_row(dst: &mut [Self], src: &[f32]) {
         for (d, s) in dst.iter_mut().zip(src) {
             *d = round_clamped(*s, 255.0) as u8;
@@ -57,7 +57,7 @@ impl Sample for u16 {
         (v + 0.5) as u16
     }
 
-    #[inline]
+    #[inline(always)]
     fn from_f32_row(dst: &mut [Self], src: &[f32]) {
         for (d, s) in dst.iter_mut().zip(src) {
             *d = round_clamped(*s, 65535.0) as u16;

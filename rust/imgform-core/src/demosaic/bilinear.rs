@@ -5,10 +5,11 @@
 //! Sums are grouped as (left + right) + (up + down), so the result is
 //! bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_rows, select, shifted, write_row, Packed, Phase, RowKind, RowPlanes};
+use super::{run_rows, select, shifted, write_row, Isa, Packed, Phase, RowKind, RowPlanes};
 use crate::image::{ImageView, Sample};
 
 /// Fills `p` for raw rows `up`, `row`, `down` of a row of kind `kind`.
+#[inline(always)]
 fn planes(up: &[f32], row: &[f32], down: &[f32], kind: RowKind, p: &mut RowPlanes) {
     let n = row.len() - 2;
     let at = |r, dx| shifted(r, 1, dx, n);
@@ -38,12 +39,13 @@ fn planes(up: &[f32], row: &[f32], down: &[f32], kind: RowKind, p: &mut RowPlane
     }
 }
 
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]) {
+pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
     let w = raw.width();
     run_rows(
         raw,
         out,
         1,
+        isa,
         |_| (RowPlanes::new(w), Packed::new(w)),
         |(p, packed), ring, y, o| {
             let kind = phase.row(y);

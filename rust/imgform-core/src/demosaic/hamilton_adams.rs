@@ -13,7 +13,9 @@
 //! Green is kept as unrounded `f32` rows in a ring of three, computed once
 //! per row of the band (plus two halo rows per band).
 
-use super::{run_rows, select, shifted, write_row, Packed, Phase, Ring, RowKind, RowPlanes, PAD};
+use super::{
+    run_rows, select, shifted, write_row, Isa, Packed, Phase, Ring, RowKind, RowPlanes, PAD,
+};
 use crate::image::{ImageView, Sample};
 
 /// The estimate along the better of two directions, or their mean on a tie
@@ -31,6 +33,7 @@ fn choose(class_a: f32, est_a: f32, class_b: f32, est_b: f32) -> f32 {
 
 /// Green of raw rows `r` = y-2 ..= y+2 into `g`, for padded columns
 /// `2 .. len - 2`; `chroma` marks the chroma sites of row y.
+#[inline(always)]
 fn green_row(r: [&[f32]; 5], chroma: &[u32], g: &mut [f32]) {
     let n = r[2].len() - 4;
     let at = |row, dx| shifted(row, 2, dx, n);
@@ -53,6 +56,7 @@ fn green_row(r: [&[f32]; 5], chroma: &[u32], g: &mut [f32]) {
 }
 
 /// Fills `p` for row y from raw rows `r` and green rows `g` (y-1 ..= y+1).
+#[inline(always)]
 fn colour_planes(r: [&[f32]; 3], gr: [&[f32]; 3], kind: RowKind, p: &mut RowPlanes) {
     let n = r[1].len() - 2;
     let at = |row, dx| shifted(row, 1, dx, n);
@@ -107,7 +111,7 @@ struct State<T> {
     next: isize,
 }
 
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]) {
+pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
     let w = raw.width();
     let init = |y0: usize| State {
         planes: RowPlanes::new(w),
@@ -115,7 +119,7 @@ pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]
         greens: Ring::new(w, 3),
         next: y0 as isize - 1,
     };
-    run_rows(raw, out, 3, init, |st, ring, y, o| {
+    run_rows(raw, out, 3, isa, init, |st, ring, y, o| {
         while st.next <= y + 1 {
             let gy = st.next;
             let rows = [-2, -1, 0, 1, 2].map(|d| ring.row(gy + d));

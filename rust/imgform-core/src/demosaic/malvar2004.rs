@@ -14,10 +14,11 @@
 //! Symmetric taps are summed in pairs (left + right, up + down), so results
 //! are bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_rows, select, shifted, write_row, Packed, Phase, RowKind, RowPlanes};
+use super::{run_rows, select, shifted, write_row, Isa, Packed, Phase, RowKind, RowPlanes};
 use crate::image::{ImageView, Sample};
 
 /// Fills `p` from raw rows `r` = y-2 ..= y+2 for a row of kind `kind`.
+#[inline(always)]
 fn planes(r: [&[f32]; 5], kind: RowKind, p: &mut RowPlanes) {
     let n = r[2].len() - 4;
     let at = |row, dx| shifted(row, 2, dx, n);
@@ -59,12 +60,13 @@ fn planes(r: [&[f32]; 5], kind: RowKind, p: &mut RowPlanes) {
     }
 }
 
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]) {
+pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
     let w = raw.width();
     run_rows(
         raw,
         out,
         2,
+        isa,
         |_| (RowPlanes::new(w), Packed::new(w)),
         |(p, packed), ring, y, o| {
             let kind = phase.row(y);

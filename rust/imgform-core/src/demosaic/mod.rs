@@ -118,13 +118,43 @@ pub fn demosaic<T: Sample>(
         ));
     };
     let phase = Phase { ry, rx };
-    match method {
-        Method::Nearest => nearest::run(&raw, phase, out),
-        Method::Bilinear => bilinear::run(&raw, phase, out),
-        Method::Malvar2004 => malvar2004::run(&raw, phase, out),
-        Method::HamiltonAdams => hamilton_adams::run(&raw, phase, out),
-    }
+    run_method(&raw, phase, method, Isa::detect(), out);
     Ok(())
+}
+
+/// The instruction sets the kernels are compiled for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// The target's baseline (SSE2 on x86-64).
+    Baseline,
+    /// x86-64 with AVX2, detected at run time.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Isa {
+    fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Isa::Avx2;
+        }
+        Isa::Baseline
+    }
+}
+
+fn run_method<T: Sample>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    method: Method,
+    isa: Isa,
+    out: &mut [T],
+) {
+    match method {
+        Method::Nearest => nearest::run(raw, phase, out),
+        Method::Bilinear => bilinear::run(raw, phase, isa, out),
+        Method::Malvar2004 => malvar2004::run(raw, phase, isa, out),
+        Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
+    }
 }
 
 /// Where red sits in the 2x2 tile; blue is at the opposite corner.
@@ -203,6 +233,7 @@ impl Ring {
     }
 
     /// Converts raw row `mirror(y)` into slot `y` and mirrors its ends.
+    #[inline(always)]
     pub(crate) fn load<T: Sample>(&mut self, raw: &ImageView<'_, T>, y: isize) {
         let w = raw.width();
         let src = raw.row(mirror(y, raw.height()));
@@ -222,10 +253,16 @@ impl Ring {
 /// `radius` raw rows above and below each output row are in the ring when
 /// `row(state, ring, y, out_row)` is called; `init` makes the per-band state
 /// (intermediate rings) once per band, never per pixel.
+///
+/// With [`Isa::Avx2`] the band runs in a copy of the code compiled for
+/// AVX2 (8 lanes instead of SSE2's 4; measured ~1.5x faster at 24 MP).
+/// Both copies do the same IEEE operations in the same order (no fused
+/// multiply-add), so the output is identical on every CPU.
 pub(crate) fn run_rows<T, S, I, F>(
     raw: &ImageView<'_, T>,
     out: &mut [T],
     radius: usize,
+    isa: Isa,
     init: I,
     row: F,
 ) where
@@ -233,21 +270,60 @@ pub(crate) fn run_rows<T, S, I, F>(
     I: Fn(usize) -> S + Sync,
     F: Fn(&mut S, &Ring, isize, &mut [T]) + Sync,
 {
+    for_each_band(out, 3 * raw.width(), ROWS_PER_BAND, |y0, rows| match isa {
+        Isa::Baseline => band(raw, rows, y0, radius, &init, &row),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: calling a function compiled for AVX2 requires a CPU with
+        // AVX2; `Isa::Avx2` is only made by `Isa::detect` after checking.
+        Isa::Avx2 => unsafe { band_avx2(raw, rows, y0, radius, &init, &row) },
+    });
+}
+
+/// [`band`] compiled for AVX2; the kernels inline into it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn band_avx2<T, S, I, F>(
+    raw: &ImageView<'_, T>,
+    rows: &mut [T],
+    y0: usize,
+    radius: usize,
+    init: &I,
+    row: &F,
+) where
+    T: Sample,
+    I: Fn(usize) -> S,
+    F: Fn(&mut S, &Ring, isize, &mut [T]),
+{
+    band(raw, rows, y0, radius, init, row);
+}
+
+/// One band of output rows starting at row `y0`.
+#[inline(always)]
+fn band<T, S, I, F>(
+    raw: &ImageView<'_, T>,
+    rows: &mut [T],
+    y0: usize,
+    radius: usize,
+    init: &I,
+    row: &F,
+) where
+    T: Sample,
+    I: Fn(usize) -> S,
+    F: Fn(&mut S, &Ring, isize, &mut [T]),
+{
     let w = raw.width();
     let r = radius as isize;
-    for_each_band(out, 3 * w, ROWS_PER_BAND, |y0, rows| {
-        let mut ring = Ring::new(w, 2 * radius + 1);
-        let mut state = init(y0);
-        let y0 = y0 as isize;
-        for y in y0 - r..y0 + r {
-            ring.load(raw, y);
-        }
-        for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
-            let y = y0 + i as isize;
-            ring.load(raw, y + r);
-            row(&mut state, &ring, y, o);
-        }
-    });
+    let mut ring = Ring::new(w, 2 * radius + 1);
+    let mut state = init(y0);
+    let y0 = y0 as isize;
+    for y in y0 - r..y0 + r {
+        ring.load(raw, y);
+    }
+    for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
+        let y = y0 + i as isize;
+        ring.load(raw, y + r);
+        row(&mut state, &ring, y, o);
+    }
 }
 
 /// One output row in planar form, padded like a ring row: the row's own
@@ -309,6 +385,7 @@ pub(crate) fn shifted(row: &[f32], reach: usize, dx: isize, n: usize) -> &[f32] 
 /// its own, where they vectorise; the interleaving then only moves samples.
 /// Converting while interleaving measured about twice as slow, the compiler
 /// turning it into shuffles around scalar conversions.
+#[inline(always)]
 pub(crate) fn write_row<T: Sample>(
     planes: &RowPlanes,
     packed: &mut Packed<T>,

@@ -238,3 +238,18 @@ fn bad_input_is_refused_with_a_reason() {
         "{err}"
     );
 }
+
+#[test]
+fn every_instruction_set_gives_the_same_bits() {
+    let (w, h) = (37, 2 * ROWS_PER_BAND + 5);
+    let raw: Vec<u16> = texture(w, h).iter().map(|&v| v as u16 * 65).collect();
+    let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
+    let phase = Phase { ry: 1, rx: 0 };
+    for method in Method::ALL {
+        let mut base = vec![0u16; 3 * w * h];
+        run_method(&view, phase, method, Isa::Baseline, &mut base);
+        let mut fast = vec![0u16; 3 * w * h];
+        run_method(&view, phase, method, Isa::detect(), &mut fast);
+        assert_eq!(base, fast, "{method:?}");
+    }
+}
