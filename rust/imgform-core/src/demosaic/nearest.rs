@@ -13,9 +13,7 @@ pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]
     let (w, h) = (raw.width(), raw.height());
     for_each_row(out, 3 * w, |y, o| {
         let pair = [raw.row(y & !1), raw.row(mirror((y | 1) as isize, h))];
-        let own = raw.row(y);
-        let red = pair[phase.ry];
-        let blue = pair[1 - phase.ry];
+        let (red, own, blue) = (pair[phase.ry], raw.row(y), pair[1 - phase.ry]);
         // Column offset of green inside a cell on this row: opposite to red
         // on a red row, to blue (= where red is) on a blue row.
         let green_dx = if (y & 1) == phase.ry {
@@ -23,18 +21,27 @@ pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, out: &mut [T]
         } else {
             phase.rx
         };
-        for (cell, px) in o.chunks_mut(6).enumerate() {
-            let x0 = 2 * cell;
-            // The cell's second column, mirrored for a last half cell.
-            let col = |dx: usize| if x0 + dx < w { x0 + dx } else { x0 - 1 };
+        let pick = |cell: &[T], dx: usize| if dx == 0 { cell[0] } else { cell[1] };
+        let cells = red
+            .chunks_exact(2)
+            .zip(own.chunks_exact(2))
+            .zip(blue.chunks_exact(2));
+        for (px, ((r, g), b)) in o.chunks_exact_mut(6).zip(cells) {
+            let rgb = [pick(r, phase.rx), pick(g, green_dx), pick(b, 1 - phase.rx)];
+            px[..3].copy_from_slice(&rgb);
+            px[3..].copy_from_slice(&rgb);
+        }
+        if w % 2 == 1 {
+            // A last half cell borrows its missing column by mirroring,
+            // which lands on the cell's first column's neighbour, w - 2.
+            let x0 = w - 1;
+            let col = |dx: usize| if dx == 0 { x0 } else { x0 - 1 };
             let rgb = [
                 red[col(phase.rx)],
                 own[col(green_dx)],
                 blue[col(1 - phase.rx)],
             ];
-            for p in px.chunks_exact_mut(3) {
-                p.copy_from_slice(&rgb);
-            }
+            o[3 * x0..].copy_from_slice(&rgb);
         }
     });
 }
