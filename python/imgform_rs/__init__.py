@@ -7,6 +7,7 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .camera import Camera, VanishingPoint, look_at, vanishing_line, vanishing_point
 from .cfa import (
     channel_masks,
     mosaic,
@@ -15,22 +16,62 @@ from .cfa import (
     shift_pattern,
     simulate_sensor,
 )
+from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic
 from .distortion import distort_points, undistort_points
+from .optics import (
+    circle_of_confusion,
+    depth_of_field,
+    dolly_zoom_focal_length,
+    field_of_view,
+    hyperfocal_distance,
+    image_distance,
+    magnification,
+    render_defocus,
+)
 from .projection import project_orthographic, project_pinhole
+from .remap import (
+    RemapMap,
+    distort_image,
+    distort_map,
+    remap,
+    undistort_image,
+    undistort_map,
+)
 
 __all__ = [
     "DEMOSAIC_METHODS",
+    "Camera",
     "RawError",
+    "RemapMap",
+    "VanishingPoint",
+    "add_lateral_ca",
     "channel_masks",
+    "circle_of_confusion",
+    "correct_lateral_ca",
     "demosaic",
+    "depth_of_field",
+    "distort_image",
+    "distort_map",
     "distort_points",
+    "dolly_zoom_focal_length",
+    "field_of_view",
+    "hyperfocal_distance",
+    "image_distance",
+    "look_at",
+    "magnification",
     "mosaic",
     "pattern_cells",
     "pattern_from_rawpy",
     "project_orthographic",
     "project_pinhole",
+    "remap",
+    "render_defocus",
     "shift_pattern",
     "simulate_sensor",
+    "undistort_image",
+    "undistort_map",
     "undistort_points",
+    "vanishing_line",
+    "vanishing_point",
 ]

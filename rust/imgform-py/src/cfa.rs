@@ -7,9 +7,9 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
-use crate::arrays::{contiguous, describe, image_dims, to_numpy, AnyImage};
+use crate::arrays::{contiguous, describe, detached_into, image_dims, to_numpy, AnyImage};
 use crate::dispatch_image;
-use crate::errors::{detached, to_pyerr};
+use crate::errors::to_pyerr;
 
 /// A pattern argument: a name, or an int64 array of shape (2, 2) / (6, 6).
 pub fn pattern_arg(obj: &Bound<'_, PyAny>) -> PyResult<CfaPattern> {
@@ -83,11 +83,10 @@ fn mosaic_typed<'py, T: Sample + Element>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = rgb_dims(arr.shape(), "rgb")?;
     let src = contiguous(&arr);
-    let mut out = vec![T::default(); w * h];
-    detached(py, || {
-        cfa::mosaic(ImageView::contiguous(&src, w, h, 3)?, p, &mut out)
+    let out = detached_into(py, &[h, w], |out| {
+        cfa::mosaic(ImageView::contiguous(&src, w, h, 3)?, p, out)
     })?;
-    Ok(to_numpy(py, out, &[h, w])?.into_any())
+    Ok(out.into_any())
 }
 
 /// Samples an RGB image (H, W, 3) through a pattern -> (H, W), same dtype.
@@ -111,9 +110,7 @@ fn channel_masks<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<bool>>> {
     let p = pattern_arg(pattern)?;
     let (h, w) = shape;
-    let mut out = vec![false; 3 * w * h];
-    detached(py, || cfa::channel_masks(w, h, &p, &mut out))?;
-    to_numpy(py, out, &[h, w, 3])
+    detached_into(py, &[h, w, 3], |out| cfa::channel_masks(w, h, &p, out))
 }
 
 fn simulate_typed<'py, T: Sample + Element>(
@@ -124,11 +121,10 @@ fn simulate_typed<'py, T: Sample + Element>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = rgb_dims(arr.shape(), "rgb")?;
     let src = contiguous(&arr);
-    let mut out = vec![0u16; w * h];
-    detached(py, || {
-        cfa::simulate_sensor(ImageView::contiguous(&src, w, h, 3)?, p, params, &mut out)
+    let out = detached_into(py, &[h, w], |out| {
+        cfa::simulate_sensor(ImageView::contiguous(&src, w, h, 3)?, p, params, out)
     })?;
-    Ok(to_numpy(py, out, &[h, w])?.into_any())
+    Ok(out.into_any())
 }
 
 /// A noisy uint16 raw (H, W) from a linear RGB image (H, W, 3).

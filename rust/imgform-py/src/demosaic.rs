@@ -8,7 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{contiguous, fill_output, AnyImage};
+use crate::arrays::{contiguous, detached_into, AnyImage};
 use crate::cfa::pattern_arg;
 use crate::dispatch_image;
 use crate::errors::to_pyerr;
@@ -28,7 +28,7 @@ fn demosaic_typed<'py, T: Sample + Element>(
         }
     };
     let src = contiguous(&arr);
-    let out = fill_output(py, &[h, w, 3], |out| {
+    let out = detached_into(py, &[h, w, 3], |out| {
         demosaic_kernel(ImageView::contiguous(&src, w, h, 1)?, p, method, out)
     })?;
     Ok(out.into_any())

@@ -7,10 +7,15 @@
 mod arrays;
 mod errors;
 
+mod camera;
 mod cfa;
+mod chromatic;
+mod defocus;
 mod demosaic;
 mod distortion;
+mod optics;
 mod projection;
+mod remap;
 
 use pyo3::prelude::*;
 
@@ -19,7 +24,12 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
     cfa::register(m)?;
     demosaic::register(m)?;
+    camera::register(m)?;
+    chromatic::register(m)?;
     distortion::register(m)?;
     projection::register(m)?;
+    remap::register(m)?;
+    optics::register(m)?;
+    defocus::register(m)?;
     Ok(())
 }
