@@ -164,6 +164,42 @@ def speed(tmp: Path) -> None:
     print(table(["ours", "peer", "speed-up"], ratios))
 
 
+# Peak resident memory of a fresh process around one demosaic call, minus the
+# output: what the call needs beyond its result. The mosaic is built without
+# temporaries, so the peak before the call is just the interpreter and input.
+# Linux's VmHWM, not ru_maxrss: the latter keeps the parent's peak across
+# fork and exec, which hid the child's growth here.
+MEMORY_CODE = """
+import sys, numpy as np, imgform_rs as ig
+def peak():
+    line = [s for s in open("/proc/self/status") if s.startswith("VmHWM")][0]
+    return int(line.split()[1]) * 1024
+raw = np.zeros((4000, 6000), np.uint16)
+raw[:] = np.arange(6000, dtype=np.uint16) % 4096
+ig.demosaic(raw[:64, :64], "RGGB", sys.argv[1])
+before = peak()
+out = ig.demosaic(raw, "RGGB", sys.argv[1])
+print(peak() - before - out.nbytes, out.nbytes)
+"""
+
+
+def memory() -> None:
+    import subprocess
+
+    if not os.path.exists("/proc/self/status"):
+        print("\n(extra memory: needs Linux's /proc, skipped)")
+        return
+    rows = []
+    for m in ig.DEMOSAIC_METHODS:
+        done = subprocess.run(
+            [sys.executable, "-c", MEMORY_CODE, m], capture_output=True, text=True, check=True
+        )
+        extra, out = (int(v) for v in done.stdout.split())
+        rows.append([m, f"{out / 2**20:.0f}", f"{extra / 2**20:.1f}", f"{100 * extra / out:.1f} %"])
+    print("\n## Extra memory at 24 MP uint16 (peak RSS growth minus the output)\n")
+    print(table(["method", "output MiB", "extra MiB", "extra / output"], rows))
+
+
 def load_images() -> dict[str, np.ndarray]:
     from skimage import data
 
@@ -239,6 +275,7 @@ def quality(tmp: Path) -> None:
 def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         speed(Path(d))
+        memory()
         quality(Path(d))
 
 
