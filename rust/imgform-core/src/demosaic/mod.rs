@@ -13,7 +13,8 @@
 //! either a "red row" (red and green sites) or a "blue row" (blue and green),
 //! and its chroma sites sit on one column parity. A kernel computes, at each
 //! site, the row's own chroma, green, and the other chroma into
-//! [`RowPlanes`]; [`write_row`] puts them into R, G, B order.
+//! planar rows; a shared writer converts them and puts them into R, G, B
+//! order.
 //!
 //! Mirroring without repeating the edge ([`mirror`]) keeps the CFA parity,
 //! so a border pixel sees a plausible mosaic and no black frame or
