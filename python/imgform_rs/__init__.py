@@ -17,7 +17,16 @@ from .align import (
     stack_channels,
 )
 from .camera import Camera, VanishingPoint, look_at, vanishing_line, vanishing_point
+from .cfa import (
+    channel_masks,
+    mosaic,
+    pattern_cells,
+    pattern_from_rawpy,
+    shift_pattern,
+    simulate_sensor,
+)
 from .chromatic import add_lateral_ca, correct_lateral_ca
+from .demosaic import DEMOSAIC_METHODS, demosaic
 from .distortion import distort_points, undistort_points
 from .optics import (
     circle_of_confusion,
@@ -40,6 +49,7 @@ from .remap import (
 )
 
 __all__ = [
+    "DEMOSAIC_METHODS",
     "Alignment",
     "Camera",
     "RawError",
@@ -48,9 +58,11 @@ __all__ = [
     "add_lateral_ca",
     "align",
     "apply_shift",
+    "channel_masks",
     "circle_of_confusion",
     "colorize_plate",
     "correct_lateral_ca",
+    "demosaic",
     "depth_of_field",
     "distort_image",
     "distort_map",
@@ -61,12 +73,17 @@ __all__ = [
     "image_distance",
     "look_at",
     "magnification",
+    "mosaic",
+    "pattern_cells",
+    "pattern_from_rawpy",
     "project_orthographic",
     "project_pinhole",
     "read_plate",
     "remap",
     "render_defocus",
+    "shift_pattern",
     "similarity",
+    "simulate_sensor",
     "stack_channels",
     "undistort_image",
     "undistort_map",

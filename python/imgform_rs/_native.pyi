@@ -112,6 +112,7 @@ def lateral_ca(
     interpolation: str = "bilinear",
     fill: float = 0.0,
 ) -> npt.NDArray[Any]: ...
+
 # --- align ---
 def similarity(a: npt.NDArray[np.generic], b: npt.NDArray[np.generic], metric: str) -> float: ...
 def align_images(
@@ -130,3 +131,29 @@ def align_images(
     tuple[int, int],
     list[tuple[int, int, tuple[int, int], float]],
 ]: ...
+
+# --- cfa ---
+def pattern_cells(pattern: str | npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]: ...
+def shift_pattern(
+    pattern: str | npt.NDArray[np.int64], dy: int, dx: int
+) -> str | npt.NDArray[np.uint8]: ...
+def mosaic(rgb: npt.NDArray[Any], pattern: str | npt.NDArray[np.int64]) -> npt.NDArray[Any]: ...
+def channel_masks(
+    shape: tuple[int, int], pattern: str | npt.NDArray[np.int64]
+) -> npt.NDArray[np.bool_]: ...
+def simulate_sensor(
+    rgb: npt.NDArray[Any],
+    pattern: str | npt.NDArray[np.int64],
+    full_well: float,
+    read_noise: float,
+    bit_depth: int,
+    black_level: int,
+    seed: int,
+) -> npt.NDArray[np.uint16]: ...
+
+# --- demosaic ---
+DEMOSAIC_METHODS: tuple[str, ...]
+
+def demosaic(
+    raw: npt.NDArray[Any], pattern: str | npt.NDArray[np.int64], method: str = "bilinear"
+) -> npt.NDArray[Any]: ...

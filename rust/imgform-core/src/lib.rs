@@ -12,8 +12,10 @@ pub mod parallel;
 
 pub mod align;
 pub mod camera;
+pub mod cfa;
 pub mod chromatic;
 pub mod defocus;
+pub mod demosaic;
 pub mod distortion;
 pub mod intrinsics;
 pub mod optics;

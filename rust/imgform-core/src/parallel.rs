@@ -34,6 +34,26 @@ where
         });
 }
 
+/// Calls `f(first_row, rows)` for consecutive bands of `rows_per_band` rows
+/// of `out` (rows of `row_len` elements) in parallel.
+///
+/// For kernels that carry state from row to row inside a band (ring buffers
+/// of converted input rows, intermediate planes): the state is rebuilt at
+/// each band start, so a band's output never depends on which thread ran
+/// the previous one.
+pub fn for_each_band<T, F>(out: &mut [T], row_len: usize, rows_per_band: usize, f: F)
+where
+    T: Send,
+    F: Fn(usize, &mut [T]) + Sync,
+{
+    if row_len == 0 || rows_per_band == 0 {
+        return;
+    }
+    out.par_chunks_mut(row_len * rows_per_band)
+        .enumerate()
+        .for_each(|(band, rows)| f(band * rows_per_band, rows));
+}
+
 /// Maps point `i` of `input` (records of `in_dim` values) to record `i` of
 /// `out` (records of `out_dim` values) in parallel, and returns the index of
 /// the first point for which `f` returned `false` (an invalid input), if any.
@@ -161,6 +181,19 @@ mod tests {
         for_each_row(&mut out, 3, |y, row| row.iter_mut().for_each(|v| *v += y));
         for (y, row) in out.chunks(3).enumerate() {
             assert_eq!(row, &[y, y, y]);
+        }
+    }
+
+    #[test]
+    fn for_each_band_covers_every_row_once_including_a_short_last_band() {
+        let mut out = vec![0usize; 2 * 11];
+        for_each_band(&mut out, 2, 4, |y0, rows| {
+            for (i, row) in rows.chunks_mut(2).enumerate() {
+                row.iter_mut().for_each(|v| *v += y0 + i);
+            }
+        });
+        for (y, row) in out.chunks(2).enumerate() {
+            assert_eq!(row, &[y, y]);
         }
     }
 

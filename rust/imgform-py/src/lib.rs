@@ -9,8 +9,10 @@ mod errors;
 
 mod align;
 mod camera;
+mod cfa;
 mod chromatic;
 mod defocus;
+mod demosaic;
 mod distortion;
 mod optics;
 mod projection;
@@ -23,8 +25,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
     align::register(m)?;
     camera::register(m)?;
+    cfa::register(m)?;
     chromatic::register(m)?;
     defocus::register(m)?;
+    demosaic::register(m)?;
     distortion::register(m)?;
     optics::register(m)?;
     projection::register(m)?;

@@ -1,0 +1,283 @@
+"""Demosaicing: speed on a 24 MP uint16 RGGB mosaic and CPSNR on scikit-image's
+RGB images, for every method of ours and every peer installed, in one run.
+
+Speed. The mosaic is a simulated 14-bit raw (``simulate_sensor``) of
+scikit-image's astronaut resized to 6000 x 4000, so adaptive methods see real
+edges. Peers:
+
+- OpenCV ``cvtColor``: ``COLOR_BayerBG2RGB`` (bilinear; OpenCV names codes after
+  the second row, so our RGGB is its BayerBG) and ``_EA`` on the same uint16
+  mosaic; ``_VNG`` only accepts uint8, so it runs on the mosaic shifted to 8 bits.
+- LibRaw through rawpy: the mosaic is written as a DNG by our writer; we time
+  ``postprocess`` of an already-decoded file (``rawpy.imread`` done outside the
+  timer). ``postprocess`` also scales, converts colour and packs the output, so it
+  is an upper bound on LibRaw's demosaic time; its LINEAR row shows the floor.
+- colour-demosaicing (NumPy/SciPy, float64) is slow, so it runs on a 1 MP crop and
+  its MP/s is scaled from that.
+
+CPSNR (the usual 8-bit protocol): uint8 RGB image, mosaic RGGB, demosaic, crop 10
+pixels on every side, ``CPSNR = 10 log10(255^2 / MSE)`` with the MSE over all three
+channels. Float peers are rounded to uint8 first; LibRaw reads the mosaic
+(times 257, 16 bits) from a DNG and develops it linearly in camera RGB without
+white balance, so only its demosaicer differs.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _bench import measure, table
+
+import imgform_rs as ig
+from imgform_rs.dng import write_dng
+
+H, W = 4000, 6000
+MP = H * W / 1e6
+CROP = (800, 1250)  # 1 MP for colour-demosaicing
+IMAGES = [
+    "astronaut",
+    "coffee",
+    "chelsea",
+    "rocket",
+    "immunohistochemistry",
+    "retina",
+    "motorcycle_left",
+]
+LIBRAW_METHODS = ["LINEAR", "VNG", "PPG", "AHD", "DCB", "DHT", "AAHD"]
+
+
+def optional(name: str):
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return __import__(name)
+    except ImportError:
+        return None
+
+
+cv2 = optional("cv2")
+rawpy = optional("rawpy")
+cd = optional("colour_demosaicing")
+
+
+def libraw_develop(path: str, algorithm: str):
+    """A decoded file and the call that develops it with one demosaicer."""
+    raw = rawpy.imread(path)
+    algo = getattr(rawpy.DemosaicAlgorithm, algorithm)
+    if not algo.isSupported:
+        raw.close()
+        return None, None
+
+    def develop():
+        return raw.postprocess(
+            demosaic_algorithm=algo,
+            output_bps=16,
+            gamma=(1, 1),
+            no_auto_bright=True,
+            output_color=rawpy.ColorSpace.raw,
+            use_camera_wb=False,
+            use_auto_wb=False,
+            user_wb=[1.0, 1.0, 1.0, 1.0],
+            user_flip=0,
+            user_black=0,
+            user_sat=65535,
+        )
+
+    return raw, develop
+
+
+def speed_mosaic() -> np.ndarray:
+    from skimage import data
+
+    scene = data.astronaut().astype(np.float32) / 255.0
+    if cv2 is not None:
+        scene = cv2.resize(scene, (W, H), interpolation=cv2.INTER_LINEAR)
+    else:
+        scene = np.kron(scene, np.ones((8, 12, 1), np.float32))[:H, :W]
+    linear = scene**2.2
+    return ig.simulate_sensor(linear, "RGGB", full_well=20000, bit_depth=14, black_level=0)
+
+
+def speed(tmp: Path) -> None:
+    raw = speed_mosaic()
+    rows: list[list[str]] = []
+    results: dict[str, float] = {}
+
+    def add(name: str, fn: Callable[[], object], mp: float, repeat: int, note: str = ""):
+        t = measure(name, fn, repeat=repeat)
+        results[name] = t.best
+        ms = [f"{t.best * 1e3:.1f}", f"{t.median * 1e3:.1f}"]
+        rows.append([name, *ms, f"{mp / t.best:.0f}", note])
+        return t
+
+    for m in ig.DEMOSAIC_METHODS:
+        add(f"ours {m}", lambda m=m: ig.demosaic(raw, "RGGB", m), MP, 7)
+    if cv2 is not None:
+        add("OpenCV bilinear", lambda: cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB), MP, 7)
+        add("OpenCV EA", lambda: cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB_EA), MP, 5)
+        raw8 = (raw >> 6).astype(np.uint8)
+        vng = cv2.COLOR_BayerBG2RGB_VNG
+        add("OpenCV VNG", lambda: cv2.cvtColor(raw8, vng), MP, 3, "uint8 input")
+    if rawpy is not None:
+        path = str(tmp / "speed.dng")
+        write_dng(path, raw, "RGGB", white_level=2**14 - 1)
+
+        def decode():
+            with rawpy.imread(path) as r:
+                return r.raw_image_visible.shape
+
+        add("LibRaw decode", decode, MP, 3, "imread + unpack; not in the rows below")
+        for algo in ["LINEAR", "VNG", "PPG", "AHD"]:
+            handle, develop = libraw_develop(path, algo)
+            if develop is None:
+                continue
+            add(f"LibRaw {algo}", develop, MP, 2, "postprocess, file decoded")
+            handle.close()
+    if cd is not None:
+        crop = raw[: CROP[0], : CROP[1]].astype(np.float64) / (2**14 - 1)
+        mp = crop.size / 1e6
+        for name, fn in [
+            ("bilinear", cd.demosaicing_CFA_Bayer_bilinear),
+            ("Malvar2004", cd.demosaicing_CFA_Bayer_Malvar2004),
+            ("Menon2007", cd.demosaicing_CFA_Bayer_Menon2007),
+        ]:
+            reps = 1 if name == "Menon2007" else 2
+            add(f"colour {name}", lambda fn=fn: fn(crop, "RGGB"), mp, reps, "1 MP crop, scaled")
+    print(f"\n## Speed: {W}x{H} ({MP:.0f} MP) uint16 RGGB, {os.cpu_count()} cores")
+    print("best of N; MP/s at the best time\n")
+    print(table(["method", "best ms", "median ms", "MP/s", "note"], rows))
+    ratios = []
+    for ours in ig.DEMOSAIC_METHODS:
+        for peer in ["OpenCV bilinear", "OpenCV EA", "LibRaw LINEAR", "LibRaw AHD"]:
+            if peer in results:
+                ratio = results[peer] / results[f"ours {ours}"]
+                ratios.append([ours, peer, f"{ratio:.2f}x"])
+    print("\nSpeed-up of ours over each peer (same run; > 1 means ours is faster)\n")
+    print(table(["ours", "peer", "speed-up"], ratios))
+
+
+# Peak resident memory of a fresh process around one demosaic call, minus the
+# output: what the call needs beyond its result. The mosaic is built without
+# temporaries, so the peak before the call is just the interpreter and input.
+# Linux's VmHWM, not ru_maxrss: the latter keeps the parent's peak across
+# fork and exec, which hid the child's growth here.
+MEMORY_CODE = """
+import sys, numpy as np, imgform_rs as ig
+def peak():
+    line = [s for s in open("/proc/self/status") if s.startswith("VmHWM")][0]
+    return int(line.split()[1]) * 1024
+raw = np.zeros((4000, 6000), np.uint16)
+raw[:] = np.arange(6000, dtype=np.uint16) % 4096
+ig.demosaic(raw[:64, :64], "RGGB", sys.argv[1])
+before = peak()
+out = ig.demosaic(raw, "RGGB", sys.argv[1])
+print(peak() - before - out.nbytes, out.nbytes)
+"""
+
+
+def memory() -> None:
+    import subprocess
+
+    if not os.path.exists("/proc/self/status"):
+        print("\n(extra memory: needs Linux's /proc, skipped)")
+        return
+    rows = []
+    for m in ig.DEMOSAIC_METHODS:
+        done = subprocess.run(
+            [sys.executable, "-c", MEMORY_CODE, m], capture_output=True, text=True, check=True
+        )
+        extra, out = (int(v) for v in done.stdout.split())
+        rows.append([m, f"{out / 2**20:.0f}", f"{extra / 2**20:.1f}", f"{100 * extra / out:.1f} %"])
+    print("\n## Extra memory at 24 MP uint16 (peak RSS growth minus the output)\n")
+    print(table(["method", "output MiB", "extra MiB", "extra / output"], rows))
+
+
+def load_images() -> dict[str, np.ndarray]:
+    from skimage import data
+
+    images = {}
+    for name in IMAGES:
+        # The left view of the Middlebury motorcycle pair is stereo_motorcycle()[0].
+        loader = data.stereo_motorcycle if name == "motorcycle_left" else getattr(data, name)
+        try:
+            img = loader()
+        except Exception as exc:  # a download that is impossible here
+            print(f"skipped {name}: {type(exc).__name__}: {str(exc)[:80]}")
+            continue
+        if isinstance(img, tuple):  # (left, right, disparity): take the left view
+            img = img[0]
+        if img.ndim == 3 and img.shape[2] == 3:
+            images[name] = np.ascontiguousarray(img.astype(np.uint8))
+    return images
+
+
+def cpsnr(out: np.ndarray, ref: np.ndarray) -> float:
+    d = out[10:-10, 10:-10].astype(np.float64) - ref[10:-10, 10:-10].astype(np.float64)
+    return 10 * np.log10(255.0**2 / np.mean(d**2))
+
+
+def to_u8(x: np.ndarray, scale: float) -> np.ndarray:
+    return np.clip(np.round(x * scale), 0, 255).astype(np.uint8)
+
+
+def quality(tmp: Path) -> None:
+    images = load_images()
+    methods: dict[str, Callable[[np.ndarray, str], np.ndarray]] = {}
+    for m in ig.DEMOSAIC_METHODS:
+        methods[f"ours {m}"] = lambda raw, name, m=m: ig.demosaic(raw, "RGGB", m)
+    if cv2 is not None:
+        for label, code in [("bilinear", ""), ("VNG", "_VNG"), ("EA", "_EA")]:
+            c = getattr(cv2, f"COLOR_BayerBG2RGB{code}")
+            methods[f"OpenCV {label}"] = lambda raw, name, c=c: cv2.cvtColor(raw, c)
+    if cd is not None:
+        for label in ["bilinear", "Malvar2004", "Menon2007"]:
+            fn = getattr(cd, f"demosaicing_CFA_Bayer_{label}")
+            methods[f"colour {label}"] = lambda raw, name, fn=fn: to_u8(
+                fn(raw.astype(np.float64) / 255.0, "RGGB"), 255.0
+            )
+    if rawpy is not None:
+        for algo in LIBRAW_METHODS:
+            if not getattr(rawpy.DemosaicAlgorithm, algo).isSupported:
+                print(f"LibRaw {algo}: not supported by this rawpy build")
+                continue
+
+            def libraw(raw, name, algo=algo):
+                path = str(tmp / f"{name}.dng")
+                if not os.path.exists(path):
+                    write_dng(path, raw.astype(np.uint16) * 257, "RGGB", white_level=65535)
+                handle, develop = libraw_develop(path, algo)
+                with handle:
+                    return to_u8(develop(), 1 / 257)
+
+            methods[f"LibRaw {algo}"] = libraw
+    scores = {m: {} for m in methods}
+    for name, rgb in images.items():
+        raw = ig.mosaic(rgb, "RGGB")
+        for m, fn in methods.items():
+            scores[m][name] = cpsnr(fn(raw, name), rgb)
+    names = list(images)
+    rows = []
+    for m in sorted(methods, key=lambda m: -np.mean(list(scores[m].values()))):
+        vals = [scores[m][n] for n in names]
+        rows.append([m, *(f"{v:.2f}" for v in vals), f"{np.mean(vals):.2f}"])
+    print("\n## CPSNR (dB), 8-bit protocol, RGGB, 10 px border cropped; sorted by mean\n")
+    print(table(["method", *names, "mean"], rows))
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as d:
+        speed(Path(d))
+        memory()
+        quality(Path(d))
+
+
+if __name__ == "__main__":
+    main()

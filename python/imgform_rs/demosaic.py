@@ -1,0 +1,76 @@
+"""Demosaicing (lecture section 6): the two colours each photosite did not see.
+
+Methods, all for the four Bayer phases and uint8 / uint16 / float32 mosaics:
+
+- ``"nearest"``: each 2x2 cell's red and blue, and the green of the pixel's row,
+  copied to the cell's pixels. Blocky; a baseline.
+- ``"bilinear"``: the mean of the nearest samples of each colour.
+- ``"malvar2004"``: Malvar, He and Cutler, "High-quality linear interpolation for
+  demosaicing of Bayer-patterned color images", ICASSP 2004 — bilinear corrected
+  by the Laplacian of the colour sampled at the site.
+- ``"hamilton_adams"``: Hamilton and Adams, US patent 5,629,734 (1997) — green
+  interpolated along the direction of smaller gradient plus second derivative,
+  red and blue from colour differences, with the same choice between diagonals.
+
+OpenCV names Bayer codes after the second row's first two pixels: our ``"RGGB"`` is
+``cv2.COLOR_BayerBG2RGB`` (and OpenCV returns BGR for the ``2BGR`` codes).
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _native
+from .cfa import Pattern, as_image, as_pattern
+
+DEMOSAIC_METHODS: tuple[str, ...] = tuple(_native.DEMOSAIC_METHODS)
+"""Every method :func:`demosaic` accepts."""
+
+SampleT = TypeVar("SampleT", np.uint8, np.uint16, np.float32)
+
+
+def demosaic(
+    raw: npt.NDArray[SampleT], pattern: Pattern, method: str = "bilinear"
+) -> npt.NDArray[SampleT]:
+    """Reconstruct an RGB image from a Bayer mosaic.
+
+    Parameters
+    ----------
+    raw : ndarray, shape (H, W), uint8, uint16 or float32
+        The mosaic, at least 2x2; any layout (copied once if not C-contiguous).
+    pattern : str or array_like
+        ``"RGGB"``, ``"BGGR"``, ``"GRBG"``, ``"GBRG"`` or a (2, 2) array of
+        channel indices, describing pixel (0, 0) of ``raw``.
+    method : str
+        One of :data:`DEMOSAIC_METHODS`.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), same dtype as ``raw``
+        R, G, B. Each sampled value comes back unchanged at its own site.
+        Integer outputs are rounded half up and clamped to the dtype's range;
+        float outputs are not clamped (Malvar and Hamilton-Adams can overshoot).
+        Borders are reconstructed from a mirrored mosaic (edge not repeated,
+        which keeps the CFA phase): no black frame, no wrap-around.
+
+    Raises
+    ------
+    TypeError
+        For a dtype other than uint8 / uint16 / float32, None, a non-str method
+        or a pattern of the wrong type.
+    ValueError
+        For a shape other than (H, W), an image smaller than 2x2, an unknown
+        method or pattern, or an X-Trans pattern (not supported by these methods).
+
+    Examples
+    --------
+    >>> raw = np.full((4, 6), 100, np.uint16)
+    >>> demosaic(raw, "RGGB", "malvar2004")[2, 3].tolist()
+    [100, 100, 100]
+    """
+    if not isinstance(method, str):
+        raise TypeError(f"method must be a str, one of {DEMOSAIC_METHODS}, got {method!r}")
+    return _native.demosaic(as_image(raw, "raw"), as_pattern(pattern), method)

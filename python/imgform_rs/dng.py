@@ -1,0 +1,188 @@
+"""A minimal DNG writer for CFA mosaics, so LibRaw (rawpy) can read our raws.
+
+We write just what the DNG 1.4 specification requires for an uncompressed CFA
+image, plus the colour tags LibRaw needs to develop it: one little-endian TIFF
+IFD holding the mosaic as a single uint16 strip, ``PhotometricInterpretation =
+CFA``, ``CFARepeatPatternDim`` / ``CFAPattern`` (0 = R, 1 = G, 2 = B, the same
+indices as our patterns), black and white levels, ``ColorMatrix1`` and
+``AsShotNeutral``. It serves the LibRaw benchmark and the raw pipeline's tests.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from .cfa import Pattern, pattern_cells
+
+# TIFF field types.
+_BYTE, _ASCII, _SHORT, _LONG, _RATIONAL, _SRATIONAL = 1, 2, 3, 4, 5, 10
+_TYPE_SIZE = {_BYTE: 1, _ASCII: 1, _SHORT: 2, _LONG: 4, _RATIONAL: 8, _SRATIONAL: 8}
+_TYPE_CODE = {_BYTE: "B", _ASCII: "B", _SHORT: "H", _LONG: "I"}
+_CFA = 32803  # PhotometricInterpretation of a colour filter array image.
+_D65 = 21  # CalibrationIlluminant code.
+
+# XYZ (D65) to linear sRGB: with it as ColorMatrix1 a developer maps the
+# camera's RGB to sRGB unchanged, which suits synthetic mosaics of sRGB images.
+XYZ_TO_SRGB = (
+    (3.2404542, -1.5371385, -0.4985314),
+    (-0.9692660, 1.8760108, 0.0415560),
+    (0.0556434, -0.2040259, 1.0572252),
+)
+
+
+def _rationals(values: Any, signed: bool) -> list[int]:
+    out = []
+    for v in np.asarray(values, np.float64).ravel():
+        f = Fraction(float(v)).limit_denominator(1_000_000)
+        out += [f.numerator, f.denominator]
+    fmt = "i" if signed else "I"
+    struct.pack(f"<{len(out)}{fmt}", *out)  # range check: raises for overflow
+    return out
+
+
+class _Ifd:
+    """Collects entries, then lays out the IFD and its out-of-line values."""
+
+    def __init__(self) -> None:
+        self.entries: list[tuple[int, int, int, bytes]] = []
+
+    def add(self, tag: int, kind: int, values: Any) -> None:
+        if kind == _ASCII:
+            payload = values.encode("ascii") + b"\0"
+            count = len(payload)
+        elif kind in (_RATIONAL, _SRATIONAL):
+            nums = _rationals(values, kind == _SRATIONAL)
+            payload = struct.pack(f"<{len(nums)}{'i' if kind == _SRATIONAL else 'I'}", *nums)
+            count = len(nums) // 2
+        else:
+            vals = [int(v) for v in np.atleast_1d(values)]
+            payload = struct.pack(f"<{len(vals)}{_TYPE_CODE[kind]}", *vals)
+            count = len(vals)
+        self.entries.append((tag, kind, count, payload))
+
+    def pack(self, offset: int) -> bytes:
+        """The IFD (starting at file offset ``offset``) followed by its data."""
+        self.entries.sort()
+        head_len = 2 + 12 * len(self.entries) + 4
+        data = b""
+        table = struct.pack("<H", len(self.entries))
+        for tag, kind, count, payload in self.entries:
+            if len(payload) <= 4:
+                field = payload.ljust(4, b"\0")
+            else:
+                if (offset + head_len + len(data)) % 2:
+                    data += b"\0"  # TIFF values start on word boundaries
+                field = struct.pack("<I", offset + head_len + len(data))
+                data += payload
+            table += struct.pack("<HHI", tag, kind, count) + field
+        return table + struct.pack("<I", 0) + data
+
+
+def write_dng(
+    path: str | os.PathLike[str],
+    cfa: npt.NDArray[np.integer],
+    pattern: Pattern,
+    *,
+    white_level: int,
+    black_level: int = 0,
+    color_matrix: Any = XYZ_TO_SRGB,
+    as_shot_neutral: Any = (1.0, 1.0, 1.0),
+    model: str = "imgform-rs synthetic",
+) -> None:
+    """Write a CFA mosaic as an uncompressed DNG that LibRaw reads back exactly.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        File to create (overwritten).
+    cfa : ndarray, shape (H, W), uint16 (or uint8, widened)
+        The mosaic; ``rawpy.imread(path).raw_image_visible`` returns it unchanged.
+        LibRaw refuses images under 22 pixels on a side.
+    pattern : str or array_like
+        Bayer name or tile, or an X-Trans tile, of pixel (0, 0).
+    white_level : int
+        Saturation level in digital numbers (e.g. 4095 for 12 bits).
+    black_level : int
+        Offset subtracted by raw developers.
+    color_matrix : array_like (3, 3)
+        DNG ``ColorMatrix1``: XYZ (D65) to camera RGB. The default makes camera
+        RGB linear sRGB.
+    as_shot_neutral : array_like (3,)
+        White balance as camera RGB of a neutral; (1, 1, 1) leaves it alone.
+    model : str
+        ``UniqueCameraModel`` (also written as Make / Model).
+
+    Raises
+    ------
+    TypeError
+        For a non-integer mosaic.
+    ValueError
+        For a mosaic that is not 2-D or is empty, or levels outside 0..65535.
+
+    Examples
+    --------
+    >>> import tempfile, rawpy
+    >>> raw = np.arange(32 * 32, dtype=np.uint16).reshape(32, 32)
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     write_dng(f"{d}/a.dng", raw, "GRBG", white_level=4095)
+    ...     with rawpy.imread(f"{d}/a.dng") as r:
+    ...         bool((r.raw_image_visible == raw).all())
+    True
+    """
+    arr = np.asarray(cfa)
+    if arr.dtype not in (np.uint8, np.uint16):
+        raise TypeError(f"cfa must be a uint16 (or uint8) mosaic, got dtype {arr.dtype}")
+    if arr.ndim != 2 or arr.size == 0:
+        raise ValueError(f"cfa must be a non-empty (H, W) mosaic, got shape {arr.shape}")
+    if not (0 <= black_level < white_level <= 65535):
+        raise ValueError(
+            "levels must satisfy 0 <= black_level < white_level <= 65535, "
+            f"got black_level={black_level}, white_level={white_level}"
+        )
+    tile = pattern_cells(pattern)
+    h, w = arr.shape
+    pixels = np.ascontiguousarray(arr, dtype="<u2").tobytes()
+
+    ifd = _Ifd()
+    ifd.add(254, _LONG, 0)  # NewSubfileType: the main image
+    ifd.add(256, _LONG, w)
+    ifd.add(257, _LONG, h)
+    ifd.add(258, _SHORT, 16)
+    ifd.add(259, _SHORT, 1)  # no compression
+    ifd.add(262, _SHORT, _CFA)
+    ifd.add(271, _ASCII, "imgform-rs")
+    ifd.add(272, _ASCII, model)
+    ifd.add(274, _SHORT, 1)  # Orientation: top-left
+    ifd.add(277, _SHORT, 1)
+    ifd.add(278, _LONG, h)
+    ifd.add(279, _LONG, len(pixels))
+    ifd.add(284, _SHORT, 1)
+    ifd.add(33421, _SHORT, tile.shape)  # CFARepeatPatternDim
+    ifd.add(33422, _BYTE, tile.ravel())  # CFAPattern
+    ifd.add(50706, _BYTE, (1, 4, 0, 0))  # DNGVersion
+    ifd.add(50707, _BYTE, (1, 1, 0, 0))  # DNGBackwardVersion
+    ifd.add(50708, _ASCII, model)
+    ifd.add(50710, _BYTE, (0, 1, 2))  # CFAPlaneColor: our indices are R, G, B
+    ifd.add(50711, _SHORT, 1)  # CFALayout: rectangular
+    ifd.add(50714, _LONG, int(black_level))
+    ifd.add(50717, _LONG, int(white_level))
+    ifd.add(50721, _SRATIONAL, color_matrix)
+    ifd.add(50728, _RATIONAL, as_shot_neutral)
+    ifd.add(50778, _SHORT, _D65)
+
+    # Header, then the pixels (so the strip offset is known), then the IFD.
+    strip_offset = 8
+    ifd_offset = strip_offset + len(pixels) + (len(pixels) % 2)
+    ifd.add(273, _LONG, strip_offset)
+    body = ifd.pack(ifd_offset)
+    with open(path, "wb") as f:
+        f.write(b"II*\0" + struct.pack("<I", ifd_offset))
+        f.write(pixels)
+        f.write(b"\0" * (len(pixels) % 2))
+        f.write(body)

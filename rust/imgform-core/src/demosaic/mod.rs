@@ -1,0 +1,423 @@
+//! Bayer demosaicing: estimating the two colours each photosite did not see.
+//!
+//! Every method shares one skeleton. The output is cut into bands of rows,
+//! one rayon task each. A task converts the raw rows it needs to `f32` once,
+//! into a small ring of rows padded by mirroring on both sides, so the inner
+//! loops never test for a border; vertical borders are mirrored when a ring
+//! row is loaded. The kernels then compute in `f32` and convert each output
+//! sample once (integers rounded half up and clamped, floats untouched; see
+//! [`Sample`]). Extra memory is a few padded rows per running task, never a
+//! full-size temporary.
+//!
+//! Phases are handled by offsets, not by copies of the kernels: each row is
+//! either a "red row" (red and green sites) or a "blue row" (blue and green),
+//! and its chroma sites sit on one column parity. A kernel computes, at each
+//! site, the row's own chroma, green, and the other chroma into
+//! planar rows; a shared writer converts them and puts them into R, G, B
+//! order.
+//!
+//! Mirroring without repeating the edge ([`mirror`]) keeps the CFA parity,
+//! so a border pixel sees a plausible mosaic and no black frame or
+//! wrap-around appears.
+
+mod bilinear;
+mod hamilton_adams;
+mod malvar2004;
+mod nearest;
+
+use crate::cfa::{check_out_len, CfaPattern};
+use crate::error::{CoreError, Result};
+use crate::image::{mirror, ImageView, Sample};
+use crate::invalid;
+use crate::parallel::for_each_band;
+
+/// A demosaicing method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// Each 2x2 cell's red and blue, and the green of the same row, copied to
+    /// the cell's pixels: the cheapest reconstruction, blocky by design.
+    Nearest,
+    /// Average of the nearest samples of each colour (3x3 support).
+    Bilinear,
+    /// Malvar, He and Cutler, "High-quality linear interpolation for
+    /// demosaicing of Bayer-patterned color images", ICASSP 2004: bilinear
+    /// plus a Laplacian correction from the site's own colour (5x5 support).
+    Malvar2004,
+    /// Hamilton and Adams, US patent 5,629,734 (1997): green interpolated
+    /// along the direction with the smaller gradient plus second derivative,
+    /// then red and blue from colour differences to green, again choosing
+    /// the better diagonal at the opposite chroma site.
+    HamiltonAdams,
+}
+
+impl Method {
+    /// Every method, in the order the documentation lists them.
+    pub const ALL: [Method; 4] = [
+        Method::Nearest,
+        Method::Bilinear,
+        Method::Malvar2004,
+        Method::HamiltonAdams,
+    ];
+
+    /// The name users pass.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Nearest => "nearest",
+            Method::Bilinear => "bilinear",
+            Method::Malvar2004 => "malvar2004",
+            Method::HamiltonAdams => "hamilton_adams",
+        }
+    }
+
+    /// Parses a method name.
+    ///
+    /// # Errors
+    /// [`CoreError::InvalidArgument`] naming the string and the accepted names.
+    pub fn from_name(name: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|m| m.name() == name)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
+                invalid!("unknown demosaicing method {name:?}; accepted: {names:?}")
+            })
+    }
+}
+
+/// Demosaics `raw`, an `(H, W)` mosaic sampled through `pattern`, into
+/// `out`, an `(H, W, 3)` RGB buffer of the same sample type.
+///
+/// Every method returns each sampled value unchanged at its own site.
+///
+/// # Errors
+/// [`CoreError::Shape`] for a multi-channel `raw`, an image smaller than
+/// 2x2 or a wrong output length; [`CoreError::InvalidArgument`] for an
+/// X-Trans pattern (these methods are Bayer-only).
+pub fn demosaic<T: Sample>(
+    raw: ImageView<'_, T>,
+    pattern: &CfaPattern,
+    method: Method,
+    out: &mut [T],
+) -> Result<()> {
+    if raw.channels() != 1 {
+        return Err(CoreError::Shape(format!(
+            "demosaic needs a single-channel mosaic of shape (H, W), got {} channels",
+            raw.channels()
+        )));
+    }
+    let (w, h) = (raw.width(), raw.height());
+    if w < 2 || h < 2 {
+        return Err(CoreError::Shape(format!(
+            "demosaic needs a mosaic of at least 2x2 pixels (one full CFA tile), got ({h}, {w})"
+        )));
+    }
+    check_out_len(out.len(), 3 * w * h, "demosaic")?;
+    let Some((ry, rx)) = pattern.bayer_red() else {
+        return Err(invalid!(
+            "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern",
+            method.name()
+        ));
+    };
+    let phase = Phase { ry, rx };
+    run_method(&raw, phase, method, Isa::detect(), out);
+    Ok(())
+}
+
+/// The instruction sets the kernels are compiled for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// The target's baseline (SSE2 on x86-64).
+    Baseline,
+    /// x86-64 with AVX2, detected at run time.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+}
+
+impl Isa {
+    fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Isa::Avx2;
+        }
+        Isa::Baseline
+    }
+}
+
+fn run_method<T: Sample>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    method: Method,
+    isa: Isa,
+    out: &mut [T],
+) {
+    match method {
+        Method::Nearest => nearest::run(raw, phase, out),
+        Method::Bilinear => bilinear::run(raw, phase, isa, out),
+        Method::Malvar2004 => malvar2004::run(raw, phase, isa, out),
+        Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
+    }
+}
+
+/// Where red sits in the 2x2 tile; blue is at the opposite corner.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Phase {
+    ry: usize,
+    rx: usize,
+}
+
+/// What a row of the mosaic holds.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RowKind {
+    /// Whether the row's chroma is blue (a "blue row"): then the kernel's
+    /// own chroma goes to channel 2 and the other chroma to channel 0.
+    blue: bool,
+    /// Column parity of the row's chroma sites.
+    pub(crate) chroma_parity: usize,
+}
+
+impl Phase {
+    /// The kind of row `y` (any integer: mirrored rows keep their parity).
+    pub(crate) fn row(self, y: isize) -> RowKind {
+        let red = (y - self.ry as isize).rem_euclid(2) == 0;
+        RowKind {
+            blue: !red,
+            chroma_parity: if red { self.rx } else { 1 - self.rx },
+        }
+    }
+}
+
+/// Output rows per rayon task. A band reloads `2 * radius` halo rows (and
+/// Hamilton-Adams recomputes 2 green rows), so 64 rows keep that overhead
+/// near 6 % while a 24 MP image (4000 rows) still gives ~60 tasks to balance.
+const ROWS_PER_BAND: usize = 64;
+
+/// Mirrored columns kept on each side of a ring row: the widest kernels
+/// reach 2 columns out, and Hamilton-Adams needs its green plane 1 column
+/// beyond the image, computed from raw 2 further. Even, so a padded index
+/// has the parity of its column.
+pub(crate) const PAD: usize = 4;
+
+/// Raw rows converted to `f32` and padded by mirroring, in a ring indexed by
+/// row number modulo its number of slots.
+pub(crate) struct Ring {
+    data: Vec<f32>,
+    stride: usize,
+    slots: usize,
+}
+
+impl Ring {
+    /// A ring of `slots` rows for an image `width` wide.
+    pub(crate) fn new(width: usize, slots: usize) -> Self {
+        let stride = width + 2 * PAD;
+        Self {
+            data: vec![0.0; stride * slots],
+            stride,
+            slots,
+        }
+    }
+
+    fn start(&self, y: isize) -> usize {
+        y.rem_euclid(self.slots as isize) as usize * self.stride
+    }
+
+    /// Row `y` (padded: column `x` is at index `x + PAD`).
+    #[inline(always)]
+    pub(crate) fn row(&self, y: isize) -> &[f32] {
+        let s = self.start(y);
+        &self.data[s..s + self.stride]
+    }
+
+    /// Row `y`, for kernels that fill a ring themselves.
+    pub(crate) fn row_mut(&mut self, y: isize) -> &mut [f32] {
+        let s = self.start(y);
+        &mut self.data[s..s + self.stride]
+    }
+
+    /// Converts raw row `mirror(y)` into slot `y` and mirrors its ends.
+    #[inline(always)]
+    pub(crate) fn load<T: Sample>(&mut self, raw: &ImageView<'_, T>, y: isize) {
+        let w = raw.width();
+        let src = raw.row(mirror(y, raw.height()));
+        let row = self.row_mut(y);
+        for (d, s) in row[PAD..PAD + w].iter_mut().zip(src) {
+            *d = s.to_f32();
+        }
+        for j in 1..=PAD {
+            row[PAD - j] = row[PAD + mirror(-(j as isize), w)];
+            row[PAD + w - 1 + j] = row[PAD + mirror((w - 1 + j) as isize, w)];
+        }
+    }
+}
+
+/// Runs a row kernel over every output row in parallel bands.
+///
+/// `radius` raw rows above and below each output row are in the ring when
+/// `row(state, ring, y, out_row)` is called; `init` makes the per-band state
+/// (intermediate rings) once per band, never per pixel.
+///
+/// With [`Isa::Avx2`] the band runs in a copy of the code compiled for
+/// AVX2 (8 lanes instead of SSE2's 4; measured ~1.5x faster at 24 MP).
+/// Both copies do the same IEEE operations in the same order (no fused
+/// multiply-add), so the output is identical on every CPU.
+pub(crate) fn run_rows<T, S, I, F>(
+    raw: &ImageView<'_, T>,
+    out: &mut [T],
+    radius: usize,
+    isa: Isa,
+    init: I,
+    row: F,
+) where
+    T: Sample,
+    I: Fn(usize) -> S + Sync,
+    F: Fn(&mut S, &Ring, isize, &mut [T]) + Sync,
+{
+    for_each_band(out, 3 * raw.width(), ROWS_PER_BAND, |y0, rows| match isa {
+        Isa::Baseline => band(raw, rows, y0, radius, &init, &row),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: calling a function compiled for AVX2 requires a CPU with
+        // AVX2; `Isa::Avx2` is only made by `Isa::detect` after checking.
+        Isa::Avx2 => unsafe { band_avx2(raw, rows, y0, radius, &init, &row) },
+    });
+}
+
+/// [`band`] compiled for AVX2; the kernels inline into it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn band_avx2<T, S, I, F>(
+    raw: &ImageView<'_, T>,
+    rows: &mut [T],
+    y0: usize,
+    radius: usize,
+    init: &I,
+    row: &F,
+) where
+    T: Sample,
+    I: Fn(usize) -> S,
+    F: Fn(&mut S, &Ring, isize, &mut [T]),
+{
+    band(raw, rows, y0, radius, init, row);
+}
+
+/// One band of output rows starting at row `y0`.
+#[inline(always)]
+fn band<T, S, I, F>(
+    raw: &ImageView<'_, T>,
+    rows: &mut [T],
+    y0: usize,
+    radius: usize,
+    init: &I,
+    row: &F,
+) where
+    T: Sample,
+    I: Fn(usize) -> S,
+    F: Fn(&mut S, &Ring, isize, &mut [T]),
+{
+    let w = raw.width();
+    let r = radius as isize;
+    let mut ring = Ring::new(w, 2 * radius + 1);
+    let mut state = init(y0);
+    let y0 = y0 as isize;
+    for y in y0 - r..y0 + r {
+        ring.load(raw, y);
+    }
+    for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
+        let y = y0 + i as isize;
+        ring.load(raw, y + r);
+        row(&mut state, &ring, y, o);
+    }
+}
+
+/// One output row in planar form, padded like a ring row: the row's own
+/// chroma, green, and the other chroma (see [`RowKind`]), plus which padded
+/// columns are chroma sites for either parity.
+///
+/// Kernels fill the planes with branch-free, unit-stride loops over every
+/// column (computing both the chroma-site and the green-site formula and
+/// selecting by the mask), which LLVM vectorises; [`write_row`] then
+/// interleaves and converts. Computing both formulas costs twice the
+/// arithmetic but runs 4 or 8 lanes wide, which measured faster than
+/// per-pair scalar code.
+pub(crate) struct RowPlanes {
+    pub(crate) own: Vec<f32>,
+    pub(crate) green: Vec<f32>,
+    pub(crate) other: Vec<f32>,
+    /// Chroma-site masks for chroma parity 0 and 1: all ones at chroma
+    /// sites, zero at green sites (for [`select`]).
+    pub(crate) chroma: [Vec<u32>; 2],
+}
+
+impl RowPlanes {
+    pub(crate) fn new(width: usize) -> Self {
+        let len = width + 2 * PAD;
+        let mask = |parity: usize| {
+            (0..len)
+                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
+                .collect()
+        };
+        Self {
+            own: vec![0.0; len],
+            green: vec![0.0; len],
+            other: vec![0.0; len],
+            chroma: [mask(0), mask(1)],
+        }
+    }
+}
+
+/// `a` where `mask` is all ones, `b` where it is zero. A bitwise blend
+/// rather than `if`: LLVM turned the `if` form into a branch per pixel, and
+/// an arithmetic blend would turn infinities into NaN.
+#[inline(always)]
+pub(crate) fn select(mask: u32, a: f32, b: f32) -> f32 {
+    f32::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+}
+
+/// `row[reach + dx ..][..n]`: the row seen `dx` columns to the right, for a
+/// loop over the `n` padded columns `reach .. reach + n`. Equal-length
+/// slices let LLVM drop the bounds checks inside the loop.
+#[inline(always)]
+pub(crate) fn shifted(row: &[f32], reach: usize, dx: isize, n: usize) -> &[f32] {
+    let start = (reach as isize + dx) as usize;
+    &row[start..start + n]
+}
+
+/// Converts the planes of one row and writes them as R, G, B.
+///
+/// Two passes: the conversions (rounding, clamping) run over each plane on
+/// its own, where they vectorise; the interleaving then only moves samples.
+/// Converting while interleaving measured about twice as slow, the compiler
+/// turning it into shuffles around scalar conversions.
+#[inline(always)]
+pub(crate) fn write_row<T: Sample>(
+    planes: &RowPlanes,
+    packed: &mut Packed<T>,
+    kind: RowKind,
+    out: &mut [T],
+) {
+    let w = out.len() / 3;
+    let (red, blue) = if kind.blue {
+        (&planes.other, &planes.own)
+    } else {
+        (&planes.own, &planes.other)
+    };
+    for (dst, src) in packed.0.iter_mut().zip([red, &planes.green, blue]) {
+        T::from_f32_row(&mut dst[..w], &src[PAD..PAD + w]);
+    }
+    let [r, g, b] = &packed.0;
+    for (o, ((r, g), b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g).zip(b)) {
+        o[0] = *r;
+        o[1] = *g;
+        o[2] = *b;
+    }
+}
+
+/// One output row as three converted planes, for [`write_row`].
+pub(crate) struct Packed<T>([Vec<T>; 3]);
+
+impl<T: Sample> Packed<T> {
+    pub(crate) fn new(width: usize) -> Self {
+        Self([0, 1, 2].map(|_| vec![T::default(); width]))
+    }
+}
+
+#[cfg(test)]
+mod tests;

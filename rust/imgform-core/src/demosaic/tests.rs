@@ -1,0 +1,255 @@
+//! Tests of the shared skeleton and of each method against a direct,
+//! per-pixel oracle with mirror indexing everywhere.
+
+use super::*;
+
+fn pattern(name: &str) -> CfaPattern {
+    CfaPattern::from_name(name).unwrap()
+}
+
+/// A deterministic, textured mosaic in 0..=1000.
+fn texture(w: usize, h: usize) -> Vec<f32> {
+    (0..w * h)
+        .map(|i| ((i * 7919 + (i / w) * 104_729) % 1001) as f32)
+        .collect()
+}
+
+fn run<T: Sample>(raw: &[T], w: usize, h: usize, name: &str, method: Method) -> Vec<T> {
+    let view = ImageView::contiguous(raw, w, h, 1).unwrap();
+    let mut out = vec![T::default(); 3 * w * h];
+    demosaic(view, &pattern(name), method, &mut out).unwrap();
+    out
+}
+
+/// The Malvar and bilinear 5x5 kernels (eighths), indexed by the site kind:
+/// 0 green at chroma, 1 chroma along the row at green, 2 chroma along the
+/// column at green, 3 other chroma at chroma.
+fn kernel(method: Method, kind: usize) -> [[f32; 5]; 5] {
+    let t = |k: [[f32; 5]; 5]| {
+        let mut o = [[0.0; 5]; 5];
+        for i in 0..5 {
+            for j in 0..5 {
+                o[i][j] = k[j][i];
+            }
+        }
+        o
+    };
+    let z = 0.0;
+    let (g, row, other) = match method {
+        Method::Bilinear => (
+            [
+                [z, z, z, z, z],
+                [z, z, 2., z, z],
+                [z, 2., z, 2., z],
+                [z, z, 2., z, z],
+                [z; 5],
+            ],
+            [[z; 5], [z; 5], [z, 4., z, 4., z], [z; 5], [z; 5]],
+            [
+                [z, z, z, z, z],
+                [z, 2., z, 2., z],
+                [z; 5],
+                [z, 2., z, 2., z],
+                [z; 5],
+            ],
+        ),
+        _ => (
+            [
+                [z, z, -1., z, z],
+                [z, z, 2., z, z],
+                [-1., 2., 4., 2., -1.],
+                [z, z, 2., z, z],
+                [z, z, -1., z, z],
+            ],
+            [
+                [z, z, 0.5, z, z],
+                [z, -1., z, -1., z],
+                [-1., 4., 5., 4., -1.],
+                [z, -1., z, -1., z],
+                [z, z, 0.5, z, z],
+            ],
+            [
+                [z, z, -1.5, z, z],
+                [z, 2., z, 2., z],
+                [-1.5, z, 6., z, -1.5],
+                [z, 2., z, 2., z],
+                [z, z, -1.5, z, z],
+            ],
+        ),
+    };
+    [g, row, t(row), other][kind]
+}
+
+/// Direct convolution with mirrored indices: the oracle for the linear
+/// methods.
+fn linear_oracle(raw: &[f32], w: usize, h: usize, p: &CfaPattern, method: Method) -> Vec<f32> {
+    let mut out = vec![0.0; 3 * w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let own = usize::from(p.color_at(y, x));
+            let conv = |kind: usize| {
+                let k = kernel(method, kind);
+                let mut s = 0.0f64;
+                for (i, kr) in k.iter().enumerate() {
+                    for (j, &kv) in kr.iter().enumerate() {
+                        let yy = mirror(y as isize + i as isize - 2, h);
+                        let xx = mirror(x as isize + j as isize - 2, w);
+                        s += f64::from(kv) * f64::from(raw[yy * w + xx]);
+                    }
+                }
+                (s / 8.0) as f32
+            };
+            for c in 0..3 {
+                out[3 * (y * w + x) + c] = if c == own {
+                    raw[y * w + x]
+                } else if own == 1 {
+                    // Chroma at a green site: is colour c on this row?
+                    let along_row = usize::from(p.color_at(y, x + 1)) == c;
+                    conv(if along_row { 1 } else { 2 })
+                } else if c == 1 {
+                    conv(0)
+                } else {
+                    conv(3)
+                };
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn linear_methods_match_the_mirrored_convolution_oracle_for_every_phase_and_size() {
+    for method in [Method::Bilinear, Method::Malvar2004] {
+        for name in crate::cfa::BAYER_NAMES {
+            for (w, h) in [(2, 2), (3, 2), (2, 5), (7, 5), (9, 131), (16, 70)] {
+                let raw = texture(w, h);
+                let got = run(&raw, w, h, name, method);
+                let want = linear_oracle(&raw, w, h, &pattern(name), method);
+                for (i, (a, b)) in got.iter().zip(&want).enumerate() {
+                    assert!(
+                        (a - b).abs() <= 1e-3,
+                        "{method:?} {name} {w}x{h} sample {i}: {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn one_hand_computed_pixel_per_linear_method() {
+    // 5x5 RGGB mosaic, value = 10 * y + x. Pixel (2, 2) is red.
+    let raw: Vec<f32> = (0..25).map(|i| (10 * (i / 5) + i % 5) as f32).collect();
+    let bil = run(&raw, 5, 5, "RGGB", Method::Bilinear);
+    let px = &bil[3 * 12..3 * 13];
+    // G = (21 + 23 + 12 + 32) / 4 = 22; B = (11 + 13 + 31 + 33) / 4 = 22.
+    assert_eq!(px, &[22.0, 22.0, 22.0]);
+    let mal = run(&raw, 5, 5, "RGGB", Method::Malvar2004);
+    // On a linear ramp the Laplacian terms vanish: the same 22s.
+    assert_eq!(&mal[3 * 12..3 * 13], &[22.0, 22.0, 22.0]);
+}
+
+#[test]
+fn every_method_keeps_samples_and_constants_for_every_dtype() {
+    for method in Method::ALL {
+        for name in crate::cfa::BAYER_NAMES {
+            for (w, h) in [(2, 2), (5, 3), (33, 70)] {
+                let tex: Vec<u16> = texture(w, h).iter().map(|&v| v as u16 * 60).collect();
+                let out = run(&tex, w, h, name, method);
+                let p = pattern(name);
+                for y in 0..h {
+                    for x in 0..w {
+                        let c = usize::from(p.color_at(y, x));
+                        assert_eq!(out[3 * (y * w + x) + c], tex[y * w + x], "{method:?}");
+                    }
+                }
+                let flat = vec![200u8; w * h];
+                assert!(run(&flat, w, h, name, method).iter().all(|&v| v == 200));
+            }
+        }
+    }
+}
+
+#[test]
+fn integer_outputs_are_clamped_not_wrapped() {
+    // A bright red dot on black makes Malvar overshoot below zero nearby.
+    let mut raw = vec![0u8; 36];
+    raw[2 * 6 + 2] = 255;
+    let out = run(&raw, 6, 6, "RGGB", Method::Malvar2004);
+    let f: Vec<f32> = raw.iter().map(|&v| f32::from(v)).collect();
+    let fo = run(&f, 6, 6, "RGGB", Method::Malvar2004);
+    assert!(fo.iter().any(|&v| v < 0.0));
+    for (o, v) in out.iter().zip(&fo) {
+        assert_eq!(*o, v.clamp(0.0, 255.0).round() as u8);
+    }
+}
+
+#[test]
+fn bands_do_not_change_the_result() {
+    // More rows than one band, compared with the oracle at band seams.
+    let (w, h) = (5, 3 * ROWS_PER_BAND + 3);
+    let raw = texture(w, h);
+    let got = run(&raw, w, h, "GBRG", Method::Malvar2004);
+    let want = linear_oracle(&raw, w, h, &pattern("GBRG"), Method::Malvar2004);
+    assert!(got.iter().zip(&want).all(|(a, b)| (a - b).abs() <= 1e-3));
+}
+
+#[test]
+fn hamilton_adams_follows_an_edge() {
+    // Vertical edge: columns 0..3 dark, 3.. bright. Green at a chroma site
+    // next to the edge must come from its own column, not across it.
+    let (w, h) = (8, 8);
+    let raw: Vec<f32> = (0..w * h)
+        .map(|i| if i % w < 3 { 10.0 } else { 200.0 })
+        .collect();
+    let ha = run(&raw, w, h, "RGGB", Method::HamiltonAdams);
+    let bil = run(&raw, w, h, "RGGB", Method::Bilinear);
+    // (2, 2) is red, column 2 is dark: HA keeps it dark, bilinear blurs it.
+    assert_eq!(ha[3 * (2 * w + 2) + 1], 10.0);
+    assert!(bil[3 * (2 * w + 2) + 1] > 50.0);
+}
+
+#[test]
+fn nearest_copies_the_cell() {
+    let raw: Vec<u8> = vec![1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12];
+    // 4x3 GRBG: row 0 G R G R, row 1 B G B G, row 2 G R G R.
+    let out = run(&raw, 4, 3, "GRBG", Method::Nearest);
+    assert_eq!(&out[..6], &[2, 1, 5, 2, 1, 5]);
+    assert_eq!(&out[12..18], &[2, 6, 5, 2, 6, 5]);
+    // Row 2's cell borrows row 1 by mirroring.
+    assert_eq!(&out[24..30], &[10, 9, 5, 10, 9, 5]);
+}
+
+#[test]
+fn bad_input_is_refused_with_a_reason() {
+    let raw = [0u8; 4];
+    let mut out = [0u8; 12];
+    let view = ImageView::contiguous(&raw, 4, 1, 1).unwrap();
+    let err = demosaic(view, &pattern("RGGB"), Method::Bilinear, &mut [0u8; 12]).unwrap_err();
+    assert!(err.to_string().contains("at least 2x2"), "{err}");
+    let view = ImageView::contiguous(&raw, 2, 2, 1).unwrap();
+    let err = demosaic(view, &CfaPattern::xtrans(), Method::Nearest, &mut out).unwrap_err();
+    assert!(err.to_string().contains("X-Trans"), "{err}");
+    let err = demosaic(view, &pattern("RGGB"), Method::Nearest, &mut out[..11]).unwrap_err();
+    assert!(err.to_string().contains("expected 12"), "{err}");
+    let err = Method::from_name("vng").unwrap_err().to_string();
+    assert!(
+        err.contains("\"vng\"") && err.contains("hamilton_adams"),
+        "{err}"
+    );
+}
+
+#[test]
+fn every_instruction_set_gives_the_same_bits() {
+    let (w, h) = (37, 2 * ROWS_PER_BAND + 5);
+    let raw: Vec<u16> = texture(w, h).iter().map(|&v| v as u16 * 65).collect();
+    let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
+    let phase = Phase { ry: 1, rx: 0 };
+    for method in Method::ALL {
+        let mut base = vec![0u16; 3 * w * h];
+        run_method(&view, phase, method, Isa::Baseline, &mut base);
+        let mut fast = vec![0u16; 3 * w * h];
+        run_method(&view, phase, method, Isa::detect(), &mut fast);
+        assert_eq!(base, fast, "{method:?}");
+    }
+}

@@ -1,0 +1,57 @@
+//! Bindings of `imgform_core::demosaic`.
+
+use imgform_core::cfa::CfaPattern;
+use imgform_core::demosaic::{demosaic as demosaic_kernel, Method};
+use imgform_core::image::{ImageView, Sample};
+use numpy::{Element, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+use crate::arrays::{contiguous, detached_into, AnyImage};
+use crate::cfa::pattern_arg;
+use crate::dispatch_image;
+use crate::errors::to_pyerr;
+
+fn demosaic_typed<'py, T: Sample + Element>(
+    arr: PyReadonlyArrayDyn<'py, T>,
+    py: Python<'py>,
+    p: &CfaPattern,
+    method: Method,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (h, w) = match *arr.shape() {
+        [h, w] => (h, w),
+        ref other => {
+            return Err(PyValueError::new_err(format!(
+                "raw must be a single-channel mosaic of shape (H, W), got shape {other:?}"
+            )))
+        }
+    };
+    let src = contiguous(&arr);
+    let out = detached_into(py, &[h, w, 3], |out| {
+        demosaic_kernel(ImageView::contiguous(&src, w, h, 1)?, p, method, out)
+    })?;
+    Ok(out.into_any())
+}
+
+/// Demosaics a mosaic (H, W) -> (H, W, 3), same dtype.
+#[pyfunction]
+#[pyo3(signature = (raw, pattern, method="bilinear"))]
+fn demosaic<'py>(
+    py: Python<'py>,
+    raw: &Bound<'py, PyAny>,
+    pattern: &Bound<'py, PyAny>,
+    method: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let method = Method::from_name(method).map_err(to_pyerr)?;
+    let p = pattern_arg(pattern)?;
+    let img = AnyImage::extract(raw, "raw")?;
+    dispatch_image!(img, demosaic_typed(py, &p, method))
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(demosaic, m)?)?;
+    let names = Method::ALL.map(Method::name);
+    m.add("DEMOSAIC_METHODS", PyTuple::new(m.py(), names)?)?;
+    Ok(())
+}

@@ -1,0 +1,216 @@
+import warnings
+
+import numpy as np
+import pytest
+from conftest import output_with_threads
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+import imgform_rs as ig
+
+BAYER = ["RGGB", "BGGR", "GRBG", "GBRG"]
+METHODS = list(ig.DEMOSAIC_METHODS)
+DTYPES = [np.uint8, np.uint16, np.float32]
+
+
+def random_raw(seed, h, w, dtype):
+    rng = np.random.default_rng(seed)
+    if dtype == np.float32:
+        return rng.random((h, w), dtype=np.float32)
+    return rng.integers(0, np.iinfo(dtype).max, (h, w), endpoint=True).astype(dtype)
+
+
+@st.composite
+def mosaics(draw, min_side=2, max_side=24):
+    dtype = draw(st.sampled_from(DTYPES))
+    h = draw(st.integers(min_side, max_side))
+    w = draw(st.integers(min_side, max_side))
+    return random_raw(draw(st.integers(0, 2**32 - 1)), h, w, dtype)
+
+
+def flipped_pattern(pattern, shape, vertical, horizontal):
+    """The pattern of ``raw[::-1]`` / ``raw[:, ::-1]`` given the one of ``raw``."""
+    masks = ig.channel_masks(shape, pattern)
+    masks = masks[:: -1 if vertical else 1, :: -1 if horizontal else 1]
+    return masks[:2, :2].argmax(-1)
+
+
+def test_methods_are_exactly_the_documented_ones():
+    assert ig.DEMOSAIC_METHODS == ("nearest", "bilinear", "malvar2004", "hamilton_adams")
+
+
+@given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(METHODS))
+def test_every_sample_comes_back_unchanged_at_its_site(raw, p, method):
+    out = ig.demosaic(raw, p, method)
+    assert out.dtype == raw.dtype and out.shape == (*raw.shape, 3)
+    masks = ig.channel_masks(raw.shape, p)
+    np.testing.assert_array_equal(out[masks], raw.ravel())
+
+
+@given(
+    dtype=st.sampled_from(DTYPES),
+    value=st.floats(0, 1),
+    h=st.integers(2, 20),
+    w=st.integers(2, 20),
+    p=st.sampled_from(BAYER),
+    method=st.sampled_from(METHODS),
+)
+def test_a_constant_mosaic_gives_a_constant_image(dtype, value, h, w, p, method):
+    scale = 1.0 if dtype == np.float32 else np.iinfo(dtype).max
+    raw = np.full((h, w), value * scale, dtype=np.float64).round().astype(dtype)
+    if dtype == np.float32:
+        raw = np.full((h, w), value, np.float32)
+    out = ig.demosaic(raw, p, method)
+    if dtype == np.float32:
+        # Malvar's taps (4, 2, -1, 5/8, 3/2) round in float32; the others are exact.
+        np.testing.assert_allclose(out, raw[0, 0], rtol=2e-7, atol=1e-12)
+    else:
+        assert (out == raw[0, 0]).all()
+
+
+@given(
+    a=st.integers(-40, 40),
+    b=st.integers(-40, 40),
+    h=st.integers(3, 20),
+    w=st.integers(3, 20),
+    p=st.sampled_from(BAYER),
+    dtype=st.sampled_from(DTYPES),
+)
+def test_bilinear_reproduces_a_linear_ramp_in_the_interior(a, b, h, w, p, dtype):
+    y, x = np.mgrid[0:h, 0:w]
+    if dtype == np.uint8:
+        a, b = a // 8, b // 8
+    ramp = (128 if dtype == np.uint8 else 2000) + a * y + b * x
+    assume(dtype != np.uint8 or (0 <= ramp.min() and ramp.max() <= 255))
+    raw = ramp.astype(dtype)
+    out = ig.demosaic(raw, p, "bilinear")
+    want = np.repeat(raw[..., None], 3, axis=2)
+    np.testing.assert_array_equal(out[1:-1, 1:-1], want[1:-1, 1:-1])
+
+
+@given(
+    raw=mosaics(),
+    p=st.sampled_from(BAYER),
+    method=st.sampled_from(METHODS),
+    vertical=st.booleans(),
+    horizontal=st.booleans(),
+)
+def test_methods_commute_with_the_flips_between_phases(raw, p, method, vertical, horizontal):
+    if method == "nearest":
+        # Its 2x2 cells are aligned to the array origin: only even sizes map
+        # cells onto cells.
+        raw = raw[: raw.shape[0] // 2 * 2, : raw.shape[1] // 2 * 2]
+    sl = (slice(None, None, -1 if vertical else 1), slice(None, None, -1 if horizontal else 1))
+    q = flipped_pattern(p, raw.shape, vertical, horizontal)
+    flipped_first = ig.demosaic(np.ascontiguousarray(raw[sl]), q, method)
+    np.testing.assert_array_equal(flipped_first, ig.demosaic(raw, p, method)[sl])
+
+
+def test_results_do_not_depend_on_the_thread_count():
+    code = """
+        import sys, numpy as np, imgform_rs as ig
+        rng = np.random.default_rng(11)
+        raw16 = rng.integers(0, 65536, (301, 203), dtype=np.uint16)
+        rawf = rng.random((150, 97), dtype=np.float32)
+        for m in ig.DEMOSAIC_METHODS:
+            sys.stdout.buffer.write(ig.demosaic(raw16, "GBRG", m).tobytes())
+            sys.stdout.buffer.write(ig.demosaic(rawf, "BGGR", m).tobytes())
+    """
+    one = output_with_threads(code, 1)
+    assert len(one) > 0
+    assert one == output_with_threads(code, 2)
+
+
+@pytest.mark.parametrize("p", BAYER)
+@pytest.mark.parametrize(
+    ("method", "peer"),
+    [
+        ("bilinear", "demosaicing_CFA_Bayer_bilinear"),
+        ("malvar2004", "demosaicing_CFA_Bayer_Malvar2004"),
+    ],
+)
+def test_linear_methods_match_colour_demosaicing_in_the_interior(p, method, peer):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cd = pytest.importorskip("colour_demosaicing")
+    raw = random_raw(21, 37, 50, np.float32)
+    want = getattr(cd, peer)(raw.astype(np.float64), p)
+    got = ig.demosaic(raw, p, method)
+    np.testing.assert_allclose(got[2:-2, 2:-2], want[2:-2, 2:-2], rtol=0, atol=1e-5)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+@pytest.mark.parametrize(
+    ("p", "code"),
+    # OpenCV names Bayer codes after the second row: our RGGB is its BayerBG.
+    [("RGGB", "BG"), ("BGGR", "RG"), ("GRBG", "GB"), ("GBRG", "GR")],
+)
+def test_bilinear_equals_opencv_in_the_interior(dtype, p, code):
+    cv2 = pytest.importorskip("cv2")
+    raw = random_raw(4, 40, 51, dtype)
+    want = cv2.cvtColor(raw, getattr(cv2, f"COLOR_Bayer{code}2RGB"))
+    np.testing.assert_array_equal(ig.demosaic(raw, p, "bilinear")[1:-1, 1:-1], want[1:-1, 1:-1])
+
+
+def test_adaptive_methods_beat_bilinear_on_a_natural_image():
+    data = pytest.importorskip("skimage.data")
+    rgb = data.astronaut()
+    raw = ig.mosaic(rgb, "RGGB")
+
+    def mse(method):
+        out = ig.demosaic(raw, "RGGB", method).astype(np.float64)
+        return ((out - rgb)[10:-10, 10:-10] ** 2).mean()
+
+    errors = {m: mse(m) for m in METHODS}
+    assert errors["bilinear"] < errors["nearest"]
+    assert errors["malvar2004"] < errors["bilinear"]
+    assert errors["hamilton_adams"] < errors["bilinear"]
+
+
+def test_borders_are_mirrored_not_black_or_wrapped():
+    raw = np.full((9, 8), 1000, np.uint16)
+    raw[:, -1] = 3000  # a bright last column must not leak into the first
+    for method in METHODS:
+        out = ig.demosaic(raw, "GRBG", method)
+        assert (out[:, 0] == 1000).all(), method
+        assert out.min() > 0, method
+
+
+def test_non_contiguous_input_gives_the_same_result():
+    raw = random_raw(8, 30, 40, np.uint16)
+    for view in [raw[:, ::-1][:, ::-1], np.asfortranarray(raw), raw.T.copy().T]:
+        np.testing.assert_array_equal(ig.demosaic(view, "RGGB"), ig.demosaic(raw, "RGGB"))
+
+
+Z8 = np.zeros((4, 4), np.uint8)
+SHAPE = r"\(2, 2\) or \(6, 6\), got \(3, 3\)"
+DTYPE = "uint8, uint16 or float32"
+
+
+@pytest.mark.parametrize(
+    ("raw", "pattern", "method", "exc", "match"),
+    [
+        (np.zeros((4, 4, 3), np.uint8), "RGGB", "bilinear", ValueError, r"shape \(H, W\), got"),
+        (np.zeros((4, 4), np.int64), "RGGB", "bilinear", TypeError, DTYPE + ".*int64"),
+        (np.zeros((4, 4), bool), "RGGB", "bilinear", TypeError, DTYPE + ".*bool"),
+        (Z8, "RGBX", "bilinear", ValueError, "unknown CFA pattern.*accepted"),
+        (Z8, "RGGB", "vng", ValueError, r'unknown demosaicing method "vng"; accepted: \["nearest"'),
+        (Z8, "RGGB", None, TypeError, "method must be a str"),
+        (Z8, np.zeros((3, 3), int), "bilinear", ValueError, SHAPE),
+        (Z8, "XTRANS", "bilinear", ValueError, "supports the Bayer patterns.*X-Trans"),
+        (None, "RGGB", "bilinear", TypeError, "got None"),
+        (Z8, None, "bilinear", TypeError, "got None"),
+        (np.zeros((0, 4), np.uint8), "RGGB", "bilinear", ValueError, "must not be empty"),
+        (np.zeros((1, 5), np.uint8), "RGGB", "bilinear", ValueError, r"2x2 .*got \(1, 5\)"),
+    ],
+)
+def test_bad_input_names_what_was_given_and_what_is_accepted(raw, pattern, method, exc, match):
+    with pytest.raises(exc, match=match):
+        ig.demosaic(raw, pattern, method)
+
+
+def test_native_layer_checks_too():
+    from imgform_rs import _native
+
+    with pytest.raises(TypeError, match="pattern must be a str"):
+        _native.demosaic(np.zeros((4, 4), np.uint8), 3.5, "bilinear")
