@@ -157,7 +157,7 @@ def test_native_formulas_check_their_arrays_too():
 
     with pytest.raises(TypeError, match="f must be a 1-D float64 array, got an array of dtype"):
         _native.image_distance(np.zeros(2, np.float32), np.ones(2))
-    with pytest.raises(ValueError, match="must have 2 elements"):
+    with pytest.raises(ValueError, match="must have 1 or 3 elements, got one with 2"):
         _native.image_distance(np.ones(2), np.ones(3))
 
 
