@@ -81,7 +81,9 @@ pub fn circle_of_confusion(f: f64, n: f64, focus_distance: f64, d: f64) -> Resul
     let n = positive("N", n)?;
     let s = beyond_focal_length("focus_distance", focus_distance, f)?;
     let d = beyond_focal_length("D", d, f)?;
-    Ok(f / n * (d - s).abs() / d * f / (s - f))
+    // (A f / (S - f)) * (|D - S| / D): two divisions, and neither factor
+    // overflows for any finite D.
+    Ok(f * f / (n * (s - f)) * ((d - s).abs() / d))
 }
 
 /// Hyperfocal distance `H = f^2 / (N c) + f`: focused there, everything from
