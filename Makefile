@@ -59,7 +59,7 @@ lint: $(VENV)/.deps ## cargo fmt, clippy -D warnings, ruff, stubtest
 	$(BIN)/ruff check python tests benchmarks
 	$(BIN)/ruff format --check python tests benchmarks
 	$(MAKE) --no-print-directory $(BUILT)
-	$(PY) -m mypy.stubtest imgform_rs._native
+	$(PY) -m mypy.stubtest imgform_rs._native --allowlist .mypy-stubtest-allowlist
 
 .PHONY: clean
 clean: ## remove build products and the venv

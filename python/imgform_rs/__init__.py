@@ -7,6 +7,8 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .camera import Camera, VanishingPoint, look_at, vanishing_line, vanishing_point
+from .chromatic import add_lateral_ca, correct_lateral_ca
 from .distortion import distort_points, undistort_points
 from .optics import (
     circle_of_confusion,
@@ -19,19 +21,40 @@ from .optics import (
     render_defocus,
 )
 from .projection import project_orthographic, project_pinhole
+from .remap import (
+    RemapMap,
+    distort_image,
+    distort_map,
+    remap,
+    undistort_image,
+    undistort_map,
+)
 
 __all__ = [
+    "Camera",
     "RawError",
+    "RemapMap",
+    "VanishingPoint",
+    "add_lateral_ca",
     "circle_of_confusion",
+    "correct_lateral_ca",
     "depth_of_field",
+    "distort_image",
+    "distort_map",
     "distort_points",
     "dolly_zoom_focal_length",
     "field_of_view",
     "hyperfocal_distance",
     "image_distance",
+    "look_at",
     "magnification",
     "project_orthographic",
     "project_pinhole",
+    "remap",
     "render_defocus",
+    "undistort_image",
+    "undistort_map",
     "undistort_points",
+    "vanishing_line",
+    "vanishing_point",
 ]

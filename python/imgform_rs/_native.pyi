@@ -1,10 +1,10 @@
 # Stubs of the private native module; the documented API is the package itself.
 # Checked against the built module by `make lint` (mypy.stubtest).
 
+from typing import Any, final
+
 import numpy as np
 import numpy.typing as npt
-
-__all__: list[str]
 
 class RawError(ValueError): ...
 
@@ -46,3 +46,69 @@ def remap_lens_points(
     k: npt.NDArray[np.float64] | None = None,
     undistort: bool = False,
 ) -> tuple[npt.NDArray[np.float64], int]: ...
+
+# --- camera ---
+@final
+class NativeCamera:
+    def __new__(
+        cls,
+        k: npt.NDArray[np.float64],
+        r: npt.NDArray[np.float64],
+        t: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+    ) -> NativeCamera: ...
+    def project(self, points_world: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def unproject(
+        self, pixels: npt.NDArray[np.float64], depth: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]: ...
+    def rays(self, pixels: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def fov(self, width: int, height: int) -> tuple[float, float, float]: ...
+    def center(self) -> tuple[float, float, float]: ...
+    def vanishing_point(
+        self, direction: npt.NDArray[np.float64]
+    ) -> tuple[tuple[float, float], tuple[float, float, float], bool]: ...
+    def vanishing_line(
+        self, plane_normal: npt.NDArray[np.float64]
+    ) -> tuple[float, float, float]: ...
+
+# --- remap ---
+@final
+class RemapMap:
+    def __new__(
+        cls, map_x: npt.NDArray[np.float32], map_y: npt.NDArray[np.float32]
+    ) -> RemapMap: ...
+    @staticmethod
+    def undistort(
+        k: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+        shape: tuple[int, int],
+        new_k: npt.NDArray[np.float64] | None = None,
+    ) -> RemapMap: ...
+    @staticmethod
+    def distort(
+        k: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+        shape: tuple[int, int],
+        new_k: npt.NDArray[np.float64] | None = None,
+    ) -> RemapMap: ...
+    @property
+    def shape(self) -> tuple[int, int]: ...
+    def planes(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]: ...
+
+def remap_image(
+    image: npt.NDArray[Any], map: RemapMap, interpolation: str = "bilinear", fill: float = 0.0
+) -> npt.NDArray[Any]: ...
+
+# --- chromatic ---
+def lateral_ca(
+    image: npt.NDArray[Any],
+    scale_r: float,
+    scale_b: float,
+    center: tuple[float, float] | None = None,
+    correct: bool = False,
+    interpolation: str = "bilinear",
+    fill: float = 0.0,
+) -> npt.NDArray[Any]: ...

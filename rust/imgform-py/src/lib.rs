@@ -7,18 +7,24 @@
 mod arrays;
 mod errors;
 
+mod camera;
+mod chromatic;
 mod defocus;
 mod distortion;
 mod optics;
 mod projection;
+mod remap;
 
 use pyo3::prelude::*;
 
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    camera::register(m)?;
+    chromatic::register(m)?;
     distortion::register(m)?;
     projection::register(m)?;
+    remap::register(m)?;
     optics::register(m)?;
     defocus::register(m)?;
     Ok(())
