@@ -36,8 +36,13 @@ where
         .collect::<PyResult<Vec<_>>>()?;
     let slices: Vec<_> = arrays.iter().map(contiguous).collect();
     let inputs: [&[f64]; K] = std::array::from_fn(|k| &*slices[k]);
-    // Inputs are either full length or a single value (a scalar argument).
-    let n = inputs.iter().map(|s| s.len()).max().unwrap_or(0);
+    // Inputs are either full length or a single value (a scalar argument);
+    // as in NumPy, an empty input makes the result empty.
+    let n = if inputs.iter().any(|s| s.is_empty()) {
+        0
+    } else {
+        inputs.iter().map(|s| s.len()).max().unwrap_or(0)
+    };
     let mut out = vec![O::default(); n];
     detached(py, || optics::vectorised(inputs, &mut out, formula))?;
     Ok(out)
