@@ -7,6 +7,15 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .align import (
+    Alignment,
+    align,
+    apply_shift,
+    colorize_plate,
+    read_plate,
+    similarity,
+    stack_channels,
+)
 from .camera import Camera, VanishingPoint, look_at, vanishing_line, vanishing_point
 from .chromatic import add_lateral_ca, correct_lateral_ca
 from .distortion import distort_points, undistort_points
@@ -31,12 +40,16 @@ from .remap import (
 )
 
 __all__ = [
+    "Alignment",
     "Camera",
     "RawError",
     "RemapMap",
     "VanishingPoint",
     "add_lateral_ca",
+    "align",
+    "apply_shift",
     "circle_of_confusion",
+    "colorize_plate",
     "correct_lateral_ca",
     "depth_of_field",
     "distort_image",
@@ -50,8 +63,11 @@ __all__ = [
     "magnification",
     "project_orthographic",
     "project_pinhole",
+    "read_plate",
     "remap",
     "render_defocus",
+    "similarity",
+    "stack_channels",
     "undistort_image",
     "undistort_map",
     "undistort_points",

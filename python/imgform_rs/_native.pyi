@@ -112,3 +112,21 @@ def lateral_ca(
     interpolation: str = "bilinear",
     fill: float = 0.0,
 ) -> npt.NDArray[Any]: ...
+# --- align ---
+def similarity(a: npt.NDArray[np.generic], b: npt.NDArray[np.generic], metric: str) -> float: ...
+def align_images(
+    reference: npt.NDArray[np.generic],
+    moving: npt.NDArray[np.generic],
+    max_shift: int,
+    metric: str,
+    crop: float,
+    levels: int | None,
+    features: str,
+    subpixel: bool,
+) -> tuple[
+    tuple[float, float],
+    float,
+    npt.NDArray[np.float64],
+    tuple[int, int],
+    list[tuple[int, int, tuple[int, int], float]],
+]: ...

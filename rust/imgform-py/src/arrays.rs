@@ -18,6 +18,10 @@ use crate::errors::detached;
 
 /// The slice behind an array: borrowed when C-contiguous, else one
 /// standard-layout copy (never two).
+///
+/// `as_slice` alone is not enough: it also accepts Fortran-ordered arrays
+/// (a transposed view, `np.asfortranarray`), whose memory holds the
+/// transpose of the row-major order the kernels read.
 pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
     arr: &'a numpy::PyReadonlyArray<'_, T, D>,
 ) -> Cow<'a, [T]> {
