@@ -112,6 +112,7 @@ def lateral_ca(
     interpolation: str = "bilinear",
     fill: float = 0.0,
 ) -> npt.NDArray[Any]: ...
+
 # --- align ---
 def similarity(a: npt.NDArray[np.generic], b: npt.NDArray[np.generic], metric: str) -> float: ...
 def align_images(
