@@ -111,6 +111,10 @@ def test_inputs_broadcast_like_numpy():
     near, far = ig.depth_of_field(50.0, [2.0, 8.0], [[1000.0], [3000.0]], 0.03)
     assert near.shape == far.shape == (2, 2)
     assert isinstance(ig.field_of_view(50, 36), np.float64)
+    # Single values are repeated by the kernel, not expanded, whatever their shape.
+    np.testing.assert_array_equal(ig.image_distance([50.0], [100.0, 200.0]), [100.0, 200.0 / 3.0])
+    assert ig.image_distance([[50.0]], 100.0).shape == (1, 1)
+    assert ig.image_distance(50.0, np.empty((0, 3))).shape == (0, 3)
     # Integer and float32 inputs are accepted and computed in float64.
     assert ig.image_distance(np.int32(50), np.float32(100)) == 100.0
 
@@ -157,7 +161,7 @@ def test_native_formulas_check_their_arrays_too():
 
     with pytest.raises(TypeError, match="f must be a 1-D float64 array, got an array of dtype"):
         _native.image_distance(np.zeros(2, np.float32), np.ones(2))
-    with pytest.raises(ValueError, match="must have 2 elements"):
+    with pytest.raises(ValueError, match="must have 1 or 3 elements, got one with 2"):
         _native.image_distance(np.ones(2), np.ones(3))
 
 

@@ -53,4 +53,4 @@ def as_matrix(value: Any, shape: tuple[int, ...], name: str) -> Float64Array:
 
 def as_float_array(value: Any, name: str) -> Float64Array:
     """Any real scalar or array as float64, for the vectorised optics formulas."""
-    return _numeric(value, name).astype(np.float64)
+    return _numeric(value, name).astype(np.float64, copy=False)

@@ -17,7 +17,7 @@ def project_orthographic(
 ) -> npt.NDArray[np.float64]: ...
 
 # --- optics ---
-# Every formula takes 1-D float64 arrays of one length (broadcast by the facade).
+# Every formula takes 1-D float64 arrays, each of one common length or of 1 element.
 _F64 = npt.NDArray[np.float64]
 
 def image_distance(f: _F64, d: _F64) -> _F64: ...

@@ -25,8 +25,9 @@ Image = TypeVar("Image", npt.NDArray[np.uint8], npt.NDArray[np.uint16], npt.NDAr
 
 
 def _elementwise(native: Callable[..., Any], **args: Any) -> tuple[Floats, ...]:
-    """Broadcasts ``args``, runs ``native`` once over the flattened arrays and
-    reshapes every output back to the broadcast shape."""
+    """Broadcasts ``args``, runs ``native`` once over the flattened arrays
+    (single values stay single) and reshapes every output back to the
+    broadcast shape."""
     arrays = [as_float_array(value, name) for name, value in args.items()]
     try:
         shape = np.broadcast_shapes(*(a.shape for a in arrays))
@@ -35,7 +36,9 @@ def _elementwise(native: Callable[..., Any], **args: Any) -> tuple[Floats, ...]:
         raise ValueError(
             f"arguments must broadcast against each other, got shapes {given}"
         ) from None
-    flat = [np.ascontiguousarray(np.broadcast_to(a, shape)).ravel() for a in arrays]
+    # A single value is passed as is (the kernel repeats it); only arrays
+    # that really vary are expanded to the broadcast shape.
+    flat = [a.ravel() if a.size == 1 else np.broadcast_to(a, shape).ravel() for a in arrays]
     out = native(*flat)
     outs = out if isinstance(out, tuple) else (out,)
     return tuple(o.reshape(shape)[()] for o in outs)

@@ -28,6 +28,7 @@ macro_rules! invalid {
 ///
 /// # Errors
 /// [`CoreError::InvalidArgument`] naming the parameter and its value.
+#[inline(always)]
 pub fn positive(name: &str, value: f64) -> Result<f64> {
     if value.is_finite() && value > 0.0 {
         Ok(value)

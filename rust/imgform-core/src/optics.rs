@@ -20,6 +20,7 @@ use crate::parallel::POINTS_PER_TASK;
 ///
 /// An object at `D <= f` has no real image: at `D = f` the rays leave the
 /// lens parallel, inside `f` they diverge and only a virtual image forms.
+#[inline(always)]
 fn beyond_focal_length(name: &str, d: f64, f: f64) -> Result<f64> {
     if d.is_finite() && d > f {
         Ok(d)
@@ -31,6 +32,9 @@ fn beyond_focal_length(name: &str, d: f64, f: f64) -> Result<f64> {
     }
 }
 
+// The scalar formulas are `#[inline(always)]` so that the elementwise driver,
+// instantiated in the bindings crate, compiles each into its loop.
+
 /// Image distance `D'` from the thin-lens law `1/D' + 1/D = 1/f`, i.e.
 /// `D' = f D / (D - f)`.
 ///
@@ -39,6 +43,7 @@ fn beyond_focal_length(name: &str, d: f64, f: f64) -> Result<f64> {
 ///
 /// # Errors
 /// `f` not finite and positive, or `D` not finite or not beyond `f`.
+#[inline(always)]
 pub fn image_distance(f: f64, d: f64) -> Result<f64> {
     let f = positive("f", f)?;
     let d = beyond_focal_length("D", d, f)?;
@@ -54,6 +59,7 @@ pub fn image_distance(f: f64, d: f64) -> Result<f64> {
 ///
 /// # Errors
 /// As [`image_distance`].
+#[inline(always)]
 pub fn magnification(f: f64, d: f64) -> Result<f64> {
     Ok(image_distance(f, d)? / d)
 }
@@ -69,12 +75,15 @@ pub fn magnification(f: f64, d: f64) -> Result<f64> {
 ///
 /// # Errors
 /// `f`, `N` not finite and positive; `S` or `D` not finite or not beyond `f`.
+#[inline(always)]
 pub fn circle_of_confusion(f: f64, n: f64, focus_distance: f64, d: f64) -> Result<f64> {
     let f = positive("f", f)?;
     let n = positive("N", n)?;
     let s = beyond_focal_length("focus_distance", focus_distance, f)?;
     let d = beyond_focal_length("D", d, f)?;
-    Ok(f / n * (d - s).abs() / d * f / (s - f))
+    // (A f / (S - f)) * (|D - S| / D): two divisions, and neither factor
+    // overflows for any finite D.
+    Ok(f * f / (n * (s - f)) * ((d - s).abs() / d))
 }
 
 /// Hyperfocal distance `H = f^2 / (N c) + f`: focused there, everything from
@@ -82,6 +91,7 @@ pub fn circle_of_confusion(f: f64, n: f64, focus_distance: f64, d: f64) -> Resul
 ///
 /// # Errors
 /// `f`, `N` or `coc` not finite and positive.
+#[inline(always)]
 pub fn hyperfocal_distance(f: f64, n: f64, coc: f64) -> Result<f64> {
     let f = positive("f", f)?;
     let n = positive("N", n)?;
@@ -99,6 +109,7 @@ pub fn hyperfocal_distance(f: f64, n: f64, coc: f64) -> Result<f64> {
 /// # Errors
 /// `f`, `N`, `coc` not finite and positive, `coc >= f/N`, or `S` not finite
 /// or not beyond `f`.
+#[inline(always)]
 pub fn depth_of_field(f: f64, n: f64, focus_distance: f64, coc: f64) -> Result<[f64; 2]> {
     let h = hyperfocal_distance(f, n, coc)?;
     let s = beyond_focal_length("focus_distance", focus_distance, f)?;
@@ -129,6 +140,7 @@ pub fn depth_of_field(f: f64, n: f64, focus_distance: f64, coc: f64) -> Result<[
 ///
 /// # Errors
 /// `f` or `sensor_size` not finite and positive.
+#[inline(always)]
 pub fn field_of_view(f: f64, sensor_size: f64) -> Result<f64> {
     let f = positive("f", f)?;
     let size = positive("sensor_size", sensor_size)?;
@@ -144,6 +156,7 @@ pub fn field_of_view(f: f64, sensor_size: f64) -> Result<f64> {
 ///
 /// # Errors
 /// `f0`, `d` not finite and positive, or `d0` not finite or not beyond `f0`.
+#[inline(always)]
 pub fn dolly_zoom_focal_length(f0: f64, d0: f64, d: f64) -> Result<f64> {
     let f0 = positive("f0", f0)?;
     let d0 = beyond_focal_length("d0", d0, f0)?;
@@ -182,29 +195,35 @@ where
         .map_or(Ok(()), Err)
 }
 
-/// Runs a scalar formula over `K` equally long input arrays (already
-/// broadcast against each other by the caller) into `out`.
+/// Runs a scalar formula over `K` input arrays into `out`.
+///
+/// Each input holds either `out.len()` values (already broadcast by the
+/// caller) or a single value used for every element, so a scalar argument
+/// is never copied out to the full length.
 ///
 /// This is the one elementwise driver behind every vectorised optics
 /// function: `vectorised([&f, &d], &mut out, |[f, d]| image_distance(f, d))`.
 ///
 /// # Errors
-/// [`CoreError::Shape`] when the lengths differ; otherwise the formula's own
-/// error for the first failing element, naming that element when there is
-/// more than one.
+/// [`CoreError::Shape`] when an input has neither 1 nor `out.len()` values;
+/// otherwise the formula's own error for the first failing element, naming
+/// that element when there is more than one.
 pub fn vectorised<const K: usize, O, F>(inputs: [&[f64]; K], out: &mut [O], f: F) -> Result<()>
 where
     O: Send,
     F: Fn([f64; K]) -> Result<O> + Sync,
 {
     let n = out.len();
-    if let Some(bad) = inputs.iter().find(|s| s.len() != n) {
+    if let Some(bad) = inputs.iter().find(|s| s.len() != n && s.len() != 1) {
         return Err(CoreError::Shape(format!(
-            "all inputs must have {n} elements after broadcasting, got one with {}",
+            "every input must have 1 or {n} elements, got one with {}",
             bad.len()
         )));
     }
-    try_fill(out, |i| f(inputs.map(|s| s[i]))).map_err(|(i, e)| match e {
+    // Index step per input: 0 repeats a single value.
+    let steps = inputs.map(|s| usize::from(s.len() != 1));
+    let value = |i: usize| std::array::from_fn(|k| inputs[k][i * steps[k]]);
+    try_fill(out, |i| f(value(i))).map_err(|(i, e)| match e {
         CoreError::InvalidArgument(msg) if n > 1 => invalid!("{msg} (at element {i})"),
         other => other,
     })
@@ -281,10 +300,16 @@ mod tests {
             err.ends_with(&format!("(at element {})", POINTS_PER_TASK + 3)),
             "{err}"
         );
-        let short = [1.0];
+        let short = [100.0, 200.0];
         assert!(matches!(
             vectorised([&f, &short], &mut out, |[f, d]| image_distance(f, d)),
             Err(CoreError::Shape(_))
         ));
+        // A single value stands for every element.
+        vectorised([&[50.0], &d[..3]], &mut out[..3], |[f, d]| {
+            image_distance(f, d)
+        })
+        .unwrap();
+        assert_eq!(out[1], image_distance(50.0, d[1]).unwrap());
     }
 }

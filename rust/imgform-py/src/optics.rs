@@ -19,7 +19,8 @@ fn column<'py>(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<PyReadonlyArray1
     })
 }
 
-/// Runs `formula` over `K` equally long 1-D arrays with the GIL released.
+/// Runs `formula` over `K` 1-D arrays, each of the common length or of one
+/// element, with the GIL released.
 fn elementwise<const K: usize, O, F>(
     py: Python<'_>,
     args: [(&Bound<'_, PyAny>, &str); K],
@@ -35,7 +36,14 @@ where
         .collect::<PyResult<Vec<_>>>()?;
     let slices: Vec<_> = arrays.iter().map(contiguous).collect();
     let inputs: [&[f64]; K] = std::array::from_fn(|k| &*slices[k]);
-    let mut out = vec![O::default(); inputs.first().map_or(0, |s| s.len())];
+    // Inputs are either full length or a single value (a scalar argument);
+    // as in NumPy, an empty input makes the result empty.
+    let n = if inputs.iter().any(|s| s.is_empty()) {
+        0
+    } else {
+        inputs.iter().map(|s| s.len()).max().unwrap_or(0)
+    };
+    let mut out = vec![O::default(); n];
     detached(py, || optics::vectorised(inputs, &mut out, formula))?;
     Ok(out)
 }
