@@ -6,7 +6,15 @@ from typing import Any, final
 import numpy as np
 import numpy.typing as npt
 
-__all__: list[str]
+__all__ = [
+    "RawError",
+    "RemapMap",
+    "lateral_ca",
+    "project_orthographic",
+    "project_pinhole",
+    "remap_image",
+    "remap_lens_points",
+]
 
 class RawError(ValueError): ...
 
