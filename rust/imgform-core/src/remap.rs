@@ -24,10 +24,18 @@
 //! NaN (where a map is undefined) or so far out that no tap touches the image
 //! gives `fill` exactly.
 //!
-//! # Rounding
-//! Samples are computed in `f32`; integer outputs are rounded half up and
-//! clamped to their type's range (bicubic overshoots at edges), float outputs
-//! are neither rounded nor clamped.
+//! # Positions and rounding
+//! Source positions are stored and computed in fixed point, 1/256 px
+//! ([`FRAC_BITS`]). Bilinear u8/u16 samples are computed exactly in integers
+//! (the weights are whole 256ths); bicubic and float samples in `f32`.
+//! Integer outputs are rounded half up and clamped to their type's range
+//! (bicubic overshoots at edges); float outputs are neither rounded nor
+//! clamped.
+//!
+//! # Speed
+//! Measured on the shared 2-core machine (24 MP, precomputed maps, see the
+//! branch report): bilinear is ~1.5-2.5x slower than `cv2.remap` and bicubic
+//! ~2.5x; the per-pixel loop is scalar (no SIMD across pixels yet).
 
 use std::ops::{Add, Mul, Range};
 
