@@ -6,16 +6,6 @@ from typing import Any, final
 import numpy as np
 import numpy.typing as npt
 
-__all__ = [
-    "RawError",
-    "RemapMap",
-    "lateral_ca",
-    "project_orthographic",
-    "project_pinhole",
-    "remap_image",
-    "remap_lens_points",
-]
-
 class RawError(ValueError): ...
 
 # --- projection ---
@@ -26,6 +16,28 @@ def project_orthographic(
     points_cam: npt.NDArray[np.float64], scale: float = 1.0
 ) -> npt.NDArray[np.float64]: ...
 
+# --- optics ---
+# Every formula takes 1-D float64 arrays of one length (broadcast by the facade).
+_F64 = npt.NDArray[np.float64]
+
+def image_distance(f: _F64, d: _F64) -> _F64: ...
+def magnification(f: _F64, d: _F64) -> _F64: ...
+def circle_of_confusion(f: _F64, n: _F64, focus_distance: _F64, d: _F64) -> _F64: ...
+def depth_of_field(f: _F64, n: _F64, focus_distance: _F64, coc: _F64) -> tuple[_F64, _F64]: ...
+def hyperfocal_distance(f: _F64, n: _F64, coc: _F64) -> _F64: ...
+def field_of_view(f: _F64, sensor_size: _F64) -> _F64: ...
+def dolly_zoom_focal_length(f0: _F64, d0: _F64, d: _F64) -> _F64: ...
+
+# --- defocus ---
+def render_defocus(
+    image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
+    depth: npt.NDArray[np.float32] | npt.NDArray[np.float64],
+    f: float,
+    n: float,
+    focus_distance: float,
+    pixel_pitch: float,
+) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
+
 # --- distortion ---
 def remap_lens_points(
     pts: npt.NDArray[np.float64],
@@ -34,6 +46,31 @@ def remap_lens_points(
     k: npt.NDArray[np.float64] | None = None,
     undistort: bool = False,
 ) -> tuple[npt.NDArray[np.float64], int]: ...
+
+# --- camera ---
+@final
+class NativeCamera:
+    def __new__(
+        cls,
+        k: npt.NDArray[np.float64],
+        r: npt.NDArray[np.float64],
+        t: npt.NDArray[np.float64],
+        coeffs: list[float],
+        model_name: str,
+    ) -> NativeCamera: ...
+    def project(self, points_world: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def unproject(
+        self, pixels: npt.NDArray[np.float64], depth: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]: ...
+    def rays(self, pixels: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]: ...
+    def fov(self, width: int, height: int) -> tuple[float, float, float]: ...
+    def center(self) -> tuple[float, float, float]: ...
+    def vanishing_point(
+        self, direction: npt.NDArray[np.float64]
+    ) -> tuple[tuple[float, float], tuple[float, float, float], bool]: ...
+    def vanishing_line(
+        self, plane_normal: npt.NDArray[np.float64]
+    ) -> tuple[float, float, float]: ...
 
 # --- remap ---
 @final
@@ -75,3 +112,22 @@ def lateral_ca(
     interpolation: str = "bilinear",
     fill: float = 0.0,
 ) -> npt.NDArray[Any]: ...
+
+# --- align ---
+def similarity(a: npt.NDArray[np.generic], b: npt.NDArray[np.generic], metric: str) -> float: ...
+def align_images(
+    reference: npt.NDArray[np.generic],
+    moving: npt.NDArray[np.generic],
+    max_shift: int,
+    metric: str,
+    crop: float,
+    levels: int | None,
+    features: str,
+    subpixel: bool,
+) -> tuple[
+    tuple[float, float],
+    float,
+    npt.NDArray[np.float64],
+    tuple[int, int],
+    list[tuple[int, int, tuple[int, int], float]],
+]: ...

@@ -1,4 +1,4 @@
-"""A minimal PNG encoder (8-bit grey or RGB) on the standard library's zlib.
+"""A minimal PNG encoder (8- or 16-bit grey or RGB) on the standard library's zlib.
 
 The demo writes pictures without pulling an imaging library into the runtime
 dependencies; the raw pipeline's ``write_image`` uses a full one.
@@ -19,16 +19,26 @@ def _chunk(kind: bytes, payload: bytes) -> bytes:
 
 
 def write_png(path: str | Path, image: np.ndarray) -> Path:
-    """Write a uint8 (H, W) or (H, W, 3) array as a PNG file and return its path."""
+    """Write a uint8 or uint16 (H, W) or (H, W, 3) array as a PNG file and
+    return its path (16-bit samples keep their full depth)."""
     img = np.asarray(image)
-    if img.dtype != np.uint8 or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
-        raise ValueError(f"write_png takes uint8 (H, W) or (H, W, 3), got {img.dtype} {img.shape}")
+    if (
+        img.dtype not in (np.uint8, np.uint16)
+        or img.ndim not in (2, 3)
+        or (img.ndim == 3 and img.shape[2] != 3)
+    ):
+        raise ValueError(
+            f"write_png takes uint8 or uint16 (H, W) or (H, W, 3), got {img.dtype} {img.shape}"
+        )
     height, width = img.shape[:2]
     colour_type = 2 if img.ndim == 3 else 0
-    # Each scanline starts with filter type 0 (none); zlib does the compression.
-    rows = np.ascontiguousarray(img).reshape(height, -1)
+    depth = 8 * img.dtype.itemsize
+    # PNG stores 16-bit samples big-endian; as bytes, every row is then a
+    # plain byte string led by filter type 0 (none); zlib compresses.
+    rows = np.ascontiguousarray(img, dtype=img.dtype.newbyteorder(">")).view(np.uint8)
+    rows = rows.reshape(height, -1)
     raw = np.hstack([np.zeros((height, 1), np.uint8), rows]).tobytes()
-    header = struct.pack(">IIBBBBB", width, height, 8, colour_type, 0, 0, 0)
+    header = struct.pack(">IIBBBBB", width, height, depth, colour_type, 0, 0, 0)
     data = b"\x89PNG\r\n\x1a\n" + _chunk(b"IHDR", header)
     data += _chunk(b"IDAT", zlib.compress(raw, 6)) + _chunk(b"IEND", b"")
     path = Path(path)

@@ -1,29 +1,176 @@
-"""The main job of ``make demo``: a synthetic 3D scene through the camera models."""
+"""The main job of ``make demo``: the sample scene through every camera model.
+
+Renders :mod:`imgform_rs.scene` through
+
+1. a pinhole camera, with the vanishing points of the scene's two horizontal
+   edge directions and the horizon marked on a wider canvas;
+2. a thin-lens camera focused on the middle box (depth of field);
+3. a barrel-distorting lens (ray-traced through the lens model), and that
+   picture undistorted again;
+4. a lens with lateral chromatic aberration, and its correction;
+
+and writes PNGs under the output folder.
+"""
 
 from __future__ import annotations
 
+import math
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from . import scene
 from ._png import write_png
-from .projection import project_pinhole
+from .camera import Camera, vanishing_line, vanishing_point
+from .chromatic import add_lateral_ca, correct_lateral_ca
+from .optics import circle_of_confusion, field_of_view, hyperfocal_distance, render_defocus
+from .remap import undistort_image
+
+WIDTH, HEIGHT = 640, 480
+# A full-frame camera (36 mm wide sensor) with a fast 50 mm lens focused on
+# the near (red) box, so the middle and far boxes blur more and more.
+FOCAL_MM, F_NUMBER, SENSOR_MM = 50.0, 1.2, 36.0
+PIXEL_PITCH_MM = SENSOR_MM / WIDTH
+FOCUS_MM = 6300.0
+BARREL = (-0.7, 0.25, 0.0, 0.0, 0.0)
+EYE, TARGET = (4.5, 1.6, -3.0), (-0.5, 0.9, 9.0)
+# Sky has no depth; put it far enough to be "at infinity" for the lens.
+SKY_DEPTH_MM = 1e7
+SUPERSAMPLE = 2
 
 
-def _ground_grid(step: float = 0.5, extent: float = 10.0, depth: float = 40.0) -> np.ndarray:
-    xs = np.arange(-extent, extent + step, step)
-    zs = np.arange(1.0, depth, step / 4)
-    x, z = np.meshgrid(xs, zs)
-    return np.stack([x.ravel(), np.full(x.size, 1.5), z.ravel()], axis=1)
+def _camera(scale: int = 1, dist=None) -> Camera:
+    fov = float(field_of_view(FOCAL_MM, SENSOR_MM))
+    cam = Camera.from_fov(fov, (HEIGHT * scale, WIDTH * scale), dist=dist)
+    return cam.look_at(EYE, TARGET)
 
 
-def run(out: Path) -> list[Path]:
-    """Render the scene and return the paths written under ``out``."""
+def _render(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Supersampled colour (uint8) and z-depth in mm (float32) of the scene."""
+    h, w = camera.image_size
+    v, u = np.mgrid[0:h, 0:w]
+    pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
+    rays = camera.rays(pixels)
+    colour, dist = scene.shade(camera.center, rays)
+    z = dist * (rays @ camera.R[2])
+    depth = np.where(np.isfinite(z), z * 1000.0, SKY_DEPTH_MM)
+    s = SUPERSAMPLE
+    colour = colour.reshape(h // s, s, w // s, s, 3).mean(axis=(1, 3))
+    depth = depth.reshape(h // s, s, w // s, s).min(axis=(1, 3))
+    return (np.clip(colour, 0, 1) * 255 + 0.5).astype(np.uint8), depth.astype(np.float32)
+
+
+def _draw_line(canvas: np.ndarray, p0, p1, colour, width: int = 1) -> None:
+    """Draw a segment by dense sampling, clipped to the canvas."""
+    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
+    n = int(np.hypot(*(p1 - p0)) * 2) + 2
+    pts = p0 + np.linspace(0, 1, n)[:, None] * (p1 - p0)
+    for dy in range(-(width // 2), width - width // 2):
+        for dx in range(-(width // 2), width - width // 2):
+            uv = np.round(pts + [dx, dy]).astype(int)
+            ok = (uv[:, 0] >= 0) & (uv[:, 0] < canvas.shape[1])
+            ok &= (uv[:, 1] >= 0) & (uv[:, 1] < canvas.shape[0])
+            canvas[uv[ok, 1], uv[ok, 0]] = colour
+
+
+def _draw_disc(canvas: np.ndarray, centre, radius: float, colour) -> None:
+    v, u = np.ogrid[: canvas.shape[0], : canvas.shape[1]]
+    canvas[(u - centre[0]) ** 2 + (v - centre[1]) ** 2 <= radius**2] = colour
+
+
+def _vanishing_canvas(camera: Camera, image: np.ndarray) -> np.ndarray:
+    """The picture on a wider canvas with box edges extended to their
+    vanishing points and the horizon drawn across."""
+    vps = [vanishing_point(camera, d) for d in ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))]
+    finite = [vp.point for vp in vps if not vp.at_infinity]
+    lo = np.minimum(np.min(finite, axis=0), 0) - 40
+    hi = np.maximum(np.max(finite, axis=0), [WIDTH, HEIGHT]) + 40
+    scale = min(1.0, 1600 / (hi[0] - lo[0]))
+    size = np.ceil((hi - lo) * scale).astype(int)
+    canvas = np.full((size[1], size[0], 3), 245, np.uint8)
+    small = image[:: max(1, round(1 / scale)), :: max(1, round(1 / scale))]
+    off = np.round(-lo * scale).astype(int)
+    canvas[off[1] : off[1] + small.shape[0], off[0] : off[0] + small.shape[1]] = small
+
+    def to_canvas(p):
+        return (np.asarray(p) - lo) * scale
+
+    colours = [(200, 30, 30), (30, 90, 200)]
+    for vp, colour in zip(vps, colours, strict=True):
+        for box in scene.BOXES:
+            for corner in _box_corners(box):
+                start = camera.project(corner)
+                if np.isfinite(start).all():
+                    _draw_line(canvas, to_canvas(start), to_canvas(vp.point), colour)
+        _draw_disc(canvas, to_canvas(vp.point), 6, colour)
+    a, b, c = vanishing_line(camera, (0.0, 1.0, 0.0))
+    us = np.array([lo[0], hi[0]])
+    vs = -(a * us + c) / b
+    _draw_line(canvas, to_canvas([us[0], vs[0]]), to_canvas([us[1], vs[1]]), (20, 140, 40), 2)
+    return canvas
+
+
+def _box_corners(box: scene.Box) -> list[tuple[float, float, float]]:
+    (x0, y0, z0), (x1, y1, z1) = box.lo, box.hi
+    return [(x, y, z) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
+
+
+def _timed(label: str, log: list[str], fn: Callable[[], np.ndarray]) -> np.ndarray:
+    start = time.perf_counter()
+    result = fn()
+    log.append(f"{label:<34s} {1e3 * (time.perf_counter() - start):8.1f} ms")
+    return result
+
+
+def run(out: Path, log: Callable[[str], None] = print) -> list[Path]:
+    """Render every picture of the demo into ``out`` and return their paths."""
     out.mkdir(parents=True, exist_ok=True)
-    width, height, f_px = 640, 480, 500.0
-    uv = project_pinhole(_ground_grid(), f_px, invert=False) + [width / 2, height / 2]
-    inside = np.all((uv >= 0) & (uv < [width, height]), axis=1)
-    image = np.zeros((height, width), np.uint8)
-    cols, rows = np.round(uv[inside]).astype(int).T
-    image[np.minimum(rows, height - 1), np.minimum(cols, width - 1)] = 255
-    return [write_png(out / "pinhole_ground.png", image)]
+    lines: list[str] = []
+    s = SUPERSAMPLE
+    hi_res = _camera(s)
+    camera = _camera()
+    pinhole, depth = _timed("ray-cast pinhole scene", lines, lambda: _render(hi_res))
+    written = [write_png(out / "pinhole.png", pinhole)]
+    written.append(write_png(out / "vanishing_points.png", _vanishing_canvas(camera, pinhole)))
+
+    dof = _timed(
+        "render_defocus (thin lens)",
+        lines,
+        lambda: render_defocus(
+            pinhole,
+            depth,
+            f=FOCAL_MM,
+            N=F_NUMBER,
+            focus_distance=FOCUS_MM,
+            pixel_pitch=PIXEL_PITCH_MM,
+        ),
+    )
+    written.append(write_png(out / "thin_lens_dof.png", dof))
+    coc_px = circle_of_confusion(FOCAL_MM, F_NUMBER, FOCUS_MM, depth) / PIXEL_PITCH_MM
+    depth_vis = np.clip(coc_px / max(float(coc_px.max()), 1e-9) * 255, 0, 255)
+    written.append(write_png(out / "circle_of_confusion.png", depth_vis.astype(np.uint8)))
+
+    barrel_cam = _camera(s, dist=BARREL)
+    barrel, _ = _timed("ray-cast through barrel lens", lines, lambda: _render(barrel_cam))
+    written.append(write_png(out / "barrel_lens.png", barrel))
+    lens = _camera(dist=BARREL)
+    fixed = _timed("undistort_image (bilinear)", lines, lambda: undistort_image(barrel, lens))
+    written.append(write_png(out / "barrel_undistorted.png", fixed))
+
+    ca = _timed("add_lateral_ca", lines, lambda: add_lateral_ca(pinhole, 1.008, 0.992))
+    written.append(write_png(out / "lateral_ca.png", ca))
+    written.append(
+        write_png(out / "lateral_ca_corrected.png", correct_lateral_ca(ca, 1.008, 0.992))
+    )
+    hyper = float(hyperfocal_distance(FOCAL_MM, F_NUMBER, 0.03))
+    log(
+        f"scene {WIDTH}x{HEIGHT}, f = {FOCAL_MM:g} mm, N = {F_NUMBER:g}, "
+        f"focus {FOCUS_MM / 1000:g} m, hyperfocal {hyper / 1000:.1f} m (c = 0.03 mm), "
+        f"largest blur {float(coc_px.max()):.1f} px, horizontal fov "
+        f"{math.degrees(float(field_of_view(FOCAL_MM, SENSOR_MM))):.1f} deg"
+    )
+    for line in lines:
+        log(line)
+    return written

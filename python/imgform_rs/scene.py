@@ -26,7 +26,7 @@ class Box:
 # Three boxes at near, middle and far distance, so one focus distance can show
 # the foreground and background out of focus at once.
 BOXES = (
-    Box((-2.2, 0.0, 3.0), (-1.2, 1.0, 4.0), (0.85, 0.25, 0.2)),
+    Box((0.2, 0.0, 2.2), (1.2, 1.0, 3.2), (0.85, 0.25, 0.2)),
     Box((0.4, 0.0, 7.0), (1.6, 1.6, 8.2), (0.2, 0.45, 0.85)),
     Box((-1.5, 0.0, 15.0), (0.5, 3.0, 17.0), (0.95, 0.75, 0.15)),
 )

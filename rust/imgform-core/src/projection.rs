@@ -53,7 +53,7 @@ pub fn project_pinhole(points: &[f64], f: f64, invert: bool, out: &mut [f64]) ->
     let f = positive("f", f)?;
     check_points(points, 3, out, 2)?;
     let scale = if invert { -f } else { f };
-    let bad = map_points(points, 3, out, 2, |p, q| {
+    let bad = map_points(points, 3, out, 2, move |p, q| {
         let (x, y, z) = (p[0], p[1], p[2]);
         let w = if z > 0.0 { scale / z } else { f64::NAN };
         q[0] = w * x;
@@ -70,7 +70,7 @@ pub fn project_pinhole(points: &[f64], f: f64, invert: bool, out: &mut [f64]) ->
 pub fn project_orthographic(points: &[f64], scale: f64, out: &mut [f64]) -> Result<()> {
     let s = positive("scale", scale)?;
     check_points(points, 3, out, 2)?;
-    let bad = map_points(points, 3, out, 2, |p, q| {
+    let bad = map_points(points, 3, out, 2, move |p, q| {
         q[0] = s * p[0];
         q[1] = s * p[1];
         p.iter().all(|v| v.is_finite())

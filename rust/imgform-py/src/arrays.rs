@@ -8,20 +8,28 @@ use std::borrow::Cow;
 
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{
-    Element, IntoPyArray, PyArrayDyn, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArray,
-    PyUntypedArrayMethods,
+    Element, IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArray2, PyReadonlyArrayDyn,
+    PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
+use crate::errors::detached;
+
 /// The slice behind an array: borrowed when C-contiguous, else one
 /// standard-layout copy (never two).
+///
+/// `as_slice` alone is not enough: it also accepts Fortran-ordered arrays
+/// (a transposed view, `np.asfortranarray`), whose memory holds the
+/// transpose of the row-major order the kernels read.
 pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
     arr: &'a numpy::PyReadonlyArray<'_, T, D>,
 ) -> Cow<'a, [T]> {
+    // `as_slice` also accepts Fortran-ordered arrays (their memory order is
+    // column-major), so C order must be checked first.
     match arr.as_slice() {
-        Ok(s) => Cow::Borrowed(s),
-        Err(_) => Cow::Owned(arr.as_array().iter().copied().collect()),
+        Ok(s) if arr.is_c_contiguous() => Cow::Borrowed(s),
+        _ => Cow::Owned(arr.as_array().iter().copied().collect()),
     }
 }
 
@@ -87,6 +95,33 @@ pub fn to_numpy<'py, T: Element>(
     let arr = ArrayD::from_shape_vec(IxDyn(shape), data)
         .map_err(|e| PyValueError::new_err(format!("internal shape mismatch: {e}")))?;
     Ok(arr.into_pyarray(py))
+}
+
+/// Allocates a new C-contiguous array of `shape` through NumPy and lets
+/// `kernel` fill it with the GIL released.
+///
+/// Why not a `Vec` handed over with [`to_numpy`]: NumPy advises the OS to back
+/// large arrays with huge pages, so the first write into a fresh buffer costs
+/// far fewer page faults. For a 10 M point projection (160 MB out) the faults
+/// of a fresh `Vec` took ~75 ms, three times the ~22 ms of the kernel itself.
+pub fn detached_into<'py, T, F>(
+    py: Python<'py>,
+    shape: &[usize],
+    kernel: F,
+) -> PyResult<Bound<'py, PyArrayDyn<T>>>
+where
+    T: Element + Send,
+    F: Send + FnOnce(&mut [T]) -> imgform_core::Result<()>,
+{
+    let out = PyArrayDyn::<T>::zeros(py, shape, false);
+    {
+        let mut view = out.try_readwrite()?;
+        let slice = view
+            .as_slice_mut()
+            .map_err(|e| PyValueError::new_err(format!("internal layout error: {e}")))?;
+        detached(py, || kernel(slice))?;
+    }
+    Ok(out)
 }
 
 /// An image of one of the sample types the kernels accept.

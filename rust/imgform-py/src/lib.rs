@@ -7,8 +7,12 @@
 mod arrays;
 mod errors;
 
+mod align;
+mod camera;
 mod chromatic;
+mod defocus;
 mod distortion;
+mod optics;
 mod projection;
 mod remap;
 
@@ -17,8 +21,12 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    align::register(m)?;
+    camera::register(m)?;
     chromatic::register(m)?;
+    defocus::register(m)?;
     distortion::register(m)?;
+    optics::register(m)?;
     projection::register(m)?;
     remap::register(m)?;
     Ok(())

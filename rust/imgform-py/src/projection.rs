@@ -4,8 +4,7 @@ use imgform_core::projection;
 use numpy::{PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, points, to_numpy};
-use crate::errors::detached;
+use crate::arrays::{contiguous, detached_into, points};
 
 /// Pinhole projection of camera-frame points (N, 3) -> (N, 2).
 #[pyfunction]
@@ -19,11 +18,9 @@ fn project_pinhole<'py>(
     let arr = points(points_cam, 3, "points")?;
     let n = arr.shape()[0];
     let src = contiguous(&arr);
-    let mut out = vec![0.0; 2 * n];
-    detached(py, || {
-        projection::project_pinhole(&src, f, invert, &mut out)
-    })?;
-    to_numpy(py, out, &[n, 2])
+    detached_into(py, &[n, 2], |out| {
+        projection::project_pinhole(&src, f, invert, out)
+    })
 }
 
 /// Orthographic projection (N, 3) -> (N, 2).
@@ -37,11 +34,9 @@ fn project_orthographic<'py>(
     let arr = points(points_cam, 3, "points")?;
     let n = arr.shape()[0];
     let src = contiguous(&arr);
-    let mut out = vec![0.0; 2 * n];
-    detached(py, || {
-        projection::project_orthographic(&src, scale, &mut out)
-    })?;
-    to_numpy(py, out, &[n, 2])
+    detached_into(py, &[n, 2], |out| {
+        projection::project_orthographic(&src, scale, out)
+    })
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -1,0 +1,497 @@
+"""Three-colour alignment (lecture section 4): similarity metrics, shift search
+and the colourisation of Prokudin-Gorskii glass-plate scans.
+
+Shifts follow ``CONVENTIONS.md``: ``(dy, dx)`` is what
+``np.roll(moving, (dy, dx), axis=(0, 1))`` needs to land ``moving`` on
+``reference``, the convention of scikit-image's ``phase_cross_correlation``.
+The published shifts of the cathedral plate, G (5, 2) and R (12, 3) relative
+to blue, are (row, column) displacements that move G and R onto B, i.e. this
+convention: ``colorize_plate(scan, reference="b")`` returns exactly them.
+"""
+
+from __future__ import annotations
+
+import operator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _native
+
+Metric = Literal["ssd", "cosine", "ncc"]
+Features = Literal["intensity", "gradient"]
+Channel = Literal["r", "g", "b"]
+
+_DTYPES = (np.uint8, np.uint16, np.float32)
+
+#: Fraction of each side :func:`colorize_plate` inspects for the scanning
+#: frame: the black border and white margin of the published scans stay
+#: within the outer ~6 % of a channel.
+FRAME_SEARCH = 0.08
+
+
+@dataclass(frozen=True)
+class Level:
+    """What one pyramid level searched: ``scale`` (1 = full resolution),
+    ``candidates`` scored, the best ``shift`` in pixels of that level and its
+    ``score``."""
+
+    scale: int
+    candidates: int
+    shift: tuple[int, int]
+    score: float
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """Result of :func:`align`.
+
+    Attributes
+    ----------
+    shift : tuple of int, or of float with ``subpixel=True``
+        ``(dy, dx)`` to roll ``moving`` by to land it on ``reference``.
+    score : float
+        The metric at the best integer shift (full resolution).
+    surface : ndarray, float64, shape (S, S)
+        Scores of the finest level: entry ``[i, j]`` is the shift
+        ``surface_origin + (i, j)``; NaN where no candidate was scored (beyond
+        ``max_shift``). A single-scale search gives all of ``[-k, k]^2``.
+    surface_origin : tuple of int
+        The shift of ``surface[0, 0]``.
+    levels : tuple of Level
+        The pyramid levels, coarsest first.
+    metric : str
+    """
+
+    shift: tuple[float, float] | tuple[int, int]
+    score: float
+    surface: npt.NDArray[np.float64] = field(repr=False)
+    surface_origin: tuple[int, int]
+    levels: tuple[Level, ...]
+    metric: str
+
+
+def _image(value: Any, name: str) -> np.ndarray:
+    """An (H, W) uint8/uint16/float32 array; float64 is narrowed to float32."""
+    arr = np.asarray(value)
+    if arr.dtype == np.float64:
+        arr = arr.astype(np.float32)
+    if arr.dtype not in _DTYPES:
+        raise TypeError(f"{name} must be a uint8, uint16 or float32 array, got dtype {arr.dtype}")
+    if arr.ndim != 2:
+        raise ValueError(f"{name} must be a single-channel (H, W) image, got shape {arr.shape}")
+    return arr
+
+
+def similarity(a: Any, b: Any, metric: Metric = "ncc") -> float:
+    """Compare two single-channel images of the same shape, pixel by pixel.
+
+    Parameters
+    ----------
+    a, b : array_like, shape (H, W), uint8, uint16 or float32 (float64 is
+        converted to float32); both of one dtype.
+    metric : {"ssd", "cosine", "ncc"}
+        ``"ssd"``: ``sqrt(sum (a - b)^2)`` (lecture eq. 5), lower is better.
+        ``"cosine"``: ``<a, b> / (|a| |b|)`` (eq. 6); ``"ncc"``: the cosine of
+        the mean-free images (eq. 7), invariant to ``s * I + t`` with
+        ``s > 0``; both higher is better, in [-1, 1]. A constant image (no
+        variance for NCC, all zeros for cosine) scores 0.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        Different shapes, NaN or infinite samples, an unknown metric.
+    TypeError
+        An unsupported dtype, or two different dtypes.
+
+    Examples
+    --------
+    >>> a = np.array([[1, 2], [3, 4]], np.float32)
+    >>> round(similarity(a, 2 * a + 1, "ncc"), 6)
+    1.0
+    >>> similarity(a, a, "ssd")
+    0.0
+    """
+    return float(_native.similarity(_image(a, "a"), _image(b, "b"), str(metric)))
+
+
+def _levels(pyramid: int | str) -> int | None:
+    if isinstance(pyramid, str):
+        if pyramid != "auto":
+            raise ValueError(f'pyramid must be "auto" or a number of levels >= 0, got {pyramid!r}')
+        return None
+    levels = operator.index(pyramid)
+    if levels < 0:
+        raise ValueError(f'pyramid must be "auto" or a number of levels >= 0, got {levels}')
+    return levels
+
+
+def align(
+    reference: Any,
+    moving: Any,
+    *,
+    max_shift: int = 15,
+    metric: Metric = "ncc",
+    crop: float = 0.1,
+    pyramid: int | str = "auto",
+    features: Features = "intensity",
+    subpixel: bool = False,
+) -> Alignment:
+    """Find the shift that lands ``moving`` on ``reference``.
+
+    Every candidate ``(dy, dx)`` in ``[-max_shift, max_shift]^2`` is scored
+    (rayon-parallel; the result is identical for any thread count): the
+    reference pixels inside the window left after cutting ``crop`` of each
+    border are compared with the moving pixels ``np.roll`` would bring there,
+    using only moving pixels that exist (no wrap-around). While the shift is
+    within the crop margin every candidate is compared over the same window.
+
+    Ties (e.g. a constant image, where every candidate scores 0) go to the
+    smallest ``dy^2 + dx^2``, then the lexicographically smallest ``(dy, dx)``.
+
+    Parameters
+    ----------
+    reference, moving : array_like, shape (H, W), uint8, uint16 or float32
+        Of one shape and dtype (float64 is converted to float32).
+    max_shift : int
+        Largest ``|dy|`` and ``|dx|``, in pixels, ``0 <= max_shift < min(H, W)``.
+    metric : {"ncc", "ssd", "cosine"}
+        See :func:`similarity`.
+    crop : float in [0, 0.5)
+        Fraction of each border left out of the comparison.
+    pyramid : "auto" or int
+        Number of 2x box-filter halvings before a coarse-to-fine search; 0 is
+        a single-scale exhaustive search. ``"auto"`` halves while the search
+        radius exceeds 8 pixels and a level keeps >= 64 pixels per side: the
+        coarsest level scores at most 17 x 17 candidates, every finer one 5 x 5
+        around twice the coarser shift.
+    features : {"intensity", "gradient"}
+        ``"gradient"`` compares Sobel gradient magnitudes, for channels whose
+        brightness differs (the "Emir" plate).
+    subpixel : bool
+        Refine the peak with a parabola through its neighbours on each axis
+        (float shift, at most 0.5 px from the integer one).
+
+    Returns
+    -------
+    Alignment
+
+    Raises
+    ------
+    ValueError
+        Different shapes; ``max_shift`` negative or not smaller than the
+        image; images too small for the search (an overlap of fewer than 2
+        pixels per axis at some level); ``crop`` outside [0, 0.5); NaN or
+        infinite samples; an unknown metric, features or pyramid.
+    TypeError
+        Unsupported or different dtypes; a non-integer ``max_shift``.
+
+    Examples
+    --------
+    >>> y, x = np.mgrid[:64, :64]
+    >>> ref = (np.sin(x / 5.0) + np.cos(y / 7.0 + x / 11.0)).astype(np.float32)
+    >>> moving = np.roll(ref, (-3, 2), axis=(0, 1))
+    >>> align(ref, moving, max_shift=5).shift
+    (3, -2)
+    """
+    k = operator.index(max_shift)
+    shift, score, surface, origin, levels = _native.align_images(
+        _image(reference, "reference"),
+        _image(moving, "moving"),
+        k,
+        str(metric),
+        float(crop),
+        _levels(pyramid),
+        str(features),
+        bool(subpixel),
+    )
+    if not subpixel:
+        shift = (int(shift[0]), int(shift[1]))
+    return Alignment(
+        shift=shift,
+        score=score,
+        surface=surface,
+        surface_origin=origin,
+        levels=tuple(Level(*lv) for lv in levels),
+        metric=str(metric),
+    )
+
+
+def _roll_fill(image: np.ndarray, dy: int, dx: int, fill: Any) -> np.ndarray:
+    """``np.roll`` without wrap-around: vacated pixels get ``fill``."""
+    h, w = image.shape[:2]
+    out = np.full_like(image, fill)
+    if abs(dy) < h and abs(dx) < w:
+        out[max(dy, 0) : h + min(dy, 0), max(dx, 0) : w + min(dx, 0)] = image[
+            max(-dy, 0) : h + min(-dy, 0), max(-dx, 0) : w + min(-dx, 0)
+        ]
+    return out
+
+
+def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
+    """Move an image by ``shift = (dy, dx)`` the way ``np.roll`` would, but
+    without wrap-around: pixels that come from outside get ``fill``.
+
+    Integer shifts copy pixels exactly. Fractional shifts interpolate
+    bilinearly (``out[y, x] = image(y - dy, x - dx)``); a pixel whose
+    interpolation needs a sample from outside the image gets ``fill``.
+    Integer images are rounded half up and clipped to their range.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (H, W, C), any real dtype
+    shift : pair of numbers ``(dy, dx)``
+    fill : number
+
+    Returns
+    -------
+    ndarray, same shape and dtype as ``image``
+
+    Raises
+    ------
+    ValueError
+        A shift that is not two finite numbers, or an image that is not 2-D/3-D.
+
+    Examples
+    --------
+    >>> apply_shift(np.arange(4).reshape(2, 2), (0, 1))
+    array([[0, 0],
+           [0, 2]])
+    >>> apply_shift(np.array([[0.0, 2.0]]), (0, 0.5), fill=-1)
+    array([[-1.,  1.]])
+    """
+    img = np.asarray(image)
+    if img.ndim not in (2, 3) or img.dtype.kind not in "biuf":
+        raise ValueError(
+            f"image must be a real (H, W) or (H, W, C) array, got {img.dtype} {img.shape}"
+        )
+    s = np.asarray(shift, dtype=np.float64)
+    if s.shape != (2,) or not np.all(np.isfinite(s)):
+        raise ValueError(f"shift must be two finite numbers (dy, dx), got {shift!r}")
+    dy, dx = float(s[0]), float(s[1])
+    if dy.is_integer() and dx.is_integer():
+        return _roll_fill(img, int(dy), int(dx), fill)
+    fy, fx = int(np.floor(dy)), int(np.floor(dx))
+    ty, tx = dy - fy, dx - fx
+    src = img.astype(np.float64)
+    acc = np.zeros_like(src)
+    # out(y) = (1 - ty) img(y - fy) + ty img(y - fy - 1), and likewise in x;
+    # NaN marks the samples that came from outside.
+    for oy, wy in ((fy, 1.0 - ty), (fy + 1, ty)):
+        for ox, wx in ((fx, 1.0 - tx), (fx + 1, tx)):
+            if wy * wx > 0.0:
+                acc += wy * wx * _roll_fill(src, oy, ox, np.nan)
+    acc[np.isnan(acc)] = fill
+    if img.dtype.kind in "iu":
+        info = np.iinfo(img.dtype)
+        acc = np.clip(np.floor(acc + 0.5), info.min, info.max)
+    return acc.astype(img.dtype)
+
+
+def stack_channels(r: Any, g: Any, b: Any) -> np.ndarray:
+    """Stack three (H, W) channels of one shape and dtype into an (H, W, 3) RGB
+    image (channel order R, G, B as everywhere in imgform-rs).
+
+    Raises
+    ------
+    ValueError
+        Channels that are not 2-D or differ in shape or dtype.
+
+    Examples
+    --------
+    >>> stack_channels(np.zeros((2, 3)), np.ones((2, 3)), np.zeros((2, 3))).shape
+    (2, 3, 3)
+    """
+    chans = [np.asarray(c) for c in (r, g, b)]
+    if any(c.ndim != 2 for c in chans) or len({(c.shape, c.dtype) for c in chans}) != 1:
+        got = ", ".join(f"{c.dtype} {c.shape}" for c in chans)
+        raise ValueError(f"r, g, b must be (H, W) arrays of one shape and dtype, got {got}")
+    return np.stack(chans, axis=-1)
+
+
+def _normalised(channel: np.ndarray) -> np.ndarray:
+    """A channel scaled so its 1st..99th percentiles span 0..1."""
+    c = channel.astype(np.float32)
+    lo, hi = np.percentile(c, [1, 99])
+    return (c - lo) / max(float(hi - lo), 1e-12)
+
+
+def _frame_edge(profile: np.ndarray) -> int:
+    """How many leading entries of a border profile (outermost first) belong
+    to the scanning frame: the innermost frame-like entry within the
+    inspected band, plus one."""
+    bad = np.flatnonzero(profile)
+    return int(bad[-1]) + 1 if bad.size else 0
+
+
+def frame_box(rgb: np.ndarray) -> tuple[int, int, int, int]:
+    """The rows ``top:bottom`` and columns ``left:right`` of an aligned plate
+    that lie inside the scanning frame.
+
+    Each channel is normalised to its 1st..99th percentiles; a pixel's
+    disagreement is the mean absolute difference of its channels from their
+    mean. Within the outer ``FRAME_SEARCH`` of each side, a row (column)
+    counts as frame when its mean level is near black (< 0.1) or near white
+    (> 0.95) (the scanner's border and margin), or when the 75th percentile
+    of its disagreement exceeds the median row's by more than 0.05 (where the
+    frame lines and damaged edges of the three exposures fall apart after
+    alignment, leaving coloured stripes). The crop keeps what lies inside the
+    innermost such row. Scene content rarely trips this: a bright sky is
+    below 0.95 after the percentile stretch and its channels agree.
+    """
+    n = np.stack([_normalised(rgb[..., c]) for c in range(3)], axis=-1)
+    mean = n.mean(axis=-1)
+    spread = np.abs(n - mean[..., None]).mean(axis=-1)
+
+    def frame_like(axis: int) -> np.ndarray:
+        level = mean.mean(axis=axis)
+        disagree = np.percentile(spread, 75, axis=axis)
+        return (level < 0.1) | (level > 0.95) | (disagree - np.median(disagree) > 0.05)
+
+    rows, cols = frame_like(1), frame_like(0)
+    h, w = mean.shape
+    by, bx = int(FRAME_SEARCH * h), int(FRAME_SEARCH * w)
+    top = _frame_edge(rows[:by])
+    bottom = h - _frame_edge(rows[::-1][:by])
+    left = _frame_edge(cols[:bx])
+    right = w - _frame_edge(cols[::-1][:bx])
+    return top, bottom, left, right
+
+
+def colorize_plate(
+    plate: Any,
+    *,
+    reference: Channel = "g",
+    metric: Metric = "ncc",
+    max_shift: int | None = None,
+    crop: float = 0.1,
+    pyramid: int | str = "auto",
+    features: Features = "intensity",
+    subpixel: bool = False,
+    frame: bool = True,
+) -> tuple[np.ndarray, dict[str, tuple[float, float] | tuple[int, int]]]:
+    """Colourise a Prokudin-Gorskii glass-plate scan.
+
+    The scan holds three exposures stacked top to bottom through blue, green
+    and red filters. It is cut into thirds (a remainder of one or two rows at
+    the bottom is dropped), the two other channels are aligned onto
+    ``reference`` with :func:`align` and shifted (:func:`apply_shift`), and the
+    result is cropped twice: by the borders the shifts leave empty, then (with
+    ``frame=True``) by the scanning frame as :func:`frame_box` finds it.
+
+    Parameters
+    ----------
+    plate : array_like, shape (3 H, W), uint8, uint16 or float32
+        Or a path to an 8-bit JPG / 16-bit TIFF scan (read by :func:`read_plate`).
+    reference : {"g", "r", "b"}
+        The channel the others are aligned onto (the lecture uses red).
+    max_shift : int, optional
+        Default ``max(15, round(0.05 * min(H, W)))``: 15 for the small
+        published JPGs, ~160 for a full-resolution scan.
+    metric, crop, pyramid, features, subpixel
+        As in :func:`align`.
+    frame : bool
+        Crop the scanning frame.
+
+    Returns
+    -------
+    rgb : ndarray, shape (h, w, 3), the plate's dtype
+    shifts : dict
+        ``{"r": (dy, dx), "g": ..., "b": ...}``, each relative to
+        ``reference`` (which gets ``(0, 0)``) in the ``np.roll`` convention.
+
+    Raises
+    ------
+    ValueError
+        A plate that is not 2-D or has fewer than 3 rows, an unknown
+        reference channel, and everything :func:`align` refuses.
+    TypeError
+        An unsupported dtype.
+
+    Examples
+    --------
+    >>> y, x = np.mgrid[:80, :90]
+    >>> scene = (100 + 60 * np.sin(x / 6.0) * np.cos(y / 9.0)).astype(np.uint8)
+    >>> plate = np.vstack([np.roll(scene, (2, -1), (0, 1)), scene, np.roll(scene, (-3, 2), (0, 1))])
+    >>> rgb, shifts = colorize_plate(plate, frame=False)
+    >>> shifts
+    {'r': (3, -2), 'g': (0, 0), 'b': (-2, 1)}
+    >>> rgb.shape
+    (75, 87, 3)
+    """
+    if isinstance(plate, (str, Path)):
+        plate = read_plate(plate)
+    arr = np.asarray(plate)
+    if arr.ndim != 2 or arr.shape[0] < 3:
+        raise ValueError(f"plate must be a (3 H, W) single-channel scan, got shape {arr.shape}")
+    if reference not in ("r", "g", "b"):
+        raise ValueError(f'reference must be "r", "g" or "b", got {reference!r}')
+    h = arr.shape[0] // 3
+    chans = {"b": arr[:h], "g": arr[h : 2 * h], "r": arr[2 * h : 3 * h]}
+    k = max(15, round(0.05 * min(h, arr.shape[1]))) if max_shift is None else max_shift
+    ref = chans[reference]
+    shifts: dict[str, Any] = {}
+    for name in "rgb":
+        if name == reference:
+            shifts[name] = (0.0, 0.0) if subpixel else (0, 0)
+            continue
+        found = align(
+            ref,
+            chans[name],
+            max_shift=k,
+            metric=metric,
+            crop=crop,
+            pyramid=pyramid,
+            features=features,
+            subpixel=subpixel,
+        )
+        shifts[name] = found.shift
+        chans[name] = apply_shift(chans[name], found.shift)
+    rgb = stack_channels(chans["r"], chans["g"], chans["b"])
+    dys = [s[0] for s in shifts.values()]
+    dxs = [s[1] for s in shifts.values()]
+    # Rows/columns the shifts emptied: up to the largest shift on each side.
+    top, left = int(np.ceil(max(dys))), int(np.ceil(max(dxs)))
+    bottom, right = int(np.ceil(max(-d for d in dys))), int(np.ceil(max(-d for d in dxs)))
+    rgb = rgb[top : rgb.shape[0] - bottom, left : rgb.shape[1] - right]
+    if frame:
+        t, b, lft, rgt = frame_box(rgb)
+        rgb = rgb[t:b, lft:rgt]
+    return np.ascontiguousarray(rgb), shifts
+
+
+def read_plate(path: str | Path) -> np.ndarray:
+    """Read a plate scan (8-bit JPG, 16-bit TIFF, PNG...) as a 2-D array with
+    imageio; an RGB file of a grey scan is averaged to one channel.
+
+    Raises
+    ------
+    ValueError
+        A file that cannot be read or decoded, or is not a 2-D / RGB image
+        of uint8, uint16 or float32 samples; the message names the file.
+    """
+    import imageio.v3 as iio
+
+    path = Path(path)
+    try:
+        # Decoding from bytes: imageio leaves a failed file open otherwise.
+        data = path.read_bytes()
+        img = np.asarray(iio.imread(data, extension=path.suffix or None))
+    except Exception as exc:  # imageio raises many types for bad files
+        reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise ValueError(f"cannot read plate {str(path)!r}: {reason}") from exc
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        img = np.floor(img[..., :3].mean(axis=-1, dtype=np.float64) + 0.5).astype(img.dtype)
+    if img.ndim != 2 or img.dtype not in _DTYPES:
+        raise ValueError(
+            f"plate {str(path)!r} must be a grey or RGB image of uint8, uint16 or float32, "
+            f"got {img.dtype} {img.shape}"
+        )
+    return img

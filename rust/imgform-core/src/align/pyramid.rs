@@ -1,0 +1,259 @@
+//! What the search reads: the caller's image converted row by row, and the
+//! `f32` planes of the coarser levels and of gradient features.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use rayon::prelude::*;
+
+use crate::error::{CoreError, Result};
+use crate::image::{mirror, ImageView, Sample};
+use crate::parallel::{for_each_row, ROWS_PER_TASK};
+
+/// Rows of `f32` samples with `offset` subtracted (`stored = value -
+/// offset`), the form every kernel of the search reads.
+///
+/// The offset is the middle of the input type's range (127.5 for `u8`,
+/// 32767.5 for `u16`, 0.5 for `f32`). Centring keeps the `f32` cross
+/// products of the search small next to their sum, so a 16-bit plate with a
+/// large mean does not lose the covariance NCC is made of to rounding; SSD
+/// and NCC do not depend on a common offset, cosine undoes it.
+pub trait Rows: Sync {
+    fn width(&self) -> usize;
+    fn height(&self) -> usize;
+    fn offset(&self) -> f64;
+    /// Writes row `y` into `out` (`width` samples).
+    fn fill_row(&self, y: usize, out: &mut [f32]);
+}
+
+/// The caller's single-channel image, converted to `f32` one row at a time
+/// when a task reads it: the full-resolution level never exists as a float
+/// copy, which would cost more (allocation, page faults, one more pass over
+/// ~50 MB per plate channel) than converting the rows a band needs.
+pub struct Converted<'a, T> {
+    view: ImageView<'a, T>,
+    offset: f32,
+}
+
+impl<'a, T: Sample> Converted<'a, T> {
+    /// Wraps a view after checking it.
+    ///
+    /// # Errors
+    /// [`CoreError::Shape`] for a multi-channel view;
+    /// [`CoreError::InvalidArgument`] naming the first row holding a NaN or
+    /// an infinity.
+    pub fn new(view: &ImageView<'a, T>, name: &str) -> Result<Self> {
+        if view.channels() != 1 {
+            return Err(CoreError::Shape(format!(
+                "{name} must be a single-channel (H, W) image, got {} channels",
+                view.channels()
+            )));
+        }
+        // The smallest bad row whatever the thread count: bands of rows in
+        // parallel, then `fetch_min`.
+        let bad = AtomicUsize::new(usize::MAX);
+        (0..view.height())
+            .into_par_iter()
+            .with_min_len(ROWS_PER_TASK)
+            .for_each(|y| {
+                if view.row(y).iter().any(|v| !v.to_f32().is_finite()) {
+                    bad.fetch_min(y, Ordering::Relaxed);
+                }
+            });
+        let y = bad.into_inner();
+        if y != usize::MAX {
+            let v = view
+                .row(y)
+                .iter()
+                .map(|v| v.to_f32())
+                .find(|v| !v.is_finite());
+            return Err(crate::invalid!(
+                "{name} must contain only finite values, row {y} holds {}",
+                v.unwrap_or(f32::NAN)
+            ));
+        }
+        Ok(Self {
+            view: *view,
+            offset: T::FULL_SCALE / 2.0,
+        })
+    }
+}
+
+impl<T: Sample> Rows for Converted<'_, T> {
+    fn width(&self) -> usize {
+        self.view.width()
+    }
+    fn height(&self) -> usize {
+        self.view.height()
+    }
+    fn offset(&self) -> f64 {
+        f64::from(self.offset)
+    }
+    #[inline]
+    fn fill_row(&self, y: usize, out: &mut [f32]) {
+        for (o, &v) in out.iter_mut().zip(self.view.row(y)) {
+            *o = v.to_f32() - self.offset;
+        }
+    }
+}
+
+/// A contiguous single-channel `f32` image in the [`Rows`] form: a coarser
+/// level of the pyramid, or gradient features.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plane {
+    pub data: Vec<f32>,
+    pub width: usize,
+    pub height: usize,
+    pub offset: f64,
+}
+
+impl Rows for Plane {
+    fn width(&self) -> usize {
+        self.width
+    }
+    fn height(&self) -> usize {
+        self.height
+    }
+    fn offset(&self) -> f64 {
+        self.offset
+    }
+    #[inline]
+    fn fill_row(&self, y: usize, out: &mut [f32]) {
+        out.copy_from_slice(self.row(y));
+    }
+}
+
+impl Plane {
+    /// Row `y`.
+    #[inline(always)]
+    pub fn row(&self, y: usize) -> &[f32] {
+        &self.data[y * self.width..(y + 1) * self.width]
+    }
+
+    /// The 2x2 box average of `src` (odd last row/column dropped): halves
+    /// the resolution with the cheapest filter that still suppresses the
+    /// aliasing a plain decimation would feed to the coarse search.
+    pub fn downsample(src: &impl Rows) -> Self {
+        let (sw, w, h) = (src.width(), src.width() / 2, src.height() / 2);
+        let mut data = vec![0.0f32; w * h];
+        for_each_row(&mut data, w, |y, row| {
+            // Two source rows per output row: an allocation per row, not
+            // per pixel, and only for the (4x smaller) coarse levels.
+            let mut r0 = vec![0.0f32; sw];
+            let mut r1 = vec![0.0f32; sw];
+            src.fill_row(2 * y, &mut r0);
+            src.fill_row(2 * y + 1, &mut r1);
+            for (x, o) in row.iter_mut().enumerate() {
+                *o = 0.25 * ((r0[2 * x] + r0[2 * x + 1]) + (r1[2 * x] + r1[2 * x + 1]));
+            }
+        });
+        Self {
+            data,
+            width: w,
+            height: h,
+            offset: src.offset(),
+        }
+    }
+
+    /// Sobel gradient magnitude `sqrt(gx^2 + gy^2) / 8` of `src` with
+    /// mirrored borders. Edges sit in the same place in every colour channel
+    /// even when their brightness differs (the "Emir" plate), so channels
+    /// whose intensities do not match still agree on their gradients. The
+    /// result has offset 0 (a gradient does not depend on the intensity
+    /// offset).
+    pub fn gradient(src: &impl Rows) -> Self {
+        let (w, h) = (src.width(), src.height());
+        let mut data = vec![0.0f32; w * h];
+        for_each_row(&mut data, w, |y, row| {
+            // Three source rows per output row (an allocation per row).
+            let yi = y as isize;
+            let mut rows = [vec![0.0f32; w], vec![0.0f32; w], vec![0.0f32; w]];
+            for (r, dy) in rows.iter_mut().zip([-1, 0, 1]) {
+                src.fill_row(mirror(yi + dy, h), r);
+            }
+            let [up, mid, down] = &rows;
+            let pick = |v: &[f32], l: usize, x: usize, r: usize| [v[l], v[x], v[r]];
+            // Mirrored neighbours only at the two border columns.
+            for x in [0, w - 1] {
+                let (l, r) = (mirror(x as isize - 1, w), mirror(x as isize + 1, w));
+                row[x] = sobel(pick(up, l, x, r), pick(mid, l, x, r), pick(down, l, x, r));
+            }
+            // Zipped 3-wide windows: no index checks, so the loop vectorises.
+            let inner = row.iter_mut().skip(1).take(w.saturating_sub(2));
+            let windows = up.windows(3).zip(mid.windows(3)).zip(down.windows(3));
+            for (o, ((u, m), d)) in inner.zip(windows) {
+                *o = sobel([u[0], u[1], u[2]], [m[0], m[1], m[2]], [d[0], d[1], d[2]]);
+            }
+        });
+        Self {
+            data,
+            width: w,
+            height: h,
+            offset: 0.0,
+        }
+    }
+}
+
+/// Sobel magnitude `sqrt(gx^2 + gy^2) / 8` of a 3x3 neighbourhood given as
+/// its rows (left, centre, right); the 1/8 makes a unit ramp give 1.
+#[inline(always)]
+fn sobel(u: [f32; 3], m: [f32; 3], d: [f32; 3]) -> f32 {
+    let gx = (u[2] - u[0]) + 2.0 * (m[2] - m[0]) + (d[2] - d[0]);
+    let gy = (d[0] - u[0]) + 2.0 * (d[1] - u[1]) + (d[2] - u[2]);
+    0.125 * (gx * gx + gy * gy).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plane(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Plane {
+        let data = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| f(x, y))
+            .collect();
+        Plane {
+            data,
+            width: w,
+            height: h,
+            offset: 0.0,
+        }
+    }
+
+    #[test]
+    fn conversion_subtracts_mid_scale_and_rejects_nan() {
+        let px = [0u16, 65535, 100, 7];
+        let view = ImageView::contiguous(&px, 2, 2, 1).unwrap();
+        let c = Converted::new(&view, "a").unwrap();
+        let mut row = [0.0f32; 2];
+        c.fill_row(1, &mut row);
+        assert_eq!(row, [-32667.5, -32760.5]);
+        assert_eq!(c.offset(), 32767.5);
+        let bad = [0.0f32, 1.0, 2.0, f32::NAN, 0.0, f32::INFINITY];
+        let view = ImageView::contiguous(&bad, 2, 3, 1).unwrap();
+        let err = Converted::new(&view, "moving").err().unwrap().to_string();
+        assert!(
+            err.contains("moving") && err.contains("row 1 holds NaN"),
+            "{err}"
+        );
+        let rgb = [0u8; 12];
+        let view = ImageView::contiguous(&rgb, 2, 2, 3).unwrap();
+        assert!(Converted::new(&view, "a").is_err());
+    }
+
+    #[test]
+    fn downsample_averages_blocks() {
+        let p = Plane::downsample(&plane(5, 3, |x, y| (x + 10 * y) as f32));
+        assert_eq!((p.width, p.height), (2, 1));
+        // Block (0..2, 0..2): (0 + 1 + 10 + 11) / 4 = 5.5.
+        assert_eq!(p.data, vec![5.5, 7.5]);
+    }
+
+    #[test]
+    fn gradient_of_a_ramp_is_its_slope() {
+        // I = 3x: gx = 3 * 2 * (1 + 2 + 1) = 24, / 8 = 3 inside.
+        let g = Plane::gradient(&plane(6, 5, |x, _| 3.0 * x as f32));
+        assert_eq!(g.data[2 * 6 + 2], 3.0);
+        // Mirrored border: the ramp folds back, the slope vanishes.
+        assert_eq!(g.data[2 * 6], 0.0);
+    }
+}

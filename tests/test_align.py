@@ -1,0 +1,450 @@
+"""Three-colour alignment: metrics, exhaustive search, pyramid, plates, CLI."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import output_with_threads
+from hypothesis import given
+from hypothesis import strategies as st
+
+import imgform_rs as ig
+from imgform_rs._png import write_png
+from imgform_rs.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+METRICS = ["ssd", "cosine", "ncc"]
+DTYPES = [np.uint8, np.uint16, np.float32]
+
+
+def shared_file(rel: str) -> Path | None:
+    """``../shared/<rel>`` next to the checkout (or next to a folder of
+    worktrees above it), or None."""
+    for base in (ROOT, *ROOT.parents):
+        p = base.parent / "shared" / rel
+        if p.is_file():
+            return p
+    return None
+
+
+def smooth_field(seed: int, h: int, w: int, sigma: float = 1.5) -> np.ndarray:
+    """White noise blurred by a Gaussian: smooth, not periodic, in [0, 1]."""
+    r = math.ceil(3 * sigma)
+    noise = np.random.default_rng(seed).standard_normal((h + 2 * r, w + 2 * r))
+    t = np.arange(-r, r + 1)
+    kern = np.exp(-0.5 * (t / sigma) ** 2)
+    kern /= kern.sum()
+    out = np.apply_along_axis(np.convolve, 0, noise, kern, mode="valid")
+    out = np.apply_along_axis(np.convolve, 1, out, kern, mode="valid")
+    assert out.shape == (h, w)
+    out -= out.min()
+    return out / out.max()
+
+
+def as_dtype(field: np.ndarray, dtype) -> np.ndarray:
+    if dtype == np.float32:
+        return field.astype(np.float32)
+    top = np.iinfo(dtype).max
+    return np.floor(field * top + 0.5).astype(dtype)
+
+
+def shifted_pair(seed, h, w, k, dy, dx, dtype=np.float32):
+    """(reference, moving) with ``np.roll(moving, (dy, dx))`` landing moving on
+    reference: both are windows of one larger field, so the moving image has
+    real content (not fill) beyond the reference's frame."""
+    big = as_dtype(smooth_field(seed, h + 2 * k, w + 2 * k), dtype)
+    ref = big[k : k + h, k : k + w]
+    mov = big[k + dy : k + dy + h, k + dx : k + dx + w]
+    return np.ascontiguousarray(ref), np.ascontiguousarray(mov)
+
+
+def reference_score(a: np.ndarray, b: np.ndarray, metric: str) -> float:
+    """The lecture's equations 5-7 in float64, with the documented value 0
+    for a patch without variance (NCC) or norm (cosine)."""
+    a = a.astype(np.float64).ravel()
+    b = b.astype(np.float64).ravel()
+    if metric == "ssd":
+        return float(np.sqrt(np.sum((a - b) ** 2)))
+    if metric == "ncc":
+        a, b = a - a.mean(), b - b.mean()
+    na, nb = np.linalg.norm(a), np.linalg.norm(b)
+    return 0.0 if na == 0 or nb == 0 else float(a @ b / (na * nb))
+
+
+def brute_force_surface(ref, mov, k, metric, crop):
+    """Every shift in [-k, k]^2 scored over the cropped window, no wrap-around."""
+    h, w = ref.shape
+    my, mx = math.floor(crop * h), math.floor(crop * w)
+    out = np.empty((2 * k + 1, 2 * k + 1))
+    for i, dy in enumerate(range(-k, k + 1)):
+        for j, dx in enumerate(range(-k, k + 1)):
+            y0, y1 = max(my, dy), min(h - my, h + dy)
+            x0, x1 = max(mx, dx), min(w - mx, w + dx)
+            a = ref[y0:y1, x0:x1]
+            b = mov[y0 - dy : y1 - dy, x0 - dx : x1 - dx]
+            out[i, j] = reference_score(a, b, metric)
+    return out
+
+
+shift_case = st.tuples(
+    st.integers(0, 10_000),
+    st.integers(-6, 6),
+    st.integers(-6, 6),
+    st.sampled_from(DTYPES),
+)
+
+
+# --- metrics ---------------------------------------------------------------
+
+
+@given(seed=st.integers(0, 10_000), dtype=st.sampled_from(DTYPES))
+def test_self_similarity(seed, dtype):
+    a = as_dtype(smooth_field(seed, 20, 23), dtype)
+    assert ig.similarity(a, a, "ssd") == 0.0
+    assert ig.similarity(a, a, "cosine") == pytest.approx(1.0, abs=1e-6)
+    assert ig.similarity(a, a, "ncc") == pytest.approx(1.0, abs=1e-6)
+
+
+@given(seed=st.integers(0, 10_000), metric=st.sampled_from(METRICS))
+def test_metrics_are_symmetric_and_match_the_equations(seed, metric):
+    a = smooth_field(seed, 17, 19).astype(np.float32)
+    b = smooth_field(seed + 1, 17, 19).astype(np.float32)
+    ab, ba = ig.similarity(a, b, metric), ig.similarity(b, a, metric)
+    assert ab == ba
+    assert ab == pytest.approx(reference_score(a, b, metric), rel=1e-5, abs=1e-6)
+
+
+def test_hand_computed_values():
+    a = np.array([[1, 2, 3]], np.float32)
+    b = np.array([[2, 4, 7]], np.float32)
+    assert ig.similarity(a, b, "ssd") == pytest.approx(math.sqrt(21))
+    assert ig.similarity(a, b, "cosine") == pytest.approx(31 / math.sqrt(14 * 69))
+    assert ig.similarity(a, b, "ncc") == pytest.approx(5 / math.sqrt(2 * 114 / 9))
+
+
+# --- the search --------------------------------------------------------------
+
+
+@given(case=shift_case, metric=st.sampled_from(METRICS))
+def test_every_metric_recovers_a_known_shift(case, metric):
+    seed, dy, dx, dtype = case
+    ref, mov = shifted_pair(seed, 40, 44, 6, dy, dx, dtype)
+    got = ig.align(ref, mov, max_shift=6, metric=metric, pyramid=0)
+    assert got.shift == (dy, dx)
+    # Landing it: the rolled moving image equals the reference inside the overlap.
+    rolled = np.roll(mov, (dy, dx), axis=(0, 1))
+    inner = (slice(6, -6), slice(6, -6))
+    np.testing.assert_array_equal(rolled[inner], ref[inner])
+
+
+@given(
+    case=shift_case,
+    gain=st.floats(0.2, 5.0),
+    bias=st.floats(-1.0, 1.0),
+)
+def test_ncc_recovers_the_shift_under_an_affine_intensity_change(case, gain, bias):
+    seed, dy, dx, _ = case
+    ref, mov = shifted_pair(seed, 40, 44, 6, dy, dx)
+    changed = (gain * mov + bias).astype(np.float32)
+    assert ig.align(ref, changed, max_shift=6, metric="ncc", pyramid=0).shift == (dy, dx)
+
+
+@given(
+    seed=st.integers(0, 10_000),
+    metric=st.sampled_from(METRICS),
+    k=st.integers(0, 4),
+    crop=st.sampled_from([0.0, 0.1, 0.25]),
+    dtype=st.sampled_from(DTYPES),
+)
+def test_exhaustive_search_equals_a_brute_force_reference(seed, metric, k, crop, dtype):
+    ref = as_dtype(smooth_field(seed, 15, 18), dtype)
+    mov = as_dtype(smooth_field(seed + 7, 15, 18), dtype)
+    got = ig.align(ref, mov, max_shift=k, metric=metric, crop=crop, pyramid=0)
+    want = brute_force_surface(ref, mov, k, metric, crop)
+    assert got.surface_origin == (-k, -k)
+    np.testing.assert_allclose(got.surface, want, rtol=1e-5, atol=1e-5)
+    # The chosen shift is a best one of the reference surface (up to rounding).
+    i, j = got.shift[0] + k, got.shift[1] + k
+    best = want.min() if metric == "ssd" else want.max()
+    assert want[i, j] == pytest.approx(best, rel=1e-5, abs=1e-5)
+
+
+def test_pyramid_finds_a_large_shift_with_few_candidates_per_level():
+    ref, mov = shifted_pair(3, 540, 520, 60, 47, -38)
+    for features in ["intensity", "gradient"]:
+        got = ig.align(ref, mov, max_shift=60, features=features)
+        assert got.shift == (47, -38)
+        assert len(got.levels) >= 3
+        assert all(lv.candidates <= 17 * 17 for lv in got.levels)
+        assert got.levels[-1].scale == 1
+        assert got.surface.shape == (5, 5)
+        oy, ox = got.surface_origin
+        assert oy <= 47 <= oy + 4 and ox <= -38 <= ox + 4
+
+
+def test_gradient_features_align_channels_with_inverted_brightness():
+    """The "Emir" failure: a channel whose brightness is inverted, so raw
+    intensities anti-correlate while edges still coincide."""
+    ref, mov = shifted_pair(11, 96, 100, 8, 5, -3)
+    inverted = (1.0 - mov).astype(np.float32)
+    assert ig.align(ref, inverted, max_shift=8, features="gradient").shift == (5, -3)
+    assert ig.align(ref, inverted, max_shift=8, metric="ssd").shift != (5, -3)
+
+
+def test_subpixel_refinement():
+    y, x = np.mgrid[:90, :100].astype(np.float64)
+
+    def scene(dy, dx):
+        u, v = x + dx, y + dy
+        return (np.sin(u / 7.0) * np.cos(v / 9.0) + 0.5 * np.sin((u + v) / 13.0)).astype(np.float32)
+
+    got = ig.align(scene(0, 0), scene(2.3, -1.6), max_shift=5, subpixel=True)
+    assert got.shift[0] == pytest.approx(2.3, abs=0.15)
+    assert got.shift[1] == pytest.approx(-1.6, abs=0.15)
+    assert isinstance(got.shift[0], float)
+
+
+def test_results_do_not_depend_on_the_thread_count():
+    code = """
+    import sys, numpy as np, imgform_rs as ig
+    rng = np.random.default_rng(5)
+    big = rng.integers(0, 65535, (700, 650), dtype=np.uint16)
+    ref, mov = big[30:630, 30:580], big[47:647, 9:559]
+    for metric in ["ssd", "cosine", "ncc"]:
+        for features in ["intensity", "gradient"]:
+            got = ig.align(ref, mov, max_shift=30, metric=metric, features=features)
+            sys.stdout.buffer.write(repr((got.shift, got.score)).encode())
+            sys.stdout.buffer.write(got.surface.tobytes())
+    got = ig.align(ref, mov, max_shift=8, pyramid=0, subpixel=True)
+    sys.stdout.buffer.write(repr(got.shift).encode() + got.surface.tobytes())
+    """
+    one = output_with_threads(code, 1)
+    assert one == output_with_threads(code, 2)
+    assert b"(17, -21)" in one
+
+
+def test_non_contiguous_and_fortran_ordered_inputs():
+    ref, mov = shifted_pair(2, 60, 64, 6, 3, -2)
+    assert ig.align(ref.T, mov.T, max_shift=6).shift == (-2, 3)
+    assert ig.align(np.asfortranarray(ref), np.asfortranarray(mov), max_shift=6).shift == (3, -2)
+    wide_ref, wide_mov = shifted_pair(2, 60, 128, 6, 3, -4)
+    assert ig.align(wide_ref[:, ::2], wide_mov[:, ::2], max_shift=6).shift == (3, -2)
+
+
+# --- bad input ---------------------------------------------------------------
+
+
+def test_bad_input_raises_clear_errors():
+    a = np.zeros((30, 30), np.float32) + smooth_field(0, 30, 30).astype(np.float32)
+    with pytest.raises(ValueError, match="same shape"):
+        ig.align(a, a[:, :29])
+    with pytest.raises(ValueError, match="same shape"):
+        ig.similarity(a, a[:29])
+    for k in (-1, 30, 31):
+        with pytest.raises(ValueError, match="max_shift"):
+            ig.align(a, a, max_shift=k)
+    with pytest.raises(ValueError, match="too small"):
+        ig.align(a[:6, :6], a[:6, :6], max_shift=5, crop=0.1)
+    bad = a.copy()
+    bad[3, 4] = np.nan
+    with pytest.raises(ValueError, match=r"finite.*row 3"):
+        ig.align(a, bad)
+    with pytest.raises(ValueError, match="finite"):
+        ig.similarity(bad, a)
+    with pytest.raises(ValueError, match=r"unknown metric \"mse\""):
+        ig.align(a, a, metric="mse")
+    with pytest.raises(ValueError, match="unknown metric"):
+        ig.similarity(a, a, "l1")
+    with pytest.raises(ValueError, match="features"):
+        ig.align(a, a, features="edges")
+    with pytest.raises(ValueError, match="pyramid"):
+        ig.align(a, a, pyramid="deep")
+    with pytest.raises(ValueError, match="pyramid"):
+        ig.align(a, a, pyramid=-1)
+    with pytest.raises(ValueError, match="crop"):
+        ig.align(a, a, crop=0.5)
+    with pytest.raises(ValueError, match=r"single-channel"):
+        ig.align(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8))
+    with pytest.raises(TypeError, match="same dtype"):
+        ig.align(a, (a * 255).astype(np.uint8))
+    with pytest.raises(TypeError, match="int64"):
+        ig.similarity(np.zeros((4, 4), np.int64), np.zeros((4, 4), np.int64))
+    with pytest.raises(TypeError):
+        ig.align(a, a, max_shift=2.5)
+
+
+def test_constant_images_have_a_defined_result():
+    flat = np.full((40, 40), 9, np.uint8)
+    other = as_dtype(smooth_field(1, 40, 40), np.uint8)
+    got = ig.align(flat, flat, max_shift=5)
+    assert got.shift == (0, 0)
+    assert got.score == 0.0
+    assert np.all(got.surface == 0.0)
+    assert ig.similarity(flat, other, "ncc") == 0.0
+    zeros = np.zeros((40, 40), np.float32)
+    assert ig.similarity(zeros, other.astype(np.float32), "cosine") == 0.0
+    assert ig.align(flat, other, max_shift=5, metric="ncc").shift == (0, 0)
+
+
+# --- shifting, stacking, plates ----------------------------------------------
+
+
+@given(
+    seed=st.integers(0, 1000),
+    dy=st.integers(-9, 9),
+    dx=st.integers(-10, 10),
+    dtype=st.sampled_from(DTYPES),
+)
+def test_integer_apply_shift_is_roll_without_wrap_around(seed, dy, dx, dtype):
+    img = as_dtype(smooth_field(seed, 10, 11), dtype)
+    got = ig.apply_shift(img, (dy, dx), fill=7)
+    rolled = np.roll(img, (dy, dx), axis=(0, 1))
+    valid = np.zeros(img.shape, bool)
+    valid[max(dy, 0) : 10 + min(dy, 0), max(dx, 0) : 11 + min(dx, 0)] = True
+    np.testing.assert_array_equal(got[valid], rolled[valid])
+    assert np.all(got[~valid] == 7)
+    assert got.dtype == img.dtype
+    assert np.all(ig.apply_shift(img, (10, 0), fill=7) == 7)
+
+
+def test_fractional_apply_shift_interpolates_bilinearly():
+    img = np.arange(20, dtype=np.float32).reshape(4, 5) * 4
+    got = ig.apply_shift(img, (0.5, -0.25), fill=-1)
+    # out[y, x] = img(y - 0.5, x + 0.25) on the ramp 20 y + 4 x.
+    assert got[2, 1] == pytest.approx(20 * 1.5 + 4 * 1.25)
+    assert np.all(got[0] == -1)
+    assert np.all(got[:, -1] == -1)
+    u8 = ig.apply_shift(np.array([[0, 255]], np.uint8), (0, 0.5))
+    assert u8.dtype == np.uint8 and u8[0, 1] == 128
+    with pytest.raises(ValueError, match="shift"):
+        ig.apply_shift(img, (1.0, np.nan))
+
+
+def test_stack_channels():
+    r, g, b = (np.full((2, 3), v, np.uint16) for v in (1, 2, 3))
+    rgb = ig.stack_channels(r, g, b)
+    assert rgb.shape == (2, 3, 3) and list(rgb[0, 0]) == [1, 2, 3]
+    with pytest.raises(ValueError, match="one shape and dtype"):
+        ig.stack_channels(r, g, b.astype(np.uint8))
+
+
+def synthetic_plate(dtype=np.uint8, h=150, w=160, g=(3, -2), r=(-4, 5), seed=4):
+    """A B, G, R plate where ``np.roll`` of G by ``g`` and of R by ``r`` lands
+    them on B (all three are windows of one scene, with per-channel noise)."""
+    k = 10
+    big = smooth_field(seed, h + 2 * k, w + 2 * k, sigma=2.5)
+    rng = np.random.default_rng(seed)
+
+    def window(d):
+        ch = big[k + d[0] : k + d[0] + h, k + d[1] : k + d[1] + w]
+        return as_dtype(np.clip(ch + rng.normal(0, 0.01, ch.shape), 0, 1), dtype)
+
+    return np.vstack([window((0, 0)), window(g), window(r)])
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_colorize_plate_recovers_the_channel_shifts(dtype):
+    plate = synthetic_plate(dtype)
+    rgb, shifts = ig.colorize_plate(plate, reference="b", frame=False)
+    assert shifts == {"r": (-4, 5), "g": (3, -2), "b": (0, 0)}
+    assert rgb.dtype == dtype
+    # The borders the shifts emptied are cropped: 3 + 4 rows, 5 + 2 columns.
+    assert rgb.shape == (150 - 7, 160 - 7, 3)
+    _, onto_g = ig.colorize_plate(plate, reference="g", frame=False)
+    assert onto_g == {"r": (-7, 7), "g": (0, 0), "b": (-3, 2)}
+
+
+def test_colorize_plate_crops_a_scanning_frame():
+    plate = synthetic_plate(np.uint8, h=200, w=200).copy()
+    for third in range(3):
+        plate[third * 200 : third * 200 + 6] = 0  # black frame on top of each exposure
+        plate[third * 200 :, :5] = 255  # white margin on the left
+    rgb, _ = ig.colorize_plate(plate, reference="b")
+    framed, _ = ig.colorize_plate(plate, reference="b", frame=False)
+    # After the shift crop (3 rows, 5 columns) G's black rows are the first 6
+    # and R's white columns the first 5; nothing else is frame.
+    np.testing.assert_array_equal(rgb, framed[6:, 5:])
+
+
+def test_colorize_plate_refuses_bad_plates():
+    with pytest.raises(ValueError, match=r"\(3 H, W\)"):
+        ig.colorize_plate(np.zeros((2, 10), np.uint8))
+    with pytest.raises(ValueError, match="reference"):
+        ig.colorize_plate(synthetic_plate(), reference="x")
+
+
+CATHEDRAL = shared_file("data/pg/cathedral.jpg")
+
+
+@pytest.mark.skipif(CATHEDRAL is None, reason="shared/data/pg/cathedral.jpg is not present")
+@pytest.mark.parametrize(
+    ("metric", "features"), [("ncc", "intensity"), ("ssd", "intensity"), ("ncc", "gradient")]
+)
+def test_cathedral_gives_the_published_shifts(metric, features):
+    """The published G (5, 2), R (12, 3) relative to blue are (row, column)
+    displacements that move G and R onto B, i.e. our np.roll convention."""
+    rgb, shifts = ig.colorize_plate(CATHEDRAL, reference="b", metric=metric, features=features)
+    assert shifts["g"] == (5, 2)
+    assert shifts["r"] == (12, 3)
+    assert rgb.dtype == np.uint8 and rgb.ndim == 3
+
+
+# --- CLI ----------------------------------------------------------------------
+
+
+def test_cli_reports_a_bad_file_and_processes_the_rest(tmp_path, capsys):
+    good = tmp_path / "good.png"
+    write_png(good, synthetic_plate())
+    tif = tmp_path / "deep.tif"
+    iio = pytest.importorskip("imageio.v3")
+    iio.imwrite(tif, synthetic_plate(np.uint16))
+    bad = tmp_path / "broken.jpg"
+    bad.write_bytes(b"not an image")
+    out = tmp_path / "out"
+    status = main(["align", str(good), str(bad), str(tif), "-o", str(out), "--reference", "b"])
+    captured = capsys.readouterr()
+    assert status != 0
+    assert "broken.jpg" in captured.err and "cannot read plate" in captured.err
+    assert "G (3, -2)" in captured.out and "R (-4, 5)" in captured.out
+    assert (out / "good.png").is_file()
+    deep = iio.imread(out / "deep.png")
+    assert deep.ndim == 3
+    cv2 = pytest.importorskip("cv2")
+    assert cv2.imread(str(out / "deep.png"), cv2.IMREAD_UNCHANGED).dtype == np.uint16
+
+
+def test_cli_keeps_existing_outputs_unless_overwrite(tmp_path, capsys):
+    good = tmp_path / "plate.png"
+    write_png(good, synthetic_plate())
+    out = tmp_path / "out"
+    out.mkdir()
+    target = out / "plate.png"
+    target.write_bytes(b"old")
+    assert main(["align", str(good), "-o", str(out)]) == 0
+    assert target.read_bytes() == b"old"
+    assert "kept" in capsys.readouterr().out
+    assert main(["align", str(good), "-o", str(out), "--overwrite", "--metric", "ssd"]) == 0
+    assert target.read_bytes().startswith(b"\x89PNG")
+
+
+def test_cli_draws_a_progress_bar_on_a_terminal(tmp_path, monkeypatch, capsys):
+    import io
+    import sys
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    plates = []
+    for name in ("a", "b", "c"):
+        plates.append(tmp_path / f"{name}.png")
+        write_png(plates[-1], synthetic_plate(seed=len(plates)))
+    term = Terminal()
+    monkeypatch.setattr(sys, "stderr", term)
+    assert main(["align", *map(str, plates), "-o", str(tmp_path / "out")]) == 0
+    bar = term.getvalue()
+    assert "1/3 plates" in bar and bar.endswith("3/3 plates\n")
+    assert capsys.readouterr().out.count(" in ") == 3
