@@ -77,9 +77,12 @@ def test_undistort_image_agrees_with_opencv_bilinear(dtype):
     mx, my = cv2.initUndistortRectifyMap(K, LENS, None, K, (W, H), cv2.CV_32FC1)
     ref = cv2.remap(img, mx, my, cv2.INTER_LINEAR)
     ours = ig.undistort_image(img, K, LENS)
-    grey = np.iinfo(dtype).max / 255
+    # OpenCV rounds positions to 1/32 px (ours: 1/256); on this card's steepest
+    # u16 slope (930 levels/px) that alone can move a value by 930 / 64 ~ 15
+    # levels, 1/17 of a u8 grey level.
+    tolerance = {np.uint8: 1, np.uint16: 16}[dtype]
     diff = np.abs(interior(ours).astype(np.int64) - interior(ref).astype(np.int64))
-    assert diff.max() <= grey, diff.max()
+    assert diff.max() <= tolerance, diff.max()
 
 
 def test_undistort_image_agrees_with_opencv_at_the_border_too():

@@ -3,7 +3,11 @@
 
 use imgform_core::image::{ImageView, Sample};
 use imgform_core::remap::{self, Interpolation, Resample};
-use numpy::{Element, PyArrayDyn, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::ndarray::IxDyn;
+use numpy::{
+    Element, PyArrayDyn, PyArrayMethods, PyReadonlyArray2, PyReadonlyArrayDyn,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -142,6 +146,12 @@ pub fn output_shape(input: &[usize], height: usize, width: usize) -> Vec<usize> 
 
 /// Runs `kernel(view, out)` over a typed image and returns a new array of
 /// `out_shape` (same sample type, `(H, W)` or `(H, W, C)` as given).
+///
+/// Unlike the usual "fill a Vec, hand it to NumPy", the output is allocated
+/// by NumPy and written in place: NumPy asks the kernel for transparent huge
+/// pages on large arrays, a Rust `Vec` does not, and first-touch faults on
+/// 4 KiB pages took about half the time of a 24 MP remap (measured with
+/// perf: `clear_page_erms` at 52 %).
 pub fn resample_into<'py, T, F>(
     py: Python<'py>,
     arr: PyReadonlyArrayDyn<'py, T>,
@@ -155,12 +165,18 @@ where
     let (h, w, c) = image_dims(arr.shape(), "image")?;
     let shape = out_shape(arr.shape());
     let src = contiguous(&arr);
-    let mut out = vec![T::default(); shape.iter().product()];
-    detached(py, || {
-        let view = ImageView::contiguous(&src, w, h, c)?;
-        kernel(&view, &mut out)
-    })?;
-    Ok(to_numpy(py, out, &shape)?.into_any())
+    let out = PyArrayDyn::<T>::zeros(py, IxDyn(&shape), false);
+    {
+        let mut guard = out.readwrite();
+        let slice = guard
+            .as_slice_mut()
+            .map_err(|e| PyValueError::new_err(format!("internal: output not contiguous: {e}")))?;
+        detached(py, || {
+            let view = ImageView::contiguous(&src, w, h, c)?;
+            kernel(&view, slice)
+        })?;
+    }
+    Ok(out.into_any())
 }
 
 fn remap_typed<'py, T: Resample + Element>(
