@@ -38,9 +38,6 @@ build: $(BUILT) ## build the extension (release) into .venv
 .PHONY: demo
 demo: $(BUILT) ## run the main job on the built-in sample; results under out/
 	$(BIN)/imgform demo --out out
-	@# The real plate of the alignment section, when shared/ sits beside the checkout.
-	@if [ -f ../shared/data/pg/cathedral.jpg ]; then \
-		$(BIN)/imgform align ../shared/data/pg/cathedral.jpg -o out --reference b --overwrite; fi
 
 .PHONY: test
 test: $(BUILT) ## cargo test (core) and pytest

@@ -6,11 +6,21 @@ import argparse
 import sys
 from pathlib import Path
 
+# The sample plate beside the checkout (shared/ is not part of the project).
+SAMPLE_PLATE = Path("../shared/data/pg/cathedral.jpg")
+
 
 def _demo(args: argparse.Namespace) -> int:
     from .demo import run
 
-    for path in run(Path(args.out)):
+    if args.plate is None:
+        plate = SAMPLE_PLATE if SAMPLE_PLATE.is_file() else None
+    elif Path(args.plate).is_file():
+        plate = Path(args.plate)
+    else:
+        print(f"imgform demo: no plate file at {args.plate}", file=sys.stderr)
+        return 2
+    for path in run(Path(args.out), plate=plate):
         print(f"wrote {path}")
     return 0
 
@@ -84,6 +94,10 @@ def build_parser() -> argparse.ArgumentParser:
         "demo", help="render the built-in sample scene through every camera model"
     )
     demo.add_argument("--out", default="out", help="output folder (default: out)")
+    demo.add_argument(
+        "--plate",
+        help=f"a Prokudin-Gorskii scan to colourise (default: {SAMPLE_PLATE}, when present)",
+    )
     demo.set_defaults(run=_demo)
     align = sub.add_parser(
         "align",
