@@ -25,8 +25,6 @@ use crate::errors::detached;
 pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
     arr: &'a numpy::PyReadonlyArray<'_, T, D>,
 ) -> Cow<'a, [T]> {
-    // `as_slice` also accepts Fortran-ordered arrays (their memory order is
-    // column-major), so C order must be checked first.
     match arr.as_slice() {
         Ok(s) if arr.is_c_contiguous() => Cow::Borrowed(s),
         _ => Cow::Owned(arr.as_array().iter().copied().collect()),
