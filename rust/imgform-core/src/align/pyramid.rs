@@ -106,6 +106,24 @@ pub struct Plane {
     pub offset: f64,
 }
 
+#[cfg(test)]
+impl Plane {
+    /// A test plane with `f(x, y)` at pixel `(x, y)` (signed, so tests can
+    /// sample a pattern at shifted, possibly negative, positions).
+    pub(crate) fn from_fn(w: usize, h: usize, f: impl Fn(i64, i64) -> f32) -> Self {
+        let data = (0..h as i64)
+            .flat_map(|y| (0..w as i64).map(move |x| (x, y)))
+            .map(|(x, y)| f(x, y))
+            .collect();
+        Self {
+            data,
+            width: w,
+            height: h,
+            offset: 0.0,
+        }
+    }
+}
+
 impl Rows for Plane {
     fn width(&self) -> usize {
         self.width
@@ -206,19 +224,6 @@ fn sobel(u: [f32; 3], m: [f32; 3], d: [f32; 3]) -> f32 {
 mod tests {
     use super::*;
 
-    fn plane(w: usize, h: usize, f: impl Fn(usize, usize) -> f32) -> Plane {
-        let data = (0..h)
-            .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| f(x, y))
-            .collect();
-        Plane {
-            data,
-            width: w,
-            height: h,
-            offset: 0.0,
-        }
-    }
-
     #[test]
     fn conversion_subtracts_mid_scale_and_rejects_nan() {
         let px = [0u16, 65535, 100, 7];
@@ -242,7 +247,7 @@ mod tests {
 
     #[test]
     fn downsample_averages_blocks() {
-        let p = Plane::downsample(&plane(5, 3, |x, y| (x + 10 * y) as f32));
+        let p = Plane::downsample(&Plane::from_fn(5, 3, |x, y| (x + 10 * y) as f32));
         assert_eq!((p.width, p.height), (2, 1));
         // Block (0..2, 0..2): (0 + 1 + 10 + 11) / 4 = 5.5.
         assert_eq!(p.data, vec![5.5, 7.5]);
@@ -251,7 +256,7 @@ mod tests {
     #[test]
     fn gradient_of_a_ramp_is_its_slope() {
         // I = 3x: gx = 3 * 2 * (1 + 2 + 1) = 24, / 8 = 3 inside.
-        let g = Plane::gradient(&plane(6, 5, |x, _| 3.0 * x as f32));
+        let g = Plane::gradient(&Plane::from_fn(6, 5, |x, _| 3.0 * x as f32));
         assert_eq!(g.data[2 * 6 + 2], 3.0);
         // Mirrored border: the ramp folds back, the slope vanishes.
         assert_eq!(g.data[2 * 6], 0.0);

@@ -374,19 +374,6 @@ mod tests {
     use super::*;
     use crate::align::pyramid::Plane;
 
-    fn plane(w: usize, h: usize, f: impl Fn(i64, i64) -> f32) -> Plane {
-        let data = (0..h as i64)
-            .flat_map(|y| (0..w as i64).map(move |x| (x, y)))
-            .map(|(x, y)| f(x, y))
-            .collect();
-        Plane {
-            data,
-            width: w,
-            height: h,
-            offset: 0.0,
-        }
-    }
-
     /// A smooth, non-periodic pattern.
     fn pattern(x: i64, y: i64) -> f32 {
         let (x, y) = (x as f32, y as f32);
@@ -396,9 +383,9 @@ mod tests {
     #[test]
     fn finds_a_known_shift_with_every_metric() {
         let (dy, dx) = (3, -2);
-        let r = plane(40, 36, pattern);
+        let r = Plane::from_fn(40, 36, pattern);
         // moving(y, x) = reference(y + dy, x + dx): rolling it by (dy, dx) lands it.
-        let m = plane(40, 36, |x, y| pattern(x + dx, y + dy));
+        let m = Plane::from_fn(40, 36, |x, y| pattern(x + dx, y + dy));
         let win = Window::cropped(40, 36, 0.1);
         let c = Candidates {
             center: (0, 0),
@@ -414,7 +401,7 @@ mod tests {
 
     #[test]
     fn ties_go_to_the_smallest_shift() {
-        let flat = plane(20, 20, |_, _| 1.0);
+        let flat = Plane::from_fn(20, 20, |_, _| 1.0);
         let c = Candidates {
             center: (0, 0),
             radius: 2,
