@@ -54,18 +54,18 @@ _BPS = {8: "8", 16: "16", "float": "float"}
 
 
 def _grey_world(raw: RawImage) -> npt.NDArray[np.float64]:
-    """LibRaw's automatic white balance: channel means over unclipped blocks."""
+    """LibRaw's automatic white balance: channel means over unclipped blocks
+    (the blocks at the right and bottom edges may be partial, as in LibRaw)."""
     h, w = raw.cfa.shape
     b = _GREY_BLOCK
-    hb, wb = h // b * b, w // b * b
-    cfa = raw.cfa[:hb, :wb].astype(np.float64)
-    tile = raw.channel_tile
-    th, tw = tile.shape
-    chan = np.tile(tile, (hb // th + 1, wb // tw + 1))[:hb, :wb]
-    blocks = cfa.reshape(hb // b, b, wb // b, b)
-    keep = (blocks.max(axis=(1, 3)) <= raw.white_level - _GREY_MARGIN)[:, None, :, None]
-    keep = np.broadcast_to(keep, blocks.shape).reshape(hb, wb)
-    signal = np.maximum(cfa - raw.black_levels[chan], 0)
+    block_max = np.maximum.reduceat(
+        np.maximum.reduceat(raw.cfa, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
+    )
+    ok = block_max <= raw.white_level - _GREY_MARGIN
+    keep = np.repeat(np.repeat(ok, b, axis=0), b, axis=1)[:h, :w]
+    th, tw = raw.channel_tile.shape
+    chan = np.tile(raw.channel_tile, (-(-h // th), -(-w // tw)))[:h, :w]
+    signal = np.maximum(raw.cfa - raw.black_levels[chan], 0)
     mul = np.ones(4)
     for c in range(4):
         sel = keep & (chan == c)
@@ -198,12 +198,13 @@ def develop(
     --------
     >>> import tempfile
     >>> from imgform_rs.dng import write_dng
-    >>> cfa = np.full((32, 32), 64 + 2016, np.uint16)
+    >>> cfa = np.full((32, 32), 95 + 1000, np.uint16)  # 1/4 of black..white
+    >>> cfa[:, 16:] += 1000  # and 1/2
     >>> with tempfile.TemporaryDirectory() as d:
-    ...     write_dng(f"{d}/grey.dng", cfa, "RGGB", white_level=4095, black_level=64)
-    ...     rgb = develop(f"{d}/grey.dng", tone="linear", bps=16)
-    >>> rgb.shape, rgb.dtype, int(rgb[16, 16, 1])
-    ((32, 32, 3), dtype('uint16'), 65535)
+    ...     write_dng(f"{d}/grey.dng", cfa, "RGGB", white_level=4095, black_level=95)
+    ...     rgb = develop(f"{d}/grey.dng", tone="linear", bps=16, demosaic="bilinear")
+    >>> rgb.shape, rgb.dtype, int(rgb[8, 8, 1]), int(rgb[8, 24, 1])
+    ((32, 32, 3), dtype('uint16'), 16384, 32768)
     """
     if bps not in _BPS:
         raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')

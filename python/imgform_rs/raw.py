@@ -285,7 +285,10 @@ def _check_pixels(
     file_digest = hashlib.blake2b(data, digest_size=16).digest()
     data_digest = hashlib.blake2b(cfa.tobytes(), digest_size=16).digest()
     previous = _SEEN_DATA.get(data_digest)
-    if previous is not None and previous != file_digest:
+    # Only a file too small to store its pixels uncompressed can be hiding
+    # missing data this way; identical pixels in two uncompressed files (a
+    # copy with edited metadata) are genuine.
+    if previous is not None and previous != file_digest and len(data) < 2 * pixels:
         raise RawError(
             f"{name}: LibRaw returned the pixels of a file decoded earlier: "
             "this file's image data is missing or unreadable"
@@ -319,7 +322,13 @@ def load_raw(source: Any) -> RawImage:
     RawError
         Naming the file, for a missing, empty, truncated, stripped or
         unsupported file, one without a colour filter array (linear DNG, film
-        scanner) or with no real pixel data.
+        scanner) or with no real pixel data: constant data, a file too small
+        for its pixel count, or pixels identical to those of a different file
+        decoded earlier in this process while the file is too small to store
+        them uncompressed (LibRaw's stale buffer; a compressed raw copied with
+        edited metadata is refused too: open such a copy with rawpy and pass
+        the ``RawPy``, which skips the byte-level checks and keeps only the
+        constant-data one).
     TypeError
         For a source of another type.
 
