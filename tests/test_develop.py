@@ -200,3 +200,50 @@ def test_result_does_not_depend_on_thread_count(grey_card):
         sys.stdout.buffer.write(ig.develop({str(path)!r}, bps=16).tobytes())
     """
     assert output_with_threads(code, 1) == output_with_threads(code, 2)
+
+
+def test_write_image_round_trips_and_never_overwrites_by_default(tmp_path):
+    rgb16 = (np.arange(6 * 5 * 3).reshape(6, 5, 3) * 1000).astype(np.uint16)
+    for name, img in [("a.png", rgb16), ("b.tif", rgb16), ("c.png", rgb16.astype(np.uint8))]:
+        path = ig.write_image(tmp_path / name, img)
+        np.testing.assert_array_equal(iio_read(path), img)
+        with pytest.raises(FileExistsError, match="overwrite=True"):
+            ig.write_image(path, img)
+        ig.write_image(path, img[::-1], overwrite=True)
+        np.testing.assert_array_equal(iio_read(path), img[::-1])
+    with pytest.raises(ValueError, match=r"must end in \.png, \.tif or \.tiff"):
+        ig.write_image(tmp_path / "a.jpg", rgb16)
+    with pytest.raises(ValueError, match="PNG takes uint8, uint16"):
+        ig.write_image(tmp_path / "f.png", rgb16.astype(np.float32))
+
+
+def test_cli_develops_good_files_reports_bad_ones_and_keeps_outputs(tmp_path, capsys, grey_card):
+    from imgform_rs.cli import main
+
+    good, _ = grey_card
+    bad = tmp_path / "broken.nef"
+    bad.write_bytes(b"II*\0not a raw at all")
+    out = tmp_path / "out"
+    assert main(["develop", str(good), str(bad), "-o", str(out), "--bps", "16"]) == 1
+    captured = capsys.readouterr()
+    assert f"{bad}: not a raw file LibRaw can open" in captured.err
+    assert "1 of 2 files failed" in captured.err
+    img = iio_read(out / "card.png")
+    assert img.dtype == np.uint16 and img.shape == (40, 56, 3)
+    before = (out / "card.png").stat().st_mtime_ns
+    assert main(["develop", str(good), "-o", str(out), "--format", "tiff", "-j", "2"]) == 0
+    assert main(["develop", str(good), "-o", str(out)]) == 0
+    assert "exists, kept" in capsys.readouterr().out
+    assert (out / "card.png").stat().st_mtime_ns == before and (out / "card.tif").is_file()
+    assert main(["develop", str(good), "-o", str(out), "--overwrite"]) == 0
+    assert iio_read(out / "card.png").dtype == np.uint8
+
+
+def iio_read(path):
+    """PNG through OpenCV (Pillow reads 16-bit RGB PNG as 8-bit), TIFF through imageio."""
+    if path.suffix == ".png":
+        cv2 = pytest.importorskip("cv2")
+        return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)[..., ::-1]
+    import imageio.v3 as iio
+
+    return iio.imread(path)

@@ -27,7 +27,7 @@ from .cfa import (
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic
-from .develop import TONES, develop
+from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
 from .optics import (
     circle_of_confusion,
@@ -96,4 +96,5 @@ __all__ = [
     "undistort_points",
     "vanishing_line",
     "vanishing_point",
+    "write_image",
 ]

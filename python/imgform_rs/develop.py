@@ -26,12 +26,15 @@ the short axis, as LibRaw's ``stretch()`` does.
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._png import write_png
 from .demosaic import DEMOSAIC_METHODS
 from .raw import RawImage, load_raw
 
@@ -235,3 +238,61 @@ def develop(
     )
     rgb = _stretch(rgb, raw.pixel_aspect)
     return _orient(rgb, raw.flip) if orientation == "auto" else rgb
+
+
+_FORMATS = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}
+
+
+def write_image(
+    path: str | os.PathLike[str], image: npt.NDArray[Any], *, overwrite: bool = False
+) -> Path:
+    """Write a developed image as PNG (8 or 16 bit) or TIFF (8, 16 bit or float32).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Ends in ``.png``, ``.tif`` or ``.tiff``.
+    image : ndarray, shape (H, W) or (H, W, 3)
+        uint8 or uint16 (PNG, TIFF), or float32 (TIFF only).
+    overwrite : bool
+        Replace an existing file; by default an existing file is never touched.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    FileExistsError
+        When ``path`` exists and ``overwrite`` is False.
+    ValueError
+        For another extension, dtype or shape.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     p = write_image(f"{d}/a.png", np.zeros((4, 4, 3), np.uint16))
+    ...     p.name, p.stat().st_size > 0
+    ('a.png', True)
+    """
+    target = Path(path)
+    kind = _FORMATS.get(target.suffix.lower())
+    if kind is None:
+        raise ValueError(f"path must end in .png, .tif or .tiff, got {target.name!r}")
+    img = np.asarray(image)
+    allowed = (np.uint8, np.uint16) if kind == "png" else (np.uint8, np.uint16, np.float32)
+    if img.dtype not in allowed or not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3)):
+        raise ValueError(
+            f"{kind.upper()} takes {', '.join(np.dtype(t).name for t in allowed)} images of "
+            f"shape (H, W) or (H, W, 3), got {img.dtype} {img.shape}"
+        )
+    if target.exists() and not overwrite:
+        raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
+    if kind == "png":
+        # Pillow (imageio's PNG writer) cannot store 16-bit RGB; ours can.
+        return write_png(target, img)
+    import imageio.v3 as iio
+
+    iio.imwrite(target, img, extension=".tif")
+    return target
