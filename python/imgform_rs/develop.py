@@ -107,9 +107,11 @@ def _white_range(raw: RawImage) -> float:
     """Digital numbers from black to white after black subtraction."""
     span = float(raw.white_level - raw.black_levels.min())
     th, tw = raw.channel_tile.shape
-    h, w = raw.cfa.shape
-    black = np.tile(raw.black_levels[raw.channel_tile], (-(-h // th), -(-w // tw)))[:h, :w]
-    data_max = float((raw.cfa - black).max())
+    data_max = max(
+        float(raw.cfa[i::th, j::tw].max()) - raw.black_levels[raw.channel_tile[i, j]]
+        for i in range(min(th, raw.cfa.shape[0]))
+        for j in range(min(tw, raw.cfa.shape[1]))
+    )
     if 0 < data_max < span and data_max > span * _ADJUST_MAXIMUM:
         return data_max
     return span

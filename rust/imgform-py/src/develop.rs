@@ -1,8 +1,7 @@
 //! Bindings of `imgform_core::develop`.
 
-use imgform_core::cfa::CfaPattern;
 use imgform_core::demosaic::Method;
-use imgform_core::develop::{develop as develop_kernel, DevelopParams, Tone};
+use imgform_core::develop::{develop as develop_kernel, develop_in_place, DevelopParams, Tone};
 use imgform_core::image::{ImageView, Sample};
 use numpy::{Element, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -13,15 +12,19 @@ use crate::arrays::{contiguous, describe, detached_into, fixed};
 use crate::cfa::pattern_arg;
 use crate::errors::to_pyerr;
 
-fn run<'py, U: Sample + Element>(
+/// Runs `kernel` on the mosaic into a new `(H, W, 3)` array of `U`.
+fn run<'py, U, K>(
     py: Python<'py>,
     src: &[u16],
     (h, w): (usize, usize),
-    pattern: &CfaPattern,
-    params: &DevelopParams,
-) -> PyResult<Bound<'py, PyAny>> {
+    kernel: K,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    U: Sample + Element,
+    K: Send + FnOnce(ImageView<'_, u16>, &mut [U]) -> imgform_core::Result<()>,
+{
     let out = detached_into(py, &[h, w, 3], |out: &mut [U]| {
-        develop_kernel(ImageView::contiguous(src, w, h, 1)?, pattern, params, out)
+        kernel(ImageView::contiguous(src, w, h, 1)?, out)
     })?;
     Ok(out.into_any())
 }
@@ -70,10 +73,19 @@ fn develop<'py>(
         method: Method::from_name(method).map_err(to_pyerr)?,
     };
     let src = contiguous(&arr);
+    let (p, pat) = (&params, &pattern);
+    // 8-bit output keeps a 16-bit demosaic; 16-bit and float outputs are
+    // demosaiced and finished in the output array itself.
     match bps {
-        "8" => run::<u8>(py, &src, (h, w), &pattern, &params),
-        "16" => run::<u16>(py, &src, (h, w), &pattern, &params),
-        "float" => run::<f32>(py, &src, (h, w), &pattern, &params),
+        "8" => run(py, &src, (h, w), |v, out| {
+            develop_kernel::<u16, u8>(v, pat, p, out)
+        }),
+        "16" => run(py, &src, (h, w), |v, out| {
+            develop_in_place::<u16>(v, pat, p, out)
+        }),
+        "float" => run(py, &src, (h, w), |v, out| {
+            develop_in_place::<f32>(v, pat, p, out)
+        }),
         other => Err(PyValueError::new_err(format!(
             "bps must be \"8\", \"16\" or \"float\", got {other:?}"
         ))),
