@@ -158,3 +158,16 @@ def test_the_stripped_dng_is_refused_even_after_decoding_another_raw():
     ig.load_raw(RAW_DIR / BAYER[0]["file"])
     with pytest.raises(ig.RawError, match=r"bad_exiftool_stripped_DNG\.dng: "):
         ig.load_raw(RAW_DIR / "bad_exiftool_stripped_DNG.dng")
+
+
+def test_an_x_trans_dng_loads_with_its_tile_and_bayer_demosaicers_refuse_it(tmp_path):
+    tile = ig.pattern_cells("XTRANS")
+    rng = np.random.default_rng(7)
+    cfa = rng.integers(0, 4096, (36, 48)).astype(np.uint16)
+    path = tmp_path / "xtrans.dng"
+    write_dng(path, cfa, tile, white_level=4095)
+    raw = ig.load_raw(path)
+    np.testing.assert_array_equal(ig.pattern_cells(raw.pattern), tile)
+    assert raw.channel_tile.shape == (6, 6)
+    with pytest.raises(ValueError, match="X-Trans"):
+        ig.develop(raw, demosaic="bilinear")
