@@ -13,11 +13,12 @@ from imgform_rs.dng import write_dng
 RAW_DIR = shared_path("data/raw")
 PHASES = ["RGGB", "BGGR", "GRBG", "GBRG"]
 
-# Kodak files whose LibRaw development we do not reproduce yet: the DC50's
-# blue differs by 14 % (LibRaw takes its balance from somewhere rawpy does not
-# show) and the DC120 (grey-world balance plus non-square pixels) reaches 36 dB.
+# Kodak files whose LibRaw development we do not reproduce yet. For the DC50
+# LibRaw substitutes the Apple QuickTake colour matrix (identify.cpp, for
+# kodak_radc_load_raw files), which rawpy does not expose: 23 dB, 33 dB with
+# that matrix; the DC120 (grey-world balance, non-square pixels) reaches 36 dB.
 NOT_YET = {
-    "kodak_dc50_DC0008L.KDC": "white balance LibRaw derives internally (23 dB)",
+    "kodak_dc50_DC0008L.KDC": "LibRaw's built-in QuickTake matrix, not exposed (23 dB)",
     "kodak_dc120_P003908_uncompressed.KDC": "grey world / aspect stretch differ (36 dB)",
 }
 

@@ -50,7 +50,6 @@ def test_synthetic_dng_reads_back_exactly(tmp_path, pattern):
     np.testing.assert_array_equal(raw.cfa, cfa)
     assert raw.white_level == 4095
     assert raw.black_levels.tolist() == [64.0] * 4
-    assert raw.black_level_map is None
     # LibRaw turns AsShotNeutral into multipliers 1/neutral.
     wb = raw.camera_white_balance
     np.testing.assert_allclose(wb[[0, 2]] / wb[1], [2.0, 1.25], rtol=1e-4)

@@ -72,11 +72,9 @@ class RawImage:
         LibRaw's colour index per tile cell (0 = R, 1 = G, 2 = B, 3 = G2),
         the index into the per-channel values below.
     black_levels : ndarray, float64, shape (4,)
-        Black level per channel R, G, B, G2, in digital numbers.
-    black_level_map : ndarray, float64, shape (H, W), or None
-        An extra per-pixel black offset when the file has one (DNG
-        ``BlackLevel`` with a repeat pattern larger than the CFA tile); None
-        for the usual per-channel black.
+        Black level per channel R, G, B, G2, in digital numbers (LibRaw folds
+        a 2x2 DNG ``BlackLevel`` pattern into these; rawpy does not expose
+        larger black-level patterns, so none is applied).
     white_level : int
         Saturation level in digital numbers.
     camera_white_balance, daylight_white_balance : ndarray, float64, shape (4,)
@@ -103,7 +101,6 @@ class RawImage:
     pattern: str | npt.NDArray[np.uint8]
     channel_tile: npt.NDArray[np.uint8]
     black_levels: npt.NDArray[np.float64]
-    black_level_map: npt.NDArray[np.float64] | None
     white_level: int
     camera_white_balance: npt.NDArray[np.float64]
     daylight_white_balance: npt.NDArray[np.float64]
@@ -222,7 +219,6 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
     return RawImage(
         cfa=cfa,
         pattern=pattern,
-        black_level_map=None,
         camera_to_xyz=SRGB_TO_XYZ @ meta["camera_to_srgb"],
         make=make,
         model=model,
