@@ -170,3 +170,20 @@ def test_an_x_trans_dng_loads_with_its_tile_and_bayer_demosaicers_refuse_it(tmp_
     assert raw.channel_tile.shape == (6, 6)
     with pytest.raises(ValueError, match="X-Trans"):
         ig.develop(raw, demosaic="bilinear")
+
+
+def test_stale_pixels_behind_a_small_file_are_refused():
+    # LibRaw's stale buffer cannot be provoked on demand, so the rule is
+    # checked directly: the same pixels from a second, different file too
+    # small to store them uncompressed mean that file's data are missing.
+    from imgform_rs.raw import _check_pixels
+
+    cfa = np.random.default_rng(3).integers(0, 4096, (64, 64)).astype(np.uint16)
+    pixels = cfa.size
+    first, second = b"A" * pixels, b"B" * pixels  # 1 byte per pixel: compressed-size files
+    _check_pixels(cfa, 4095, "first.nef", first, pixels)
+    _check_pixels(cfa, 4095, "first.nef", first, pixels)  # the same file again is fine
+    with pytest.raises(ig.RawError, match=r"second\.nef: LibRaw returned the pixels"):
+        _check_pixels(cfa, 4095, "second.nef", second, pixels)
+    with pytest.raises(ig.RawError, match=r"tiny\.nef: the file is too small"):
+        _check_pixels(cfa, 4095, "tiny.nef", b"C" * 100, pixels)

@@ -24,6 +24,7 @@ import hashlib
 import io
 import os
 import struct
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -53,6 +54,8 @@ _MIN_BITS_PER_PIXEL = 0.25
 # bytes can reveal it. Bounded so a long batch does not grow it without limit.
 _SEEN_DATA: dict[bytes, bytes] = {}
 _SEEN_LIMIT = 4096
+# `imgform develop -j N` loads files from several threads.
+_SEEN_LOCK = threading.Lock()
 # Every this many rows go into a pixel digest: stale data are whole buffers,
 # so a subsample identifies them as well as every row would.
 _DIGEST_ROW_STEP = 16
@@ -288,7 +291,11 @@ def _check_pixels(
         data[:65536] + data[-65536:] + len(data).to_bytes(8, "little"), digest_size=16
     ).digest()
     data_digest = hashlib.blake2b(cfa[::_DIGEST_ROW_STEP].tobytes(), digest_size=16).digest()
-    previous = _SEEN_DATA.get(data_digest)
+    with _SEEN_LOCK:
+        previous = _SEEN_DATA.get(data_digest)
+        if len(_SEEN_DATA) >= _SEEN_LIMIT:
+            _SEEN_DATA.pop(next(iter(_SEEN_DATA)))
+        _SEEN_DATA.setdefault(data_digest, file_digest)
     # Only a file too small to store its pixels uncompressed can be hiding
     # missing data this way; identical pixels in two uncompressed files (a
     # copy with edited metadata) are genuine.
@@ -297,9 +304,6 @@ def _check_pixels(
             f"{name}: LibRaw returned the pixels of a file decoded earlier: "
             "this file's image data is missing or unreadable"
         )
-    if len(_SEEN_DATA) >= _SEEN_LIMIT:
-        _SEEN_DATA.pop(next(iter(_SEEN_DATA)))
-    _SEEN_DATA[data_digest] = file_digest
 
 
 def _rawpy() -> Any:
