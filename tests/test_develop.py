@@ -16,10 +16,11 @@ PHASES = ["RGGB", "BGGR", "GRBG", "GBRG"]
 # Kodak files whose LibRaw development we do not reproduce yet. For the DC50
 # LibRaw substitutes the Apple QuickTake colour matrix (identify.cpp, for
 # kodak_radc_load_raw files), which rawpy does not expose: 23 dB, 33 dB with
-# that matrix; the DC120 (grey-world balance, non-square pixels) reaches 36 dB.
+# that matrix. The DC120 (non-square pixels) reaches 36.7 dB, and 34-39 dB
+# per channel without any white balance: a spatial difference not found yet.
 NOT_YET = {
     "kodak_dc50_DC0008L.KDC": "LibRaw's built-in QuickTake matrix, not exposed (23 dB)",
-    "kodak_dc120_P003908_uncompressed.KDC": "grey world / aspect stretch differ (36 dB)",
+    "kodak_dc120_P003908_uncompressed.KDC": "spatial difference not found yet (36.7 dB)",
 }
 
 
@@ -248,3 +249,15 @@ def iio_read(path):
     import imageio.v3 as iio
 
     return iio.imread(path)
+
+
+def test_non_square_pixels_repeat_columns_as_libraw_does():
+    from imgform_rs.develop import _stretch
+
+    img = np.arange(4 * 3 * 3, dtype=np.uint16).reshape(4, 3, 3)
+    wide = _stretch(img, 1.5)  # 3 columns -> 4.5 + 0.5 -> 5
+    assert wide.shape == (4, 5, 3)
+    # Source column floor(j / 1.5): 0, 0, 1, 2, 2.
+    np.testing.assert_array_equal(wide, img[:, [0, 0, 1, 2, 2]])
+    tall = _stretch(img, 0.5)
+    np.testing.assert_array_equal(tall, img[[0, 0, 1, 1, 2, 2, 3, 3]])

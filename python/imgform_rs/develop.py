@@ -20,8 +20,9 @@ user_flip=0)``:
   [0, 1] and the tone curve.
 
 Cameras with non-square photosites (``RawImage.pixel_aspect != 1``, e.g. the
-Kodak DC120) are stretched to square pixels by linear interpolation along
-the short axis, as LibRaw's ``stretch()`` does.
+Kodak DC120) are stretched to square pixels along the short axis by
+repeating lines, as LibRaw's ``stretch()`` does (its code interpolates, but
+truncates the weight to zero).
 """
 
 from __future__ import annotations
@@ -118,24 +119,19 @@ def _white_range(raw: RawImage) -> float:
 
 
 def _stretch(img: np.ndarray, aspect: float) -> np.ndarray:
-    """Square up non-square pixels by linear interpolation along the short axis."""
+    """Square up non-square pixels along the short axis as LibRaw's stretch()
+    does: its interpolation weight is truncated to an int (always 0), so it
+    repeats source lines, the one at the accumulated position ``rc += step``."""
     if aspect == 1:
         return img
-    axis, factor = (0, 1 / aspect) if aspect < 1 else (1, aspect)
+    axis, step = (0, aspect) if aspect < 1 else (1, 1 / aspect)
     n = img.shape[axis]
-    size = int(n * factor + 0.5)
-    pos = np.arange(size) / factor
-    lo = np.minimum(pos.astype(np.intp), n - 1)
-    hi = np.minimum(lo + 1, n - 1)
-    frac = (pos - lo).astype(np.float32)
-    shape = [1, 1, 1]
-    shape[axis] = size
-    frac = frac.reshape(shape)
-    a, b = np.take(img, lo, axis=axis), np.take(img, hi, axis=axis)
-    out = a.astype(np.float32) * (1 - frac) + b.astype(np.float32) * frac
-    if img.dtype == np.float32:
-        return out
-    return np.rint(out).astype(img.dtype)
+    size = int(n / step + 0.5)
+    # Sequential float64 accumulation, exactly LibRaw's loop (a product
+    # j * step can land on the other side of an integer).
+    pos = np.cumsum(np.r_[0.0, np.full(size - 1, step)])
+    src = np.minimum(pos.astype(np.intp), n - 1)
+    return np.ascontiguousarray(np.take(img, src, axis=axis))
 
 
 def _orient(img: np.ndarray, flip: int) -> np.ndarray:
