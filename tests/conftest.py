@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 from hypothesis import HealthCheck, settings
 
@@ -38,3 +39,14 @@ def output_with_threads(code: str, threads: int) -> bytes:
         timeout=300,
     )
     return done.stdout
+
+
+def shared_path(rel: str) -> Path | None:
+    """``../shared/<rel>`` beside the checkout (or beside a folder of
+    worktrees above it), or None when it is absent."""
+    root = Path(__file__).resolve().parents[1]
+    for base in (root, *root.parents):
+        p = base.parent / "shared" / rel
+        if p.exists():
+            return p
+    return None

@@ -27,6 +27,7 @@ from .cfa import (
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic
+from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
 from .optics import (
     circle_of_confusion,
@@ -39,6 +40,7 @@ from .optics import (
     render_defocus,
 )
 from .projection import project_orthographic, project_pinhole
+from .raw import RawImage, load_raw
 from .remap import (
     RemapMap,
     distort_image,
@@ -50,9 +52,11 @@ from .remap import (
 
 __all__ = [
     "DEMOSAIC_METHODS",
+    "TONES",
     "Alignment",
     "Camera",
     "RawError",
+    "RawImage",
     "RemapMap",
     "VanishingPoint",
     "add_lateral_ca",
@@ -64,6 +68,7 @@ __all__ = [
     "correct_lateral_ca",
     "demosaic",
     "depth_of_field",
+    "develop",
     "distort_image",
     "distort_map",
     "distort_points",
@@ -71,6 +76,7 @@ __all__ = [
     "field_of_view",
     "hyperfocal_distance",
     "image_distance",
+    "load_raw",
     "look_at",
     "magnification",
     "mosaic",
@@ -90,4 +96,5 @@ __all__ = [
     "undistort_points",
     "vanishing_line",
     "vanishing_point",
+    "write_image",
 ]

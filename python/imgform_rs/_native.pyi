@@ -157,3 +157,17 @@ DEMOSAIC_METHODS: tuple[str, ...]
 def demosaic(
     raw: npt.NDArray[Any], pattern: str | npt.NDArray[np.int64], method: str = "bilinear"
 ) -> npt.NDArray[Any]: ...
+
+# --- develop ---
+TONES: tuple[str, ...]
+
+def develop(
+    raw: npt.NDArray[np.uint16],
+    pattern: str | npt.NDArray[np.int64],
+    black: npt.NDArray[np.float64],
+    scale: npt.NDArray[np.float64],
+    matrix: npt.NDArray[np.float64],
+    tone: str,
+    method: str,
+    bps: str,
+) -> npt.NDArray[Any]: ...

@@ -35,14 +35,14 @@ def _for_png(rgb):
     return np.floor(np.clip(rgb, 0.0, 1.0) * 65535.0 + 0.5).astype(np.uint16)
 
 
-def _progress(done: int, total: int) -> None:
+def _progress(done: int, total: int, unit: str = "plates") -> None:
     """A one-line bar on stderr, drawn only on a terminal (logs stay clean)."""
     if total < 2 or not sys.stderr.isatty():
         return
     width = 30
     filled = width * done // total
     end = "\n" if done == total else ""
-    sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} plates{end}")
+    sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {done}/{total} {unit}{end}")
     sys.stderr.flush()
 
 
@@ -84,6 +84,57 @@ def _align(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
+    """Develop one raw into ``target``; returns the line to print."""
+    import time
+
+    from .develop import develop, write_image
+
+    start = time.perf_counter()
+    rgb = develop(path, demosaic=args.demosaic, bps=args.bps)
+    write_image(target, rgb, overwrite=args.overwrite)
+    took = time.perf_counter() - start
+    return f"{path}: {rgb.shape[1]}x{rgb.shape[0]} in {took:.2f} s -> {target}"
+
+
+def _develop(args: argparse.Namespace) -> int:
+    from concurrent.futures import ThreadPoolExecutor
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    suffix = ".png" if args.format == "png" else ".tif"
+    todo, failed = [], 0
+    for name in args.raws:
+        path = Path(name)
+        target = out / f"{path.stem}{suffix}"
+        if target.exists() and not args.overwrite:
+            print(f"{path}: {target} exists, kept (use --overwrite to replace it)")
+        else:
+            todo.append((path, target))
+    # Threads suffice: decoding and the Rust pipeline release the GIL.
+    with ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        futures = [(path, pool.submit(_develop_one, path, target, args)) for path, target in todo]
+        for i, (path, future) in enumerate(futures, start=1):
+            try:
+                print(future.result())
+            except (ValueError, TypeError, OSError) as exc:
+                failed += 1
+                # RawError messages already start with the file name.
+                reason = str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}"
+                print(f"imgform develop: {reason}", file=sys.stderr)
+            _progress(i, len(futures), "raws")
+    if failed:
+        print(f"imgform develop: {failed} of {len(args.raws)} files failed", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _jobs(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"-j must be >= 1, got {value}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="imgform",
@@ -120,6 +171,26 @@ def build_parser() -> argparse.ArgumentParser:
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )
     align.set_defaults(run=_align)
+    from .demosaic import DEMOSAIC_METHODS
+    from .develop import DEFAULT_DEMOSAIC
+
+    dev = sub.add_parser(
+        "develop",
+        help="develop raw files (DNG, CR2, NEF, ...) to PNG or TIFF",
+        description="Decode each raw with LibRaw and develop it (camera white balance, sRGB) "
+        "to OUTDIR/<name>.png or .tif. Files that cannot be developed are reported with "
+        "the reason; the others are still developed, and the exit status is 1.",
+    )
+    dev.add_argument("raws", nargs="+", metavar="IN", help="raw files")
+    dev.add_argument("-o", "--out", required=True, metavar="OUTDIR", help="output folder")
+    dev.add_argument("--demosaic", default=DEFAULT_DEMOSAIC, choices=DEMOSAIC_METHODS)
+    dev.add_argument("--format", default="png", choices=["png", "tiff"])
+    dev.add_argument("--bps", type=int, default=8, choices=[8, 16], help="bits per sample")
+    dev.add_argument("-j", "--jobs", type=_jobs, default=1, help="files developed at once")
+    dev.add_argument(
+        "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
+    )
+    dev.set_defaults(run=_develop)
     return parser
 
 

@@ -16,6 +16,7 @@ pub mod cfa;
 pub mod chromatic;
 pub mod defocus;
 pub mod demosaic;
+pub mod develop;
 pub mod distortion;
 pub mod intrinsics;
 pub mod optics;

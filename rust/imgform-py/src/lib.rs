@@ -13,6 +13,7 @@ mod cfa;
 mod chromatic;
 mod defocus;
 mod demosaic;
+mod develop;
 mod distortion;
 mod optics;
 mod projection;
@@ -29,6 +30,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     chromatic::register(m)?;
     defocus::register(m)?;
     demosaic::register(m)?;
+    develop::register(m)?;
     distortion::register(m)?;
     optics::register(m)?;
     projection::register(m)?;

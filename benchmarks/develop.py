@@ -1,0 +1,144 @@
+"""Raw development: a 24 MP DNG to 16-bit sRGB, ours against LibRaw's postprocess.
+
+The raw is a synthetic 6000 x 4000 RGGB DNG written by our writer: a smooth
+colourful scene with fine detail, through ``simulate_sensor`` (14 bits,
+photon and read noise), a camera matrix that is not sRGB and an as-shot
+white balance. Each contender develops it from the file to a (4000, 6000, 3)
+uint16 array, decoding included:
+
+- ours: ``develop(path, bps=16)`` (camera white balance, sRGB, sRGB tone), with
+  our default demosaicer and with bilinear;
+- LibRaw: ``rawpy.imread`` + ``postprocess(use_camera_wb=True, output_bps=16,
+  gamma=(2.4, 12.92), no_auto_bright=True)`` (the sRGB curve, no auto
+  brightening: the same picture as ours) with ``demosaic_algorithm`` AHD (its
+  default) and LINEAR.
+
+The last column compares each result with LibRaw AHD's, so it shows how far
+the demosaicers (and nothing else) differ.
+
+Each runs once (the machine is shared; 24 MP runs take seconds) in a fresh
+interpreter, so the peak resident memory it reports (``VmHWM`` minus the
+resident size just before the call) belongs to that contender alone.
+
+Run: ``.venv/bin/python benchmarks/develop.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import textwrap
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _bench import table
+
+import imgform_rs as ig
+from imgform_rs.dng import write_dng
+
+H, W = 4000, 6000
+
+CHILD = """
+import json, sys, time
+import numpy as np
+import imgform_rs as ig
+import rawpy
+
+def status(key):
+    # VmHWM, unlike ru_maxrss, starts afresh at exec (ru_maxrss keeps the
+    # parent's peak at fork).
+    with open("/proc/self/status") as f:
+        return next(int(l.split()[1]) * 1024 for l in f if l.startswith(key + ":"))
+
+path, who = sys.argv[1], sys.argv[2]
+def run():
+    if who.startswith("ours:"):
+        return ig.develop(path, demosaic=who[5:], bps=16)
+    algo = getattr(rawpy.DemosaicAlgorithm, who[7:])
+    with rawpy.imread(path) as r:
+        return r.postprocess(
+            demosaic_algorithm=algo, use_camera_wb=True, output_bps=16,
+            gamma=(2.4, 12.92), no_auto_bright=True,
+        )
+before = status("VmRSS")
+start = time.perf_counter()
+out = run()
+took = time.perf_counter() - start
+peak = status("VmHWM")
+np.save(sys.argv[3], out)
+print(json.dumps({"seconds": took, "peak": peak - before, "shape": list(out.shape)}))
+"""
+
+
+def scene() -> np.ndarray:
+    """Smooth colour ramps plus fine stripes, linear, in [0.02, 0.8]."""
+    y = np.linspace(0, 1, H, dtype=np.float32)[:, None]
+    x = np.linspace(0, 1, W, dtype=np.float32)[None, :]
+    rgb = np.empty((H, W, 3), np.float32)
+    rgb[..., 0] = 0.4 + 0.3 * np.sin(6 * x + 2 * y) + 0.08 * np.sin(900 * x * y)
+    rgb[..., 1] = 0.4 + 0.3 * np.cos(5 * y - 3 * x) + 0.08 * np.sin(700 * (x + y))
+    rgb[..., 2] = 0.4 + 0.3 * np.sin(4 * x * y + 1) + 0.08 * np.cos(800 * y)
+    return np.clip(rgb, 0.02, 0.8)
+
+
+def run(path: Path, who: str, npy: Path) -> dict:
+    env = dict(os.environ)
+    done = subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(CHILD), str(path), who, str(npy)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return json.loads(done.stdout)
+
+
+def main() -> None:
+    methods = ig.DEMOSAIC_METHODS
+    best = "best" if "best" in methods else "hamilton_adams"
+    contenders = [f"ours:{best}", "ours:bilinear", "libraw:AHD", "libraw:LINEAR"]
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "24mp.dng"
+        cfa = ig.simulate_sensor(scene(), "RGGB", bit_depth=14, black_level=512, full_well=30000)
+        cam_from_xyz = [[1.1, -0.3, -0.1], [-0.4, 1.3, 0.1], [0.0, -0.2, 0.9]]
+        write_dng(
+            path,
+            cfa,
+            "RGGB",
+            white_level=16383 + 512,
+            black_level=512,
+            color_matrix=cam_from_xyz,
+            as_shot_neutral=(0.55, 1.0, 0.7),
+        )
+        del cfa
+        results = {}
+        for who in contenders:
+            results[who] = run(path, who, Path(d) / f"{who.replace(':', '_')}.npy")
+        ref = np.load(Path(d) / "libraw_AHD.npy").astype(np.float64)
+        ahd = results["libraw:AHD"]
+        rows = []
+        for who in contenders:
+            r = results[who]
+            out = np.load(Path(d) / f"{who.replace(':', '_')}.npy").astype(np.float64)
+            err = np.mean((out[8:-8, 8:-8] - ref[8:-8, 8:-8]) ** 2)
+            psnr = "inf" if err == 0 else f"{10 * np.log10(65535**2 / err):.1f}"
+            rows.append(
+                [
+                    who,
+                    f"{r['seconds']:.2f}",
+                    f"{ahd['seconds'] / r['seconds']:.2f}x",
+                    f"{r['peak'] / 2**20:.0f}",
+                    psnr,
+                ]
+            )
+    print(f"24 MP ({W}x{H}) RGGB DNG -> 16-bit sRGB, decode included, one run each")
+    print(table(["who", "seconds", "vs AHD", "peak MiB", "PSNR vs AHD (dB)"], rows))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,296 @@
+"""Raw development: a raw file (or :class:`RawImage`) to an RGB picture.
+
+LibRaw decodes; black subtraction, scaling, white balance, demosaicing, the
+colour matrix and the tone curve run in one Rust pipeline (two fused passes
+around the demosaic). The colour science follows LibRaw's ``dcraw_process``,
+so ``develop(path, demosaic="bilinear", tone="linear", bps=16,
+orientation="none")`` matches ``rawpy``'s ``postprocess(demosaic_algorithm=LINEAR,
+use_camera_wb=True, gamma=(1, 1), no_auto_bright=True, output_bps=16,
+user_flip=0)``:
+
+- black: each channel's level (``RawImage.black_levels``) is subtracted;
+- white: the data are divided by ``white_level - min(black_levels)``; when the
+  brightest value actually present lies between 75 % and 100 % of that range,
+  it is taken as white instead (LibRaw's ``adjust_maximum_thr`` default,
+  which absorbs white levels that cameras report a little too high);
+- white balance: the multipliers are divided by the smallest, so no channel
+  is scaled below 1 and all clip together at white (LibRaw ``highlight=0``);
+  a file without an as-shot balance falls back to grey world, as LibRaw does;
+- colour: LibRaw's ``rgb_cam`` (``RawImage.camera_to_srgb``), then a clip to
+  [0, 1] and the tone curve.
+
+Cameras with non-square photosites (``RawImage.pixel_aspect != 1``, e.g. the
+Kodak DC120) are stretched to square pixels along the short axis by
+repeating lines, as LibRaw's ``stretch()`` does (its code interpolates, but
+truncates the weight to zero).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _native
+from ._png import write_png
+from .demosaic import DEMOSAIC_METHODS
+from .raw import RawImage, load_raw
+
+DEFAULT_DEMOSAIC = "best" if "best" in DEMOSAIC_METHODS else "hamilton_adams"
+"""The demosaicer :func:`develop` uses unless told otherwise."""
+
+TONES: tuple[str, ...] = tuple(_native.TONES)
+"""Every tone curve :func:`develop` accepts."""
+
+WHITE_BALANCES = ("camera", "daylight", "auto", "none")
+
+# LibRaw's default adjust_maximum_thr (see the module docstring).
+_ADJUST_MAXIMUM = 0.75
+# LibRaw's grey-world blocks: 8x8 photosites; a block with a value within 25
+# of white is skipped, as clipped data would bias the balance.
+_GREY_BLOCK = 8
+_GREY_MARGIN = 25
+
+_BPS = {8: "8", 16: "16", "float": "float"}
+
+
+def _grey_world(raw: RawImage) -> npt.NDArray[np.float64]:
+    """LibRaw's automatic white balance: channel means over unclipped blocks
+    (the blocks at the right and bottom edges may be partial, as in LibRaw)."""
+    h, w = raw.cfa.shape
+    b = _GREY_BLOCK
+    block_max = np.maximum.reduceat(
+        np.maximum.reduceat(raw.cfa, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
+    )
+    ok = block_max <= raw.white_level - _GREY_MARGIN
+    keep = np.repeat(np.repeat(ok, b, axis=0), b, axis=1)[:h, :w]
+    th, tw = raw.channel_tile.shape
+    chan = np.tile(raw.channel_tile, (-(-h // th), -(-w // tw)))[:h, :w]
+    signal = np.maximum(raw.cfa - raw.black_levels[chan], 0)
+    mul = np.ones(4)
+    for c in range(4):
+        sel = keep & (chan == c)
+        total = signal[sel].sum()
+        if total > 0:
+            mul[c] = sel.sum() / total
+    return mul
+
+
+def _multipliers(raw: RawImage, white_balance: Any) -> npt.NDArray[np.float64]:
+    """White-balance multipliers R, G, B, G2 before normalisation."""
+    if isinstance(white_balance, str):
+        if white_balance == "camera":
+            if raw.camera_white_balance[0] > 1e-5:
+                return raw.camera_white_balance
+            return _grey_world(raw)
+        if white_balance == "daylight":
+            return raw.daylight_white_balance
+        if white_balance == "auto":
+            return _grey_world(raw)
+        if white_balance == "none":
+            return np.ones(4)
+        raise ValueError(
+            f"white_balance must be one of {WHITE_BALANCES} or (r, g, b), got {white_balance!r}"
+        )
+    rgb = np.asarray(white_balance, np.float64)
+    if rgb.shape != (3,) or not np.all(np.isfinite(rgb)) or np.any(rgb <= 0):
+        raise ValueError(
+            "white_balance multipliers must be three finite numbers > 0 (r, g, b), "
+            f"got {white_balance!r}"
+        )
+    return np.array([rgb[0], rgb[1], rgb[2], rgb[1]])
+
+
+def _white_range(raw: RawImage) -> float:
+    """Digital numbers from black to white after black subtraction."""
+    span = float(raw.white_level - raw.black_levels.min())
+    th, tw = raw.channel_tile.shape
+    data_max = max(
+        float(raw.cfa[i::th, j::tw].max()) - raw.black_levels[raw.channel_tile[i, j]]
+        for i in range(min(th, raw.cfa.shape[0]))
+        for j in range(min(tw, raw.cfa.shape[1]))
+    )
+    if 0 < data_max < span and data_max > span * _ADJUST_MAXIMUM:
+        return data_max
+    return span
+
+
+def _stretch(img: np.ndarray, aspect: float) -> np.ndarray:
+    """Square up non-square pixels along the short axis as LibRaw's stretch()
+    does: its interpolation weight is truncated to an int (always 0), so it
+    repeats source lines, the one at the accumulated position ``rc += step``."""
+    if aspect == 1:
+        return img
+    axis, step = (0, aspect) if aspect < 1 else (1, 1 / aspect)
+    n = img.shape[axis]
+    size = int(n / step + 0.5)
+    # Sequential float64 accumulation, exactly LibRaw's loop (a product
+    # j * step can land on the other side of an integer).
+    pos = np.cumsum(np.r_[0.0, np.full(size - 1, step)])
+    src = np.minimum(pos.astype(np.intp), n - 1)
+    return np.ascontiguousarray(np.take(img, src, axis=axis))
+
+
+def _orient(img: np.ndarray, flip: int) -> np.ndarray:
+    """LibRaw's flip code applied: columns, rows, then transpose."""
+    if flip & 1:
+        img = img[:, ::-1]
+    if flip & 2:
+        img = img[::-1]
+    if flip & 4:
+        img = img.transpose(1, 0, 2)
+    return np.ascontiguousarray(img)
+
+
+def develop(
+    source: Any,
+    *,
+    demosaic: str = DEFAULT_DEMOSAIC,
+    white_balance: str | tuple[float, float, float] = "camera",
+    color: str = "srgb",
+    tone: str = "srgb",
+    exposure: float = 0.0,
+    highlights: str = "clip",
+    bps: int | str = 8,
+    orientation: str = "auto",
+) -> npt.NDArray[Any]:
+    """Develop a raw file into an RGB image.
+
+    Parameters
+    ----------
+    source : path, bytes, binary file object, rawpy.RawPy or RawImage
+        Anything :func:`load_raw` takes, or its result.
+    demosaic : str
+        One of :data:`DEMOSAIC_METHODS`.
+    white_balance : {"camera", "daylight", "auto", "none"} or (r, g, b)
+        As shot, the camera's daylight balance, LibRaw's grey world, none, or
+        explicit multipliers.
+    color : {"srgb", "camera"}
+        Convert to linear sRGB with the camera's matrix, or keep camera RGB.
+    tone : {"srgb", "linear", "bt709"}
+        Output transfer curve.
+    exposure : float
+        Exposure change in stops, applied before clipping.
+    highlights : {"clip"}
+        Highlights clip at white (the only mode so far).
+    bps : {8, 16, "float"}
+        Output uint8, uint16 or float32 in [0, 1].
+    orientation : {"auto", "none"}
+        Rotate / mirror as the camera recorded it, or keep the sensor's layout
+        (non-square pixels are squared up either way).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), uint8 / uint16 / float32
+        R, G, B; ``H, W`` are ``RawImage.output_size`` with ``orientation="auto"``.
+
+    Raises
+    ------
+    RawError
+        For a file that cannot be decoded (see :func:`load_raw`).
+    ValueError
+        For an unknown option, a bad white balance, or an X-Trans sensor
+        with a Bayer-only demosaicer.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from imgform_rs.dng import write_dng
+    >>> cfa = np.full((32, 32), 95 + 1000, np.uint16)  # 1/4 of black..white
+    >>> cfa[:, 16:] += 1000  # and 1/2
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     write_dng(f"{d}/grey.dng", cfa, "RGGB", white_level=4095, black_level=95)
+    ...     rgb = develop(f"{d}/grey.dng", tone="linear", bps=16, demosaic="bilinear")
+    >>> rgb.shape, rgb.dtype, int(rgb[8, 8, 1]), int(rgb[8, 24, 1])
+    ((32, 32, 3), dtype('uint16'), 16384, 32768)
+    """
+    if bps not in _BPS:
+        raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
+    if color not in ("srgb", "camera"):
+        raise ValueError(f'color must be "srgb" or "camera", got {color!r}')
+    if highlights != "clip":
+        raise ValueError(f'highlights must be "clip", got {highlights!r}')
+    if orientation not in ("auto", "none"):
+        raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
+    if not np.isfinite(exposure):
+        raise ValueError(f"exposure must be a finite number of stops, got {exposure!r}")
+    if not isinstance(demosaic, str):
+        raise TypeError(f"demosaic must be a str, one of {DEMOSAIC_METHODS}, got {demosaic!r}")
+    raw = source if isinstance(source, RawImage) else load_raw(source)
+    mul = _multipliers(raw, white_balance)
+    mul = mul / mul.min()
+    scale4 = mul / _white_range(raw) * 2.0**exposure
+    matrix = raw.camera_to_srgb if color == "srgb" else np.eye(3)
+    rgb = _native.develop(
+        raw.cfa,
+        raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64),
+        np.ascontiguousarray(raw.black_levels[raw.channel_tile]),
+        np.ascontiguousarray(scale4[raw.channel_tile]),
+        np.ascontiguousarray(matrix, np.float64),
+        tone,
+        demosaic,
+        _BPS[bps],
+    )
+    rgb = _stretch(rgb, raw.pixel_aspect)
+    return _orient(rgb, raw.flip) if orientation == "auto" else rgb
+
+
+_FORMATS = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}
+
+
+def write_image(
+    path: str | os.PathLike[str], image: npt.NDArray[Any], *, overwrite: bool = False
+) -> Path:
+    """Write a developed image as PNG (8 or 16 bit) or TIFF (8, 16 bit or float32).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Ends in ``.png``, ``.tif`` or ``.tiff``.
+    image : ndarray, shape (H, W) or (H, W, 3)
+        uint8 or uint16 (PNG, TIFF), or float32 (TIFF only).
+    overwrite : bool
+        Replace an existing file; by default an existing file is never touched.
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    FileExistsError
+        When ``path`` exists and ``overwrite`` is False.
+    ValueError
+        For another extension, dtype or shape.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     p = write_image(f"{d}/a.png", np.zeros((4, 4, 3), np.uint16))
+    ...     p.name, p.stat().st_size > 0
+    ('a.png', True)
+    """
+    target = Path(path)
+    kind = _FORMATS.get(target.suffix.lower())
+    if kind is None:
+        raise ValueError(f"path must end in .png, .tif or .tiff, got {target.name!r}")
+    img = np.asarray(image)
+    allowed = (np.uint8, np.uint16) if kind == "png" else (np.uint8, np.uint16, np.float32)
+    if img.dtype not in allowed or not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3)):
+        raise ValueError(
+            f"{kind.upper()} takes {', '.join(np.dtype(t).name for t in allowed)} images of "
+            f"shape (H, W) or (H, W, 3), got {img.dtype} {img.shape}"
+        )
+    if target.exists() and not overwrite:
+        raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
+    if kind == "png":
+        # Pillow (imageio's PNG writer) cannot store 16-bit RGB; ours can.
+        return write_png(target, img)
+    import imageio.v3 as iio
+
+    iio.imwrite(target, img, extension=".tif")
+    return target

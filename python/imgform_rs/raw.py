@@ -1,0 +1,366 @@
+"""Reading raw files: LibRaw (through rawpy) decodes, everything after is ours.
+
+:func:`load_raw` opens a DNG, CR2, NEF, ... and returns a :class:`RawImage`: the
+visible colour filter array data exactly as the sensor delivered it, plus the
+metadata a developer needs (black and white levels, white balance, colour
+matrices, orientation). Nothing is processed yet; :func:`imgform_rs.develop`
+does that.
+
+LibRaw describes a Bayer sensor with four colours ``R, G, B, G2``; per-channel
+values (black levels, white balance) are given in that order, and
+:attr:`RawImage.channel_tile` indexes into them. ``pattern`` is the same tile
+with both greens as G, in our usual form (see ``CONVENTIONS.md``).
+
+Broken files never come back as garbage: a stub header, a truncated or
+stripped file, a format LibRaw cannot decode, or a file whose "pixels" are not
+really there (LibRaw returns zeros, or the leftovers of the file it decoded
+before, for a DNG whose image data was removed) raise :class:`RawError` naming
+the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import os
+import struct
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ._native import RawError
+from .cfa import pattern_from_rawpy
+
+# Linear sRGB (D65) to XYZ, IEC 61966-2-1.
+SRGB_TO_XYZ = np.array(
+    [
+        [0.4124564, 0.3575761, 0.1804375],
+        [0.2126729, 0.7151522, 0.0721750],
+        [0.0193339, 0.1191920, 0.9503041],
+    ]
+)
+
+# A raw format stores at least one bit per four photosites even for a flat
+# frame under lossless JPEG; a file smaller than that cannot hold its image,
+# whatever LibRaw reports (the exiftool-stripped DNG claims 8 Mpx in 13 kB).
+_MIN_BITS_PER_PIXEL = 0.25
+
+# Visible-data digests of the files decoded so far in this process, mapped to
+# a digest of each file's bytes: LibRaw can hand a data-less file the buffer
+# of the previous one, and only a second file with identical pixels but other
+# bytes can reveal it. Bounded so a long batch does not grow it without limit.
+_SEEN_DATA: dict[bytes, bytes] = {}
+_SEEN_LIMIT = 4096
+# `imgform develop -j N` loads files from several threads.
+_SEEN_LOCK = threading.Lock()
+# Every this many rows go into a pixel digest: stale data are whole buffers,
+# so a subsample identifies them as well as every row would.
+_DIGEST_ROW_STEP = 16
+
+
+@dataclass(frozen=True, eq=False)
+class RawImage:
+    """A decoded raw file: sensor data and the metadata to develop it.
+
+    Attributes
+    ----------
+    cfa : ndarray, uint16, shape (H, W)
+        The visible sensor area (LibRaw's ``raw_image_visible``), untouched.
+    pattern : str or ndarray of uint8, shape (6, 6)
+        Bayer name or X-Trans tile of ``cfa[0, 0]``.
+    channel_tile : ndarray of uint8, shape (2, 2) or (6, 6)
+        LibRaw's colour index per tile cell (0 = R, 1 = G, 2 = B, 3 = G2),
+        the index into the per-channel values below.
+    black_levels : ndarray, float64, shape (4,)
+        Black level per channel R, G, B, G2, in digital numbers (LibRaw folds
+        a 2x2 DNG ``BlackLevel`` pattern into these; rawpy does not expose
+        larger black-level patterns, so none is applied).
+    white_level : int
+        Saturation level in digital numbers.
+    camera_white_balance, daylight_white_balance : ndarray, float64, shape (4,)
+        Multipliers R, G, B, G2 (as-shot and the camera's daylight). A missing
+        G2 is G; an all-zero as-shot balance means the file has none.
+    camera_to_srgb : ndarray, float64, shape (3, 3)
+        LibRaw's ``rgb_cam``: white-balanced camera RGB to linear sRGB (D65).
+    camera_to_xyz : ndarray, float64, shape (3, 3)
+        White-balanced camera RGB to CIE XYZ (D65): ``SRGB_TO_XYZ @ camera_to_srgb``.
+    flip : int
+        LibRaw's orientation code: bit 2 transposes, bit 1 flips rows, bit 0
+        flips columns (0 = as stored, 3 = 180 degrees, 5 / 6 = 90 degrees).
+    pixel_aspect : float
+        Width / height of one photosite; LibRaw stretches the output when it is not 1.
+    make, model : str
+    output_size : (int, int)
+        ``(H, W)`` of the image LibRaw's ``postprocess`` would return (after
+        orientation and aspect correction).
+    source : str
+        The file name, or a description of a buffer, used in error messages.
+    """
+
+    cfa: npt.NDArray[np.uint16]
+    pattern: str | npt.NDArray[np.uint8]
+    channel_tile: npt.NDArray[np.uint8]
+    black_levels: npt.NDArray[np.float64]
+    white_level: int
+    camera_white_balance: npt.NDArray[np.float64]
+    daylight_white_balance: npt.NDArray[np.float64]
+    camera_to_srgb: npt.NDArray[np.float64]
+    camera_to_xyz: npt.NDArray[np.float64]
+    flip: int
+    pixel_aspect: float
+    make: str
+    model: str
+    output_size: tuple[int, int]
+    source: str
+
+
+def _describe(source: Any) -> str:
+    if isinstance(source, (str, os.PathLike)):
+        return os.fspath(source)
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        return f"<{len(source)} bytes>"
+    name = getattr(source, "name", None)
+    return str(name) if isinstance(name, str) else f"<{type(source).__name__}>"
+
+
+def _read_bytes(source: Any, name: str) -> bytes:
+    if isinstance(source, (str, os.PathLike)):
+        try:
+            with open(source, "rb") as f:
+                return f.read()
+        except OSError as exc:
+            raise RawError(f"{name}: cannot read the file ({exc.strerror or exc})") from exc
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        return bytes(source)
+    if hasattr(source, "read"):
+        data = source.read()
+        if not isinstance(data, (bytes, bytearray)):
+            raise TypeError(
+                f"a file object given to load_raw must be opened in binary mode, got {name}"
+            )
+        return bytes(data)
+    raise TypeError(
+        "source must be a path, bytes, a binary file object or an open rawpy.RawPy, "
+        f"got {type(source).__name__}"
+    )
+
+
+def _wb(values: Any) -> npt.NDArray[np.float64]:
+    wb = np.asarray(values, np.float64)[:4].copy()
+    if wb[3] == 0:
+        wb[3] = wb[1]
+    return wb
+
+
+def _camera_to_srgb(raw: Any) -> npt.NDArray[np.float64]:
+    """LibRaw's ``rgb_cam``: read when LibRaw filled it at open (DNG), else
+    derived from the XYZ-to-camera matrix as LibRaw's ``cam_xyz_coeff`` does,
+    else the identity (a camera LibRaw has no colour data for)."""
+    rgb_cam = np.asarray(raw.color_matrix, np.float64)[:, :3]
+    if np.any(rgb_cam):
+        return rgb_cam.copy()
+    cam_xyz = np.asarray(raw.rgb_xyz_matrix, np.float64)[:3]
+    if not np.any(cam_xyz):
+        return np.eye(3)
+    cam_rgb = cam_xyz @ SRGB_TO_XYZ
+    # Rows normalised so camera (1, 1, 1) is sRGB white: the white balance
+    # has already made a neutral equal in every channel.
+    sums = cam_rgb.sum(axis=1, keepdims=True)
+    cam_rgb = np.where(sums > 1e-5, cam_rgb / np.where(sums > 1e-5, sums, 1), 0)
+    try:
+        return np.linalg.inv(cam_rgb)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(cam_rgb)
+
+
+def _output_size(sizes: Any) -> tuple[int, int]:
+    h, w = int(sizes.height), int(sizes.width)
+    aspect = float(sizes.pixel_aspect)
+    # LibRaw's stretch(): the short axis grows to square pixels.
+    if aspect < 1:
+        h = int(h / aspect + 0.5)
+    elif aspect > 1:
+        w = int(w * aspect + 0.5)
+    return (w, h) if int(sizes.flip) & 4 else (h, w)
+
+
+def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
+    rawpy = _rawpy()
+    try:
+        if raw.raw_type != rawpy.RawType.Flat or raw.raw_pattern is None:
+            raise RawError(
+                f"{name}: no colour filter array to demosaic (LibRaw raw type "
+                f"{raw.raw_type.name}: a linear / already demosaiced DNG or a scanner file)"
+            )
+        try:
+            pattern = pattern_from_rawpy(raw)
+        except ValueError as exc:
+            raise RawError(f"{name}: unsupported sensor layout: {exc}") from exc
+        cfa = np.array(raw.raw_image_visible, dtype=np.uint16, copy=True)
+        sizes = raw.sizes
+        black = np.asarray(raw.black_level_per_channel, np.float64)
+        meta = dict(
+            channel_tile=np.asarray(raw.raw_pattern, np.uint8),
+            black_levels=black,
+            white_level=int(raw.white_level),
+            camera_white_balance=_wb(raw.camera_whitebalance),
+            daylight_white_balance=_wb(raw.daylight_whitebalance),
+            camera_to_srgb=_camera_to_srgb(raw),
+            flip=int(sizes.flip),
+            pixel_aspect=float(sizes.pixel_aspect),
+        )
+        pixels = int(sizes.raw_height) * int(sizes.raw_width)
+    except RawError:
+        raise
+    except Exception as exc:  # LibRawError, or a bad attribute LibRaw could not fill
+        raise RawError(f"{name}: LibRaw cannot decode it ({_reason(exc)})") from exc
+    _check_pixels(cfa, meta["white_level"], name, data, pixels)
+    make, model = _tiff_make_model(data) if data is not None else ("", "")
+    return RawImage(
+        cfa=cfa,
+        pattern=pattern,
+        camera_to_xyz=SRGB_TO_XYZ @ meta["camera_to_srgb"],
+        make=make,
+        model=model,
+        output_size=_output_size(sizes),
+        source=name,
+        **meta,
+    )
+
+
+def _tiff_make_model(data: bytes) -> tuple[str, str]:
+    """Make and Model (TIFF tags 271, 272) of IFD0 for TIFF-based raws (DNG,
+    NEF, CR2, ...); rawpy does not expose LibRaw's strings. Empty otherwise."""
+    found = {271: "", 272: ""}
+    order = {b"II": "<", b"MM": ">"}.get(data[:2])
+    if order is None or len(data) < 8:
+        return "", ""
+    try:
+        (ifd,) = struct.unpack_from(order + "I", data, 4)
+        (count,) = struct.unpack_from(order + "H", data, ifd)
+        for i in range(count):
+            tag, kind, n, value = struct.unpack_from(order + "HHI4s", data, ifd + 2 + 12 * i)
+            if tag in found and kind == 2:
+                start = struct.unpack(order + "I", value)[0] if n > 4 else None
+                raw = value[:n] if start is None else data[start : start + n]
+                found[tag] = raw.split(b"\0")[0].decode("latin-1").strip()
+    except struct.error:
+        return "", ""
+    return found[271], found[272]
+
+
+def _reason(exc: BaseException) -> str:
+    text = str(exc)
+    if text.startswith("b'") or text.startswith('b"'):
+        text = text[2:-1]
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _check_pixels(
+    cfa: npt.NDArray[np.uint16],
+    white: int,
+    name: str,
+    data: bytes | None,
+    pixels: int,
+) -> None:
+    """Refuse data LibRaw 'decoded' from nothing (see the module docstring)."""
+    if cfa.size == 0:
+        raise RawError(f"{name}: the file has no visible pixels")
+    lo, hi = int(cfa.min()), int(cfa.max())
+    if lo == hi:
+        raise RawError(
+            f"{name}: every pixel is {lo}: the file has no real image data "
+            "(stripped or unreadable pixel data)"
+        )
+    if white <= 0:
+        raise RawError(f"{name}: white level {white} is not positive")
+    if data is None:
+        return
+    if pixels * _MIN_BITS_PER_PIXEL / 8 > len(data):
+        raise RawError(
+            f"{name}: the file is too small to hold its {pixels} pixels: "
+            "its image data is missing (stripped file)"
+        )
+    # Cheap identities, so a 24 MP file costs milliseconds: the file by its
+    # size and its two ends (where headers and tags live), the pixels by a
+    # subsample of rows.
+    file_digest = hashlib.blake2b(
+        data[:65536] + data[-65536:] + len(data).to_bytes(8, "little"), digest_size=16
+    ).digest()
+    data_digest = hashlib.blake2b(cfa[::_DIGEST_ROW_STEP].tobytes(), digest_size=16).digest()
+    with _SEEN_LOCK:
+        previous = _SEEN_DATA.get(data_digest)
+        if len(_SEEN_DATA) >= _SEEN_LIMIT:
+            _SEEN_DATA.pop(next(iter(_SEEN_DATA)))
+        _SEEN_DATA.setdefault(data_digest, file_digest)
+    # Only a file too small to store its pixels uncompressed can be hiding
+    # missing data this way; identical pixels in two uncompressed files (a
+    # copy with edited metadata) are genuine.
+    if previous is not None and previous != file_digest and len(data) < 2 * pixels:
+        raise RawError(
+            f"{name}: LibRaw returned the pixels of a file decoded earlier: "
+            "this file's image data is missing or unreadable"
+        )
+
+
+def _rawpy() -> Any:
+    import rawpy
+
+    return rawpy
+
+
+def load_raw(source: Any) -> RawImage:
+    """Decode a raw file with LibRaw and return its sensor data and metadata.
+
+    Parameters
+    ----------
+    source : str, PathLike, bytes, binary file object or rawpy.RawPy
+        The file. An open ``rawpy.RawPy`` is read but not closed, and skips
+        the checks that need the file's bytes (size and repeated-data tests).
+
+    Returns
+    -------
+    RawImage
+
+    Raises
+    ------
+    RawError
+        Naming the file, for a missing, empty, truncated, stripped or
+        unsupported file, one without a colour filter array (linear DNG, film
+        scanner) or with no real pixel data: constant data, a file too small
+        for its pixel count, or pixels identical to those of a different file
+        decoded earlier in this process while the file is too small to store
+        them uncompressed (LibRaw's stale buffer; a compressed raw copied with
+        edited metadata is refused too: open such a copy with rawpy and pass
+        the ``RawPy``, which skips the byte-level checks and keeps only the
+        constant-data one).
+    TypeError
+        For a source of another type.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from imgform_rs.dng import write_dng
+    >>> cfa = np.arange(32 * 48, dtype=np.uint16).reshape(32, 48)
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     write_dng(f"{d}/a.dng", cfa, "GBRG", white_level=4095, black_level=64)
+    ...     raw = load_raw(f"{d}/a.dng")
+    >>> raw.pattern, raw.white_level, raw.black_levels.tolist(), raw.cfa.shape
+    ('GBRG', 4095, [64.0, 64.0, 64.0, 64.0], (32, 48))
+    """
+    rawpy = _rawpy()
+    name = _describe(source)
+    if isinstance(source, rawpy.RawPy):
+        return _from_rawpy(source, name, None)
+    data = _read_bytes(source, name)
+    if not data:
+        raise RawError(f"{name}: the file is empty")
+    try:
+        raw = rawpy.imread(io.BytesIO(data))
+    except Exception as exc:  # every LibRaw failure, whatever its class
+        raise RawError(f"{name}: not a raw file LibRaw can open ({_reason(exc)})") from exc
+    with raw:
+        return _from_rawpy(raw, name, data)

@@ -1,0 +1,99 @@
+//! Bindings of `imgform_core::develop`.
+
+use imgform_core::demosaic::Method;
+use imgform_core::develop::{develop as develop_kernel, develop_in_place, DevelopParams, Tone};
+use imgform_core::image::{ImageView, Sample};
+use numpy::{Element, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+use crate::arrays::{contiguous, describe, detached_into, fixed};
+use crate::cfa::pattern_arg;
+use crate::errors::to_pyerr;
+
+/// Runs `kernel` on the mosaic into a new `(H, W, 3)` array of `U`.
+fn run<'py, U, K>(
+    py: Python<'py>,
+    src: &[u16],
+    (h, w): (usize, usize),
+    kernel: K,
+) -> PyResult<Bound<'py, PyAny>>
+where
+    U: Sample + Element,
+    K: Send + FnOnce(ImageView<'_, u16>, &mut [U]) -> imgform_core::Result<()>,
+{
+    let out = detached_into(py, &[h, w, 3], |out: &mut [U]| {
+        kernel(ImageView::contiguous(src, w, h, 1)?, out)
+    })?;
+    Ok(out.into_any())
+}
+
+fn f32s(v: Vec<f64>) -> Vec<f32> {
+    v.into_iter().map(|x| x as f32).collect()
+}
+
+/// Develops a uint16 mosaic (H, W) -> (H, W, 3) uint8 / uint16 / float32.
+#[pyfunction]
+#[pyo3(signature = (raw, pattern, black, scale, matrix, tone, method, bps))]
+#[allow(clippy::too_many_arguments)]
+fn develop<'py>(
+    py: Python<'py>,
+    raw: &Bound<'py, PyAny>,
+    pattern: &Bound<'py, PyAny>,
+    black: &Bound<'py, PyAny>,
+    scale: &Bound<'py, PyAny>,
+    matrix: &Bound<'py, PyAny>,
+    tone: &str,
+    method: &str,
+    bps: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let arr = raw.extract::<PyReadonlyArrayDyn<'py, u16>>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "raw must be a uint16 mosaic of shape (H, W), got {}",
+            describe(raw)
+        ))
+    })?;
+    let (h, w) = match *arr.shape() {
+        [h, w] => (h, w),
+        ref other => {
+            return Err(PyValueError::new_err(format!(
+                "raw must be a mosaic of shape (H, W), got shape {other:?}"
+            )))
+        }
+    };
+    let pattern = pattern_arg(pattern)?;
+    let tile = [pattern.period(), pattern.period()];
+    let m = f32s(fixed(matrix, &[3, 3], "matrix")?);
+    let params = DevelopParams {
+        black: f32s(fixed(black, &tile, "black")?),
+        scale: f32s(fixed(scale, &tile, "scale")?),
+        matrix: [m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]],
+        tone: Tone::from_name(tone).map_err(to_pyerr)?,
+        method: Method::from_name(method).map_err(to_pyerr)?,
+    };
+    let src = contiguous(&arr);
+    let (p, pat) = (&params, &pattern);
+    // 8-bit output keeps a 16-bit demosaic; 16-bit and float outputs are
+    // demosaiced and finished in the output array itself.
+    match bps {
+        "8" => run(py, &src, (h, w), |v, out| {
+            develop_kernel::<u16, u8>(v, pat, p, out)
+        }),
+        "16" => run(py, &src, (h, w), |v, out| {
+            develop_in_place::<u16>(v, pat, p, out)
+        }),
+        "float" => run(py, &src, (h, w), |v, out| {
+            develop_in_place::<f32>(v, pat, p, out)
+        }),
+        other => Err(PyValueError::new_err(format!(
+            "bps must be \"8\", \"16\" or \"float\", got {other:?}"
+        ))),
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(develop, m)?)?;
+    m.add("TONES", PyTuple::new(m.py(), Tone::ALL.map(Tone::name))?)?;
+    Ok(())
+}

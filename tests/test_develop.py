@@ -1,0 +1,263 @@
+"""develop: the raw pipeline against LibRaw's colour science, and round trips."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rawpy
+from conftest import output_with_threads, shared_path
+
+import imgform_rs as ig
+from imgform_rs.dng import write_dng
+
+RAW_DIR = shared_path("data/raw")
+PHASES = ["RGGB", "BGGR", "GRBG", "GBRG"]
+
+# Kodak files whose LibRaw development we do not reproduce yet. For the DC50
+# LibRaw substitutes the Apple QuickTake colour matrix (identify.cpp, for
+# kodak_radc_load_raw files), which rawpy does not expose: 23 dB, 33 dB with
+# that matrix. The DC120 (non-square pixels) reaches 36.7 dB, and 34-39 dB
+# per channel without any white balance: a spatial difference not found yet.
+NOT_YET = {
+    "kodak_dc50_DC0008L.KDC": "LibRaw's built-in QuickTake matrix, not exposed (23 dB)",
+    "kodak_dc120_P003908_uncompressed.KDC": "spatial difference not found yet (36.7 dB)",
+}
+
+
+def bayer_raws() -> list:
+    if RAW_DIR is None:
+        return []
+    lines = (RAW_DIR / "MANIFEST.tsv").read_text().splitlines()
+    names = [line.split("\t")[0] for line in lines[1:] if line.split("\t")[1] == "bayer"]
+    return [
+        pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=NOT_YET[n]))
+        if n in NOT_YET
+        else n
+        for n in names
+    ]
+
+
+def psnr(a: np.ndarray, b: np.ndarray, peak: float, border: int = 8) -> float:
+    crop = (slice(border, -border), slice(border, -border))
+    err = a[crop].astype(np.float64) - b[crop].astype(np.float64)
+    return float(10 * np.log10(peak**2 / np.mean(err**2)))
+
+
+def libraw(path) -> np.ndarray:
+    with rawpy.imread(str(path)) as r:
+        return r.postprocess(
+            demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR,
+            use_camera_wb=True,
+            output_color=rawpy.ColorSpace.sRGB,
+            gamma=(1, 1),
+            no_auto_bright=True,
+            output_bps=16,
+            user_flip=0,
+        )
+
+
+def ours(path) -> np.ndarray:
+    return ig.develop(
+        path,
+        demosaic="bilinear",
+        white_balance="camera",
+        color="srgb",
+        tone="linear",
+        bps=16,
+        orientation="none",
+    )
+
+
+def smooth_scene(h: int, w: int, lo: float = 0.05, hi: float = 0.7) -> np.ndarray:
+    """A smooth colourful linear image in [lo, hi]."""
+    y, x = np.mgrid[0:h, 0:w] / max(h, w)
+    chans = [
+        np.sin(7 * x + 3 * y) + np.cos(5 * y),
+        np.cos(6 * x - 4 * y) + np.sin(3 * x),
+        np.sin(4 * x * y * 9 + 1) + np.cos(8 * y - 2 * x),
+    ]
+    rgb = np.stack(chans, -1)
+    rgb = (rgb - rgb.min()) / (rgb.max() - rgb.min())
+    return (lo + (hi - lo) * rgb).astype(np.float32)
+
+
+@pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
+@pytest.mark.parametrize("name", bayer_raws())
+def test_real_raws_match_libraw_colour_science(name):
+    ref = libraw(RAW_DIR / name)
+    got = ours(RAW_DIR / name)
+    assert got.shape == ref.shape and got.dtype == np.uint16
+    assert psnr(got, ref, 65535) >= 40
+
+
+@pytest.mark.parametrize("pattern", PHASES)
+def test_synthetic_dngs_of_every_phase_match_libraw(tmp_path, pattern):
+    # A camera unlike sRGB (a non-trivial matrix), an as-shot balance and a
+    # black level, so every step of the pipeline is exercised.
+    cam_from_xyz = np.array([[1.1, -0.3, -0.1], [-0.4, 1.3, 0.1], [0.0, -0.2, 0.9]])
+    cfa = ig.simulate_sensor(
+        smooth_scene(96, 128), pattern, full_well=1e7, read_noise=0, black_level=128
+    )
+    path = tmp_path / f"{pattern}.dng"
+    write_dng(
+        path,
+        cfa,
+        pattern,
+        white_level=4095 + 128,
+        black_level=128,
+        color_matrix=cam_from_xyz,
+        as_shot_neutral=(0.6, 1.0, 0.75),
+    )
+    assert psnr(ours(path), libraw(path), 65535) >= 40
+
+
+def test_round_trip_through_a_dng_recovers_the_scene(tmp_path):
+    scene = smooth_scene(128, 160)
+    cfa = ig.simulate_sensor(scene, "GRBG", full_well=1e7, read_noise=0, black_level=64)
+    path = tmp_path / "scene.dng"
+    write_dng(path, cfa, "GRBG", white_level=4095 + 64, black_level=64)
+    got = ig.develop(path, tone="linear", bps="float")  # the default, best demosaicer
+    assert got.dtype == np.float32 and got.shape == scene.shape
+    assert psnr(got, scene, 1.0) >= 35
+
+
+@pytest.fixture(scope="module")
+def grey_card(tmp_path_factory):
+    """A synthetic DNG and its RawImage (camera RGB = sRGB, neutral balance)."""
+    path = tmp_path_factory.mktemp("dng") / "card.dng"
+    cfa = ig.simulate_sensor(smooth_scene(40, 56, hi=0.45), "RGGB", full_well=1e7, read_noise=0)
+    write_dng(path, cfa, "RGGB", white_level=4095 + 64, black_level=64)
+    return path, ig.load_raw(path)
+
+
+def test_output_types_and_tone_curves_agree(grey_card):
+    _, raw = grey_card
+    # Bilinear: Hamilton-Adams' direction choice may flip on a rounded input.
+    lin = ig.develop(raw, tone="linear", bps="float", demosaic="bilinear")
+    for bps, dtype, peak in [(8, np.uint8, 255), (16, np.uint16, 65535)]:
+        out = ig.develop(raw, tone="linear", bps=bps, demosaic="bilinear")
+        assert out.dtype == dtype and out.shape == lin.shape
+        # The integer path rounds twice (16-bit mosaic, then the output).
+        assert np.abs(out / peak - lin).max() <= 1 / peak
+    srgb = ig.develop(raw, tone="srgb", bps="float", demosaic="bilinear")
+    curve = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * lin ** (1 / 2.4) - 0.055)
+    np.testing.assert_allclose(srgb, curve, atol=1e-5)
+    bt709 = ig.develop(raw, tone="bt709", bps="float", demosaic="bilinear")
+    assert np.all(bt709 >= lin - 1e-6) and set(ig.TONES) == {"srgb", "linear", "bt709"}
+
+
+def test_exposure_and_white_balance_scale_linear_light(grey_card):
+    _, raw = grey_card
+    base = ig.develop(raw, tone="linear", bps="float", white_balance="none")
+    brighter = ig.develop(raw, tone="linear", bps="float", white_balance="none", exposure=1)
+    np.testing.assert_allclose(brighter, np.minimum(2 * base, 1), atol=1e-5)
+    explicit = ig.develop(raw, tone="linear", bps="float", white_balance=(1, 1, 1))
+    np.testing.assert_array_equal(explicit, base)
+    # Multipliers are normalised to the smallest: (2, 1, 1) doubles red only
+    # (bilinear keeps the channels independent).
+    opts = dict(tone="linear", bps="float", color="camera", demosaic="bilinear")
+    plain = ig.develop(raw, white_balance="none", **opts)
+    red = ig.develop(raw, white_balance=(2, 1, 1), **opts)
+    np.testing.assert_allclose(red[..., 0], 2 * plain[..., 0], atol=1e-5)
+    np.testing.assert_allclose(red[..., 1:], plain[..., 1:], atol=1e-6)
+    for wb in ("camera", "daylight", "auto"):
+        assert ig.develop(raw, white_balance=wb).dtype == np.uint8
+
+
+def test_bad_options_are_refused(grey_card):
+    _, raw = grey_card
+    cases = [
+        (dict(bps=12), "bps must be 8, 16"),
+        (dict(color="xyz"), "color must be"),
+        (dict(tone="gamma"), "tone must be one of"),
+        (dict(highlights="blend"), "highlights must be"),
+        (dict(orientation="left"), "orientation must be"),
+        (dict(white_balance="tungsten"), "white_balance must be one of"),
+        (dict(white_balance=(1, 0, 1)), "three finite numbers > 0"),
+        (dict(exposure=float("nan")), "exposure must be"),
+        (dict(demosaic="magic"), "magic"),
+    ]
+    for kwargs, message in cases:
+        with pytest.raises(ValueError, match=message):
+            ig.develop(raw, **kwargs)
+    with pytest.raises(TypeError, match="demosaic must be a str"):
+        ig.develop(raw, demosaic=3)
+
+
+def test_orientation_follows_libraw_flip_codes():
+    from imgform_rs.develop import _orient
+
+    img = np.arange(2 * 3 * 3).reshape(2, 3, 3)
+    assert _orient(img, 0).shape == (2, 3, 3)
+    np.testing.assert_array_equal(_orient(img, 3), img[::-1, ::-1])
+    # 6: 90 degrees clockwise, 5: counter-clockwise (dcraw's flip_index).
+    np.testing.assert_array_equal(_orient(img, 6), np.rot90(img, -1))
+    np.testing.assert_array_equal(_orient(img, 5), np.rot90(img, 1))
+
+
+def test_result_does_not_depend_on_thread_count(grey_card):
+    path, _ = grey_card
+    code = f"""
+        import sys, imgform_rs as ig
+        sys.stdout.buffer.write(ig.develop({str(path)!r}, bps=16).tobytes())
+    """
+    assert output_with_threads(code, 1) == output_with_threads(code, 2)
+
+
+def test_write_image_round_trips_and_never_overwrites_by_default(tmp_path):
+    rgb16 = (np.arange(6 * 5 * 3).reshape(6, 5, 3) * 1000).astype(np.uint16)
+    for name, img in [("a.png", rgb16), ("b.tif", rgb16), ("c.png", rgb16.astype(np.uint8))]:
+        path = ig.write_image(tmp_path / name, img)
+        np.testing.assert_array_equal(iio_read(path), img)
+        with pytest.raises(FileExistsError, match="overwrite=True"):
+            ig.write_image(path, img)
+        ig.write_image(path, img[::-1], overwrite=True)
+        np.testing.assert_array_equal(iio_read(path), img[::-1])
+    with pytest.raises(ValueError, match=r"must end in \.png, \.tif or \.tiff"):
+        ig.write_image(tmp_path / "a.jpg", rgb16)
+    with pytest.raises(ValueError, match="PNG takes uint8, uint16"):
+        ig.write_image(tmp_path / "f.png", rgb16.astype(np.float32))
+
+
+def test_cli_develops_good_files_reports_bad_ones_and_keeps_outputs(tmp_path, capsys, grey_card):
+    from imgform_rs.cli import main
+
+    good, _ = grey_card
+    bad = tmp_path / "broken.nef"
+    bad.write_bytes(b"II*\0not a raw at all")
+    out = tmp_path / "out"
+    assert main(["develop", str(good), str(bad), "-o", str(out), "--bps", "16"]) == 1
+    captured = capsys.readouterr()
+    assert f"{bad}: not a raw file LibRaw can open" in captured.err
+    assert "1 of 2 files failed" in captured.err
+    img = iio_read(out / "card.png")
+    assert img.dtype == np.uint16 and img.shape == (40, 56, 3)
+    before = (out / "card.png").stat().st_mtime_ns
+    assert main(["develop", str(good), "-o", str(out), "--format", "tiff", "-j", "2"]) == 0
+    assert main(["develop", str(good), "-o", str(out)]) == 0
+    assert "exists, kept" in capsys.readouterr().out
+    assert (out / "card.png").stat().st_mtime_ns == before and (out / "card.tif").is_file()
+    assert main(["develop", str(good), "-o", str(out), "--overwrite"]) == 0
+    assert iio_read(out / "card.png").dtype == np.uint8
+
+
+def iio_read(path):
+    """PNG through OpenCV (Pillow reads 16-bit RGB PNG as 8-bit), TIFF through imageio."""
+    if path.suffix == ".png":
+        cv2 = pytest.importorskip("cv2")
+        return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)[..., ::-1]
+    import imageio.v3 as iio
+
+    return iio.imread(path)
+
+
+def test_non_square_pixels_repeat_columns_as_libraw_does():
+    from imgform_rs.develop import _stretch
+
+    img = np.arange(4 * 3 * 3, dtype=np.uint16).reshape(4, 3, 3)
+    wide = _stretch(img, 1.5)  # 3 columns -> 4.5 + 0.5 -> 5
+    assert wide.shape == (4, 5, 3)
+    # Source column floor(j / 1.5): 0, 0, 1, 2, 2.
+    np.testing.assert_array_equal(wide, img[:, [0, 0, 1, 2, 2]])
+    tall = _stretch(img, 0.5)
+    np.testing.assert_array_equal(tall, img[[0, 0, 1, 1, 2, 2, 3, 3]])
