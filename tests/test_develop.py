@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import rawpy
-from conftest import output_with_threads, shared_path
 
 import imgform_rs as ig
+from conftest import output_with_threads, shared_path
 from imgform_rs.dng import write_dng
 
 RAW_DIR = shared_path("data/raw")

@@ -7,11 +7,11 @@ import io
 import numpy as np
 import pytest
 import rawpy
-from conftest import shared_path
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import shared_path
 from imgform_rs.dng import write_dng
 
 RAW_DIR = shared_path("data/raw")
