@@ -6,8 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-# The sample plate beside the checkout (shared/ is not part of the project).
+# Sample data beside the checkout (shared/ is not part of the project).
 SAMPLE_PLATE = Path("../shared/data/pg/cathedral.jpg")
+SAMPLE_RAW = Path("../shared/data/raw/canon_eos_kiss_x4_magiclantern_colorchart.dng")
 
 
 def _demo(args: argparse.Namespace) -> int:
@@ -20,7 +21,8 @@ def _demo(args: argparse.Namespace) -> int:
     else:
         print(f"imgform demo: no plate file at {args.plate}", file=sys.stderr)
         return 2
-    for path in run(Path(args.out), plate=plate):
+    camera_raw = SAMPLE_RAW if SAMPLE_RAW.is_file() else None
+    for path in run(Path(args.out), plate=plate, camera_raw=camera_raw):
         print(f"wrote {path}")
     return 0
 

@@ -10,7 +10,10 @@ Renders :mod:`imgform_rs.scene` through
 4. a lens with lateral chromatic aberration, and its correction;
 5. a Bayer sensor: the pinhole picture mosaiced and demosaiced by every
    method, with each method's CPSNR;
-6. when a Prokudin-Gorskii plate is at hand, its three-colour alignment;
+6. a simulated raw capture of the scene, written as a DNG and developed
+   back through LibRaw's decoder and our pipeline by every demosaicer;
+7. when the shared sample data sit beside the checkout, the Prokudin-Gorskii
+   plate aligned and one real camera raw developed;
 
 and writes PNGs under the output folder.
 """
@@ -28,9 +31,11 @@ from . import scene
 from ._png import write_png
 from .align import colorize_plate
 from .camera import Camera, vanishing_line, vanishing_point
-from .cfa import mosaic
+from .cfa import mosaic, simulate_sensor
 from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic
+from .develop import develop
+from .dng import write_dng
 from .optics import circle_of_confusion, field_of_view, hyperfocal_distance, render_defocus
 from .remap import undistort_image
 
@@ -154,9 +159,34 @@ def _demosaic_strip(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray
     return np.hstack(tiles[:-1])
 
 
-def run(out: Path, log: Callable[[str], None] = print, plate: Path | None = None) -> list[Path]:
+def _raw_round_trip(out: Path, image: np.ndarray, log: Callable[[str], None]) -> list[Path]:
+    """The scene as a 12-bit camera would record it, written as a DNG, then
+    decoded by LibRaw and developed by us with each demosaicer."""
+    linear = ((image / 255.0) ** 2.2).astype(np.float32)
+    raw = simulate_sensor(
+        linear, "RGGB", full_well=40_000, read_noise=2.0, bit_depth=12, black_level=64, seed=1
+    )
+    dng = out / "scene.dng"
+    write_dng(dng, raw, "RGGB", white_level=4095, black_level=64)
+    written = [dng]
+    for method in DEMOSAIC_METHODS:
+        start = time.perf_counter()
+        rgb = develop(dng, demosaic=method)
+        ms = 1e3 * (time.perf_counter() - start)
+        log(f"develop scene.dng, {method:<20s} {ms:8.1f} ms   CPSNR {cpsnr(image, rgb):6.2f} dB")
+    written.append(write_png(out / "scene_developed.png", rgb))
+    return written
+
+
+def run(
+    out: Path,
+    log: Callable[[str], None] = print,
+    plate: Path | None = None,
+    camera_raw: Path | None = None,
+) -> list[Path]:
     """Render every picture of the demo into ``out`` and return their paths;
-    colourise ``plate`` (a Prokudin-Gorskii scan) too when given."""
+    colourise ``plate`` (a Prokudin-Gorskii scan) and develop ``camera_raw``
+    too when given."""
     out.mkdir(parents=True, exist_ok=True)
     lines: list[str] = []
     s = SUPERSAMPLE
@@ -206,6 +236,13 @@ def run(out: Path, log: Callable[[str], None] = print, plate: Path | None = None
         log(line)
     strip = _demosaic_strip(pinhole, log)
     written.append(write_png(out / "demosaic_methods.png", strip))
+    written += _raw_round_trip(out, pinhole, log)
+    if camera_raw is not None:
+        start = time.perf_counter()
+        rgb = develop(camera_raw)
+        ms = 1e3 * (time.perf_counter() - start)
+        log(f"develop {camera_raw.name}: {rgb.shape[1]}x{rgb.shape[0]} in {ms:.0f} ms")
+        written.append(write_png(out / f"{camera_raw.stem}.png", rgb))
     if plate is not None:
         start = time.perf_counter()
         # Onto blue, the frame in which the plates' shifts are usually published.
