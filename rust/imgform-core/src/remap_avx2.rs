@@ -1,0 +1,365 @@
+//! AVX2 bilinear rows for u8 (1 or 3 channels) and u16 (1 channel) images
+//! remapped through a dense [`super::RemapMap`].
+//!
+//! Eight output pixels per step: their positions are split into tap offsets
+//! and fractions in vector registers, the 2x2 windows are fetched with
+//! gathers, and the weights are applied in integers. The arithmetic is the
+//! scalar path's: `Σ p_ij (256 - fx | fx)_i (256 - fy | fy)_j`, exact in 32
+//! bits, plus 2^15 and shifted right by 16. The order of the exact integer
+//! operations differs (`top · 256 + (bottom - top) · fy` for the vertical
+//! stage) but the sum is the same integer, so outputs are bit-identical
+//! (the tests compare both paths).
+//!
+//! A step runs only when all eight windows lie inside the source and every
+//! gather, which reads a few bytes past the last tap, stays inside the
+//! buffer; otherwise the step's pixels go to the scalar `pixel` callback,
+//! which also handles the row's last `width % 8` pixels. In an undistortion
+//! map that is a thin margin along the borders.
+
+use std::arch::x86_64::*;
+
+use super::FRAC_BITS;
+
+/// Pixels per vector step.
+const LANES: usize = 8;
+
+/// Source geometry in bytes, as the gathers address it.
+struct Geometry {
+    /// Bytes per source row.
+    stride: i32,
+    /// Bytes per pixel.
+    pixel: i32,
+    /// Largest tap index + 1 per axis that still has a right / lower
+    /// neighbour: `width - 1`, `height - 1`.
+    last: (i32, i32),
+    /// One more than the largest byte offset of a lower-left tap whose
+    /// gathers stay inside the buffer.
+    reach: i32,
+}
+
+impl Geometry {
+    /// `None` when offsets into the buffer may not fit an `i32`.
+    fn new(
+        len_bytes: usize,
+        stride: usize,
+        pixel: usize,
+        w: usize,
+        h: usize,
+        read: usize,
+    ) -> Option<Self> {
+        let len = i32::try_from(len_bytes).ok()?;
+        Some(Self {
+            stride: i32::try_from(stride).ok()?,
+            pixel: pixel as i32,
+            last: (w as i32 - 1, h as i32 - 1),
+            reach: len - read as i32 + 1,
+        })
+    }
+}
+
+/// Tap offsets and fractions of eight pixels.
+struct Step {
+    /// Byte offset of each pixel's upper-left tap.
+    top: __m256i,
+    /// Horizontal weights as 16-bit pairs `(256 - fx) | fx << 16`.
+    wx: __m256i,
+    /// Vertical fractions `fy`.
+    fy: __m256i,
+}
+
+/// Loads the positions of pixels `8k .. 8k + 8` of a map row and decides
+/// whether the vector path may take them.
+///
+/// # Safety
+/// AVX2; `xy` holds at least 16 values from `xy`.
+#[target_feature(enable = "avx2")]
+unsafe fn step(xy: *const i32, g: &Geometry) -> Option<Step> {
+    // SAFETY: the caller guarantees 16 readable values.
+    let (a, b) = unsafe {
+        (
+            _mm256_loadu_si256(xy.cast()),
+            _mm256_loadu_si256(xy.add(LANES).cast()),
+        )
+    };
+    // x0 y0 x1 y1 .. -> x0 x1 x2 x3 y0 y1 y2 y3 per register, then join.
+    let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+    let (a, b) = (
+        _mm256_permutevar8x32_epi32(a, split),
+        _mm256_permutevar8x32_epi32(b, split),
+    );
+    let sx = _mm256_permute2x128_si256(a, b, 0x20);
+    let sy = _mm256_permute2x128_si256(a, b, 0x31);
+    // The arithmetic shift is floor; NOWHERE lands far outside.
+    let ix = _mm256_srai_epi32(sx, FRAC_BITS as i32);
+    let iy = _mm256_srai_epi32(sy, FRAC_BITS as i32);
+    let top = _mm256_add_epi32(
+        _mm256_mullo_epi32(iy, _mm256_set1_epi32(g.stride)),
+        _mm256_mullo_epi32(ix, _mm256_set1_epi32(g.pixel)),
+    );
+    let below = _mm256_add_epi32(top, _mm256_set1_epi32(g.stride));
+    let minus_one = _mm256_set1_epi32(-1);
+    // Offsets of pixels outside wrap around, but they are excluded by the
+    // index tests, which come first in meaning (all are and-ed).
+    let inside = _mm256_and_si256(
+        _mm256_and_si256(
+            _mm256_and_si256(
+                _mm256_cmpgt_epi32(ix, minus_one),
+                _mm256_cmpgt_epi32(_mm256_set1_epi32(g.last.0), ix),
+            ),
+            _mm256_and_si256(
+                _mm256_cmpgt_epi32(iy, minus_one),
+                _mm256_cmpgt_epi32(_mm256_set1_epi32(g.last.1), iy),
+            ),
+        ),
+        _mm256_cmpgt_epi32(_mm256_set1_epi32(g.reach), below),
+    );
+    if _mm256_movemask_epi8(inside) != -1 {
+        return None;
+    }
+    let mask = _mm256_set1_epi32((1 << FRAC_BITS) - 1);
+    let fx = _mm256_and_si256(sx, mask);
+    // (256 - fx) | fx << 16 = 256 + fx · (2^16 - 1).
+    let wx = _mm256_add_epi32(
+        _mm256_set1_epi32(1 << FRAC_BITS),
+        _mm256_sub_epi32(_mm256_slli_epi32(fx, 16), fx),
+    );
+    Some(Step {
+        top,
+        wx,
+        fy: _mm256_and_si256(sy, mask),
+    })
+}
+
+/// `(top · 256 + (bottom - top) · fy + 2^15) >> 16` lane by lane: the
+/// vertical stage and the rounding. Exact modulo 2^32, and the true value
+/// is below 2^32 (at most `65535 · 2^16 + 2^15`), so the logical shift
+/// yields it even when intermediate terms wrap.
+#[target_feature(enable = "avx2")]
+fn vertical(top: __m256i, bottom: __m256i, fy: __m256i) -> __m256i {
+    let sum = _mm256_add_epi32(
+        _mm256_slli_epi32(top, FRAC_BITS as i32),
+        _mm256_mullo_epi32(_mm256_sub_epi32(bottom, top), fy),
+    );
+    _mm256_srli_epi32(
+        _mm256_add_epi32(sum, _mm256_set1_epi32(1 << (2 * FRAC_BITS - 1))),
+        2 * FRAC_BITS as i32,
+    )
+}
+
+/// Gathers 4 bytes at each byte offset of `base`.
+///
+/// # Safety
+/// AVX2; every `offset .. offset + 4` lies inside the buffer at `base`.
+#[target_feature(enable = "avx2")]
+unsafe fn gather(base: *const u8, offsets: __m256i) -> __m256i {
+    // SAFETY: the caller guarantees the reads are in bounds.
+    unsafe { _mm256_i32gather_epi32::<1>(base.cast(), offsets) }
+}
+
+/// Gathers 8 bytes at each of four byte offsets of `base`.
+///
+/// # Safety
+/// AVX2; every `offset .. offset + 8` lies inside the buffer at `base`.
+#[target_feature(enable = "avx2")]
+unsafe fn gather8(base: *const u8, offsets: __m128i) -> __m256i {
+    // SAFETY: the caller guarantees the reads are in bounds.
+    unsafe { _mm256_i32gather_epi64::<1>(base.cast(), offsets) }
+}
+
+/// Runs `f(k, step)` for every full step of a row whose windows are inside
+/// and `pixel(x)` for the others and for the tail.
+///
+/// # Safety
+/// AVX2.
+#[target_feature(enable = "avx2")]
+unsafe fn walk(
+    xy: &[i32],
+    g: &Geometry,
+    mut f: impl FnMut(usize, Step),
+    pixel: &mut dyn FnMut(usize),
+) {
+    let n = xy.len() / 2;
+    let steps = n / LANES;
+    for k in 0..steps {
+        // SAFETY: step k reads xy[16k .. 16k + 16], inside since k < n / 8.
+        match unsafe { step(xy.as_ptr().add(2 * LANES * k), g) } {
+            Some(s) => f(k, s),
+            None => (LANES * k..LANES * (k + 1)).for_each(&mut *pixel),
+        }
+    }
+    (LANES * steps..n).for_each(pixel);
+}
+
+/// u8 with `NC` = 1 or 3 channels; see the module documentation.
+///
+/// # Safety
+/// AVX2; `src` is an image of `w x h` pixels of `NC` bytes with rows
+/// `stride` bytes apart; `row` holds `NC · xy.len() / 2` bytes.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn row_u8<const NC: usize>(
+    src: &[u8],
+    stride: usize,
+    (w, h): (usize, usize),
+    xy: &[i32],
+    row: &mut [u8],
+    pixel: &mut dyn FnMut(usize, &mut [u8]),
+) -> bool {
+    // Gray reads 4 bytes at the left tap, RGB 8.
+    let read = if NC == 1 { 4 } else { 8 };
+    if row.len() != NC * (xy.len() / 2) {
+        return false;
+    }
+    let Some(g) = Geometry::new(src.len(), stride, NC, w, h, read) else {
+        return false;
+    };
+    let base = src.as_ptr();
+    let out = row.as_mut_ptr();
+    let stride_v = _mm256_set1_epi32(g.stride);
+    // The left and right taps' samples as 16-bit pairs (p0 | p1 << 16).
+    let pairs = _mm256_setr_epi8(
+        0, -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1, 0, -1, 1, -1, 4, -1, 5, -1, 8,
+        -1, 9, -1, 12, -1, 13, -1,
+    );
+    let body = |k: usize, s: Step| {
+        let below = _mm256_add_epi32(s.top, stride_v);
+        // SAFETY (gathers): `step` admitted only windows whose reads end
+        // before `reach`, i.e. inside `src`. (Stores): `row` holds
+        // NC · n bytes and step k writes NC · 8 of them from NC · 8k.
+        if NC == 1 {
+            let (t, b) = unsafe { (gather(base, s.top), gather(base, below)) };
+            let top = _mm256_madd_epi16(_mm256_shuffle_epi8(t, pairs), s.wx);
+            let bottom = _mm256_madd_epi16(_mm256_shuffle_epi8(b, pairs), s.wx);
+            let v = vertical(top, bottom, s.fy);
+            let v16 = _mm256_packus_epi32(v, v);
+            let v8 = _mm256_packus_epi16(v16, v16);
+            let v8 = _mm256_permutevar8x32_epi32(v8, _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4));
+            unsafe { _mm_storel_epi64(out.add(LANES * k).cast(), _mm256_castsi256_si128(v8)) };
+        } else {
+            // Per pixel and row one 8-byte read [r0 g0 b0 r1 g1 b1 _ _],
+            // widened to 16 bits and reordered into (left, right) pairs per
+            // channel [r0 r1 g0 g1 b0 b1 _ _]. The pixels are gathered in
+            // the order 0 4 1 5 | 2 6 3 7 so that register q holds pixels q
+            // and q + 4, one per 128-bit lane, like the weights below.
+            let order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+            let pairs = _mm256_setr_epi8(
+                0, 1, 6, 7, 2, 3, 8, 9, 4, 5, 10, 11, 12, 13, 14, 15, 0, 1, 6, 7, 2, 3, 8, 9, 4, 5,
+                10, 11, 12, 13, 14, 15,
+            );
+            let line = |offsets: __m256i| {
+                let offsets = _mm256_permutevar8x32_epi32(offsets, order);
+                // SAFETY: `step` admitted only reads inside `src`.
+                let (p, q) = unsafe {
+                    (
+                        gather8(base, _mm256_castsi256_si128(offsets)),
+                        gather8(base, _mm256_extracti128_si256::<1>(offsets)),
+                    )
+                };
+                let widen = |h: __m128i| _mm256_shuffle_epi8(_mm256_cvtepu8_epi16(h), pairs);
+                [
+                    widen(_mm256_castsi256_si128(p)),
+                    widen(_mm256_extracti128_si256::<1>(p)),
+                    widen(_mm256_castsi256_si128(q)),
+                    widen(_mm256_extracti128_si256::<1>(q)),
+                ]
+            };
+            let (t, b) = (line(s.top), line(below));
+            let spread = |v: __m256i| {
+                [
+                    _mm256_shuffle_epi32::<0x00>(v),
+                    _mm256_shuffle_epi32::<0x55>(v),
+                    _mm256_shuffle_epi32::<0xAA>(v),
+                    _mm256_shuffle_epi32::<0xFF>(v),
+                ]
+            };
+            let (wx, fy) = (spread(s.wx), spread(s.fy));
+            // Each lane: R, G, B and a discarded fourth value.
+            let v: [__m256i; 4] = std::array::from_fn(|q| {
+                vertical(
+                    _mm256_madd_epi16(t[q], wx[q]),
+                    _mm256_madd_epi16(b[q], wx[q]),
+                    fy[q],
+                )
+            });
+            let v16 = [
+                _mm256_packus_epi32(v[0], v[1]),
+                _mm256_packus_epi32(v[2], v[3]),
+            ];
+            // Lane 0: pixels 0-3 as RGB_, lane 1: pixels 4-7.
+            let v8 = _mm256_packus_epi16(v16[0], v16[1]);
+            let drop = _mm256_setr_epi8(
+                0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1, 0, 1, 2, 4, 5, 6, 8, 9, 10,
+                12, 13, 14, -1, -1, -1, -1,
+            );
+            let packed = _mm256_permutevar8x32_epi32(
+                _mm256_shuffle_epi8(v8, drop),
+                _mm256_setr_epi32(0, 1, 2, 4, 5, 6, 3, 7),
+            );
+            unsafe {
+                let dst = out.add(3 * LANES * k);
+                _mm_storeu_si128(dst.cast(), _mm256_castsi256_si128(packed));
+                _mm_storel_epi64(dst.add(16).cast(), _mm256_extracti128_si256::<1>(packed));
+            }
+        }
+    };
+    // SAFETY: AVX2 is enabled here; the body only writes the step's pixels
+    // and the callback only the pixels the walk hands it, never both.
+    unsafe {
+        walk(xy, &g, body, &mut |x| {
+            pixel(x, std::slice::from_raw_parts_mut(out.add(NC * x), NC))
+        })
+    };
+    true
+}
+
+/// u16 with one channel; see the module documentation. The samples reach
+/// 65535, beyond `madd`'s signed 16-bit range, so both stages multiply in
+/// 32 bits.
+///
+/// # Safety
+/// AVX2; `src` is an image of `w x h` samples with rows `stride` samples
+/// apart; `row` holds `xy.len() / 2` samples.
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn row_u16(
+    src: &[u16],
+    stride: usize,
+    (w, h): (usize, usize),
+    xy: &[i32],
+    row: &mut [u16],
+    pixel: &mut dyn FnMut(usize, &mut [u16]),
+) -> bool {
+    if row.len() != xy.len() / 2 {
+        return false;
+    }
+    let Some(g) = Geometry::new(2 * src.len(), 2 * stride, 2, w, h, 4) else {
+        return false;
+    };
+    let base = src.as_ptr().cast::<u8>();
+    let out = row.as_mut_ptr();
+    let stride_v = _mm256_set1_epi32(g.stride);
+    let low = _mm256_set1_epi32(0xffff);
+    let body = |k: usize, s: Step| {
+        // (256 - fx, fx) pairs back to fx.
+        let fx = _mm256_srli_epi32(s.wx, 16);
+        let line = |offsets: __m256i| {
+            // SAFETY: `step` admitted only reads inside `src`.
+            let p = unsafe { gather(base, offsets) };
+            let (l, r) = (_mm256_and_si256(p, low), _mm256_srli_epi32(p, 16));
+            // l · 256 + (r - l) · fx, at most 65535 · 256.
+            _mm256_add_epi32(
+                _mm256_slli_epi32(l, FRAC_BITS as i32),
+                _mm256_mullo_epi32(_mm256_sub_epi32(r, l), fx),
+            )
+        };
+        let v = vertical(line(s.top), line(_mm256_add_epi32(s.top, stride_v)), s.fy);
+        let v16 = _mm256_permute4x64_epi64::<0b1000>(_mm256_packus_epi32(v, v));
+        // SAFETY: step k writes samples 8k .. 8k + 8 of `row`.
+        unsafe { _mm_storeu_si128(out.add(LANES * k).cast(), _mm256_castsi256_si128(v16)) };
+    };
+    // SAFETY: as in `row_u8`.
+    unsafe {
+        walk(xy, &g, body, &mut |x| {
+            pixel(x, std::slice::from_raw_parts_mut(out.add(x), 1))
+        })
+    };
+    true
+}
