@@ -149,12 +149,13 @@ fixed_point_bilinear!(u8, u16);
 pub trait Resample: Sample {
     type Bilinear: Arith<Self>;
 
-    /// Samples one output row bilinearly, all channels, from the dense map
-    /// row `xy` with a SIMD kernel, calling `pixel(x, px)` for the pixels it
-    /// leaves to the scalar path. `false` (nothing done) when the type,
-    /// channel count or CPU has no such kernel.
-    fn bilinear_row(
+    /// Samples one output row, all channels, from the dense map row `xy`
+    /// with a SIMD kernel, calling `pixel(x, px)` for the pixels it leaves
+    /// to the scalar path. `false` (nothing done) when the type, channel
+    /// count or CPU has no such kernel.
+    fn simd_row(
         _src: &ImageView<Self>,
+        _interpolation: Interpolation,
         _xy: &[i32],
         _row: &mut [Self],
         _pixel: &mut dyn FnMut(usize, &mut [Self]),
@@ -165,8 +166,9 @@ pub trait Resample: Sample {
 impl Resample for u8 {
     type Bilinear = u32;
 
-    fn bilinear_row(
+    fn simd_row(
         src: &ImageView<u8>,
+        interpolation: Interpolation,
         xy: &[i32],
         row: &mut [u8],
         pixel: &mut dyn FnMut(usize, &mut [u8]),
@@ -176,34 +178,53 @@ impl Resample for u8 {
             let (data, stride) = (src.data(), src.stride());
             let size = (src.width(), src.height());
             // SAFETY: AVX2 is present; the view guarantees that `data` holds
-            // a `size` image with rows `stride` apart; the kernel checks the
+            // a `size` image with rows `stride` apart; the kernels check the
             // lengths of `xy` and `row`.
-            return match src.channels() {
-                1 => unsafe { avx2::row_u8::<1>(data, stride, size, xy, row, pixel) },
-                3 => unsafe { avx2::row_u8::<3>(data, stride, size, xy, row, pixel) },
-                _ => false,
+            return unsafe {
+                match (interpolation, src.channels()) {
+                    (Interpolation::Bilinear, 1) => {
+                        avx2::row_u8::<1>(data, stride, size, xy, row, pixel)
+                    }
+                    (Interpolation::Bilinear, 3) => {
+                        avx2::row_u8::<3>(data, stride, size, xy, row, pixel)
+                    }
+                    (Interpolation::Bicubic, 1) => {
+                        avx2::cubic_u8::<1>(data, stride, size, xy, row, pixel)
+                    }
+                    (Interpolation::Bicubic, 3) => {
+                        avx2::cubic_u8::<3>(data, stride, size, xy, row, pixel)
+                    }
+                    _ => false,
+                }
             };
         }
-        let _ = (src, xy, row, pixel);
+        let _ = (src, interpolation, xy, row, pixel);
         false
     }
 }
 impl Resample for u16 {
     type Bilinear = u32;
 
-    fn bilinear_row(
+    fn simd_row(
         src: &ImageView<u16>,
+        interpolation: Interpolation,
         xy: &[i32],
         row: &mut [u16],
         pixel: &mut dyn FnMut(usize, &mut [u16]),
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && src.channels() == 1 {
+            let (data, stride) = (src.data(), src.stride());
             let size = (src.width(), src.height());
             // SAFETY: as for u8.
-            return unsafe { avx2::row_u16(src.data(), src.stride(), size, xy, row, pixel) };
+            return unsafe {
+                match interpolation {
+                    Interpolation::Bilinear => avx2::row_u16(data, stride, size, xy, row, pixel),
+                    Interpolation::Bicubic => avx2::cubic_u16(data, stride, size, xy, row, pixel),
+                }
+            };
         }
-        let _ = (src, xy, row, pixel);
+        let _ = (src, interpolation, xy, row, pixel);
         false
     }
 }
@@ -598,6 +619,11 @@ impl<T: Resample, S: Coords> Job<'_, T, S> {
         let taps = TAPS as i32;
         // Offset of the first tap from floor(position): 0 for 2 taps, -1 for 4.
         let lead = taps / 2 - 1;
+        let interpolation = if TAPS == 2 {
+            Interpolation::Bilinear
+        } else {
+            Interpolation::Bicubic
+        };
         let fill = T::from_f32(self.fill);
         let fill_v = V::load(fill);
         for_each_row(out, row_len, |y, row| {
@@ -640,9 +666,9 @@ impl<T: Resample, S: Coords> Job<'_, T, S> {
                 }
             };
             // Whole pixels only: the kernels write every channel.
-            if TAPS == 2 && N == nc {
+            if N == nc {
                 if let Some(xy) = self.coords.row(y) {
-                    if T::bilinear_row(self.src, xy, row, &mut pixel) {
+                    if T::simd_row(self.src, interpolation, xy, row, &mut pixel) {
                         return;
                     }
                 }
@@ -725,7 +751,13 @@ mod tests {
 
     /// Both paths over a map that mixes interior windows (all fractions),
     /// borders, far-away and NaN positions, for every kernel layout.
-    fn assert_simd_matches_scalar<T: Resample>(img: &[T], w: usize, h: usize, c: usize) {
+    fn assert_simd_matches_scalar<T: Resample>(
+        img: &[T],
+        w: usize,
+        h: usize,
+        c: usize,
+        interp: Interpolation,
+    ) {
         let (mw, mh) = (37, 9);
         let mut state = 12345u64;
         let mut next = move || {
@@ -734,20 +766,29 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             (state >> 40) as f32 / (1u64 << 24) as f32
         };
-        // Rows 0, 3, 6: anywhere; the others inside the image, so that
-        // whole 8-pixel steps take the vector path.
+        // Rows 0, 3, 6: anywhere; the others such that the whole window is
+        // inside the image, so that entire 8-pixel steps take the vector path.
+        let (lead, span) = match interp {
+            Interpolation::Bilinear => (0.0, 1.0),
+            Interpolation::Bicubic => (1.0, 3.0),
+        };
         let xy: Vec<f32> = (0..mw * mh)
             .flat_map(|i| {
-                let (wide, margin) = if i / mw % 3 == 0 {
-                    (3.0, 2.0)
+                let anywhere = i / mw % 3 == 0;
+                let (x, y) = if anywhere {
+                    (
+                        next() * (w as f32 + 4.0) - 2.0,
+                        next() * (h as f32 + 4.0) - 2.0,
+                    )
                 } else {
-                    (-1.0, 0.0)
+                    (
+                        lead + next() * (w as f32 - span),
+                        lead + next() * (h as f32 - span),
+                    )
                 };
-                let x = next() * (w as f32 + wide) - margin;
-                let y = next() * (h as f32 + wide) - margin;
                 match i % 29 {
-                    0 if margin > 0.0 => [f32::NAN, y],
-                    1 if margin > 0.0 => [x, 1e9],
+                    0 if anywhere => [f32::NAN, y],
+                    1 if anywhere => [x, 1e9],
                     // Exact integers: fraction zero, weight 256.
                     2 => [x.floor(), y.floor()],
                     _ => [x, y],
@@ -758,29 +799,26 @@ mod tests {
         let view = ImageView::contiguous(img, w, h, c).unwrap();
         let mut fast = vec![T::default(); mw * mh * c];
         let mut slow = fast.clone();
-        remap(&view, &map, Interpolation::Bilinear, 7.0, &mut fast).unwrap();
+        remap(&view, &map, interp, 7.0, &mut fast).unwrap();
         let fill = check_fill::<T>(7.0).unwrap();
-        resample(
-            &view,
-            &Scalar(&map),
-            mw,
-            mh,
-            0..c,
-            Interpolation::Bilinear,
-            fill,
-            &mut slow,
-        )
-        .unwrap();
-        assert_eq!(fast, slow, "{} channels", c);
+        resample(&view, &Scalar(&map), mw, mh, 0..c, interp, fill, &mut slow).unwrap();
+        assert_eq!(fast, slow, "{interp:?}, {c} channels");
     }
 
     #[test]
-    fn simd_bilinear_rows_match_the_scalar_path_bit_for_bit() {
-        for (w, h) in [(16, 12), (3, 2), (40, 5)] {
+    fn simd_rows_match_the_scalar_path_bit_for_bit() {
+        for (w, h, interp) in [
+            (16, 12, Interpolation::Bilinear),
+            (3, 2, Interpolation::Bilinear),
+            (40, 5, Interpolation::Bilinear),
+            (16, 12, Interpolation::Bicubic),
+            (5, 4, Interpolation::Bicubic),
+            (40, 7, Interpolation::Bicubic),
+        ] {
             for c in [1, 3, 4] {
                 let n = w * h * c;
                 let u8s: Vec<u8> = (0..n).map(|i| (i * 97 % 256) as u8).collect();
-                assert_simd_matches_scalar(&u8s, w, h, c);
+                assert_simd_matches_scalar(&u8s, w, h, c, interp);
                 // Extreme u16 values exercise the wrap-around in the 32-bit sums.
                 let u16s: Vec<u16> = (0..n)
                     .map(|i| {
@@ -791,7 +829,7 @@ mod tests {
                         }
                     })
                     .collect();
-                assert_simd_matches_scalar(&u16s, w, h, c);
+                assert_simd_matches_scalar(&u16s, w, h, c, interp);
             }
         }
     }

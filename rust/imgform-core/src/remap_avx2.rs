@@ -18,7 +18,7 @@
 
 use std::arch::x86_64::*;
 
-use super::FRAC_BITS;
+use super::{FRAC_BITS, KEYS_A};
 
 /// Pixels per vector step.
 const LANES: usize = 8;
@@ -29,11 +29,13 @@ struct Geometry {
     stride: i32,
     /// Bytes per pixel.
     pixel: i32,
-    /// Largest tap index + 1 per axis that still has a right / lower
-    /// neighbour: `width - 1`, `height - 1`.
+    /// Taps per axis: 2 (bilinear) or 4 (bicubic).
+    taps: i32,
+    /// One more than the largest index of a window's first tap per axis
+    /// that keeps the window inside: `width - taps + 1`, `height - taps + 1`.
     last: (i32, i32),
-    /// One more than the largest byte offset of a lower-left tap whose
-    /// loads stay inside the buffer.
+    /// One more than the largest byte offset of a window's lower-left tap
+    /// whose loads stay inside the buffer.
     reach: i32,
 }
 
@@ -43,15 +45,17 @@ impl Geometry {
         len_bytes: usize,
         stride: usize,
         pixel: usize,
-        w: usize,
-        h: usize,
+        taps: usize,
+        (w, h): (usize, usize),
         read: usize,
     ) -> Option<Self> {
         let len = i32::try_from(len_bytes).ok()?;
+        let taps = taps as i32;
         Some(Self {
             stride: i32::try_from(stride).ok()?,
             pixel: pixel as i32,
-            last: (w as i32 - 1, h as i32 - 1),
+            taps,
+            last: (w as i32 - taps + 1, h as i32 - taps + 1),
             reach: len - read as i32 + 1,
         })
     }
@@ -61,9 +65,8 @@ impl Geometry {
 struct Step {
     /// Byte offset of each pixel's upper-left tap.
     top: __m256i,
-    /// Horizontal weights as 16-bit pairs `(256 - fx) | fx << 16`.
-    wx: __m256i,
-    /// Vertical fractions `fy`.
+    /// Fractions in 256ths.
+    fx: __m256i,
     fy: __m256i,
 }
 
@@ -89,14 +92,16 @@ unsafe fn step(xy: *const i32, g: &Geometry) -> Option<Step> {
     );
     let sx = _mm256_permute2x128_si256(a, b, 0x20);
     let sy = _mm256_permute2x128_si256(a, b, 0x31);
-    // The arithmetic shift is floor; NOWHERE lands far outside.
-    let ix = _mm256_srai_epi32(sx, FRAC_BITS as i32);
-    let iy = _mm256_srai_epi32(sy, FRAC_BITS as i32);
+    // The arithmetic shift is floor; NOWHERE lands far outside. The first
+    // tap is one left of and above floor(position) for 4 taps.
+    let lead = _mm256_set1_epi32(g.taps / 2 - 1);
+    let ix = _mm256_sub_epi32(_mm256_srai_epi32(sx, FRAC_BITS as i32), lead);
+    let iy = _mm256_sub_epi32(_mm256_srai_epi32(sy, FRAC_BITS as i32), lead);
     let top = _mm256_add_epi32(
         _mm256_mullo_epi32(iy, _mm256_set1_epi32(g.stride)),
         _mm256_mullo_epi32(ix, _mm256_set1_epi32(g.pixel)),
     );
-    let below = _mm256_add_epi32(top, _mm256_set1_epi32(g.stride));
+    let below = _mm256_add_epi32(top, _mm256_set1_epi32((g.taps - 1) * g.stride));
     let minus_one = _mm256_set1_epi32(-1);
     // Offsets of pixels outside wrap around, but they are excluded by the
     // index tests, which come first in meaning (all are and-ed).
@@ -117,17 +122,21 @@ unsafe fn step(xy: *const i32, g: &Geometry) -> Option<Step> {
         return None;
     }
     let mask = _mm256_set1_epi32((1 << FRAC_BITS) - 1);
-    let fx = _mm256_and_si256(sx, mask);
-    // (256 - fx) | fx << 16 = 256 + fx · (2^16 - 1).
-    let wx = _mm256_add_epi32(
-        _mm256_set1_epi32(1 << FRAC_BITS),
-        _mm256_sub_epi32(_mm256_slli_epi32(fx, 16), fx),
-    );
     Some(Step {
         top,
-        wx,
+        fx: _mm256_and_si256(sx, mask),
         fy: _mm256_and_si256(sy, mask),
     })
+}
+
+/// Horizontal bilinear weights as 16-bit pairs `(256 - fx) | fx << 16`,
+/// i.e. `256 + fx · (2^16 - 1)`, for `madd`.
+#[target_feature(enable = "avx2")]
+fn weight_pairs(fx: __m256i) -> __m256i {
+    _mm256_add_epi32(
+        _mm256_set1_epi32(1 << FRAC_BITS),
+        _mm256_sub_epi32(_mm256_slli_epi32(fx, 16), fx),
+    )
 }
 
 /// `(top · 256 + (bottom - top) · fy + 2^15) >> 16` lane by lane: the
@@ -225,7 +234,7 @@ pub(super) unsafe fn row_u8<const NC: usize>(
     if row.len() != NC * (xy.len() / 2) {
         return false;
     }
-    let Some(g) = Geometry::new(src.len(), stride, NC, w, h, read) else {
+    let Some(g) = Geometry::new(src.len(), stride, NC, 2, (w, h), read) else {
         return false;
     };
     let base = src.as_ptr();
@@ -243,13 +252,11 @@ pub(super) unsafe fn row_u8<const NC: usize>(
         // NC · n bytes and step k writes NC · 8 of them from NC · 8k.
         if NC == 1 {
             let (t, b) = unsafe { (gather(base, s.top), gather(base, below)) };
-            let top = _mm256_madd_epi16(_mm256_shuffle_epi8(t, pairs), s.wx);
-            let bottom = _mm256_madd_epi16(_mm256_shuffle_epi8(b, pairs), s.wx);
+            let wx = weight_pairs(s.fx);
+            let top = _mm256_madd_epi16(_mm256_shuffle_epi8(t, pairs), wx);
+            let bottom = _mm256_madd_epi16(_mm256_shuffle_epi8(b, pairs), wx);
             let v = vertical(top, bottom, s.fy);
-            let v16 = _mm256_packus_epi32(v, v);
-            let v8 = _mm256_packus_epi16(v16, v16);
-            let v8 = _mm256_permutevar8x32_epi32(v8, _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4));
-            unsafe { _mm_storel_epi64(out.add(LANES * k).cast(), _mm256_castsi256_si128(v8)) };
+            unsafe { store_gray_u8(out.add(LANES * k), v) };
         } else {
             // Per pixel and row one 8-byte read [r0 g0 b0 r1 g1 b1 _ _],
             // widened to 16 bits and reordered into (left, right) pairs per
@@ -287,7 +294,7 @@ pub(super) unsafe fn row_u8<const NC: usize>(
                     _mm256_shuffle_epi32::<0xFF>(v),
                 ]
             };
-            let (wx, fy) = (spread(s.wx), spread(s.fy));
+            let (wx, fy) = (spread(weight_pairs(s.fx)), spread(s.fy));
             // Each lane: R, G, B and a discarded fourth value.
             let v: [__m256i; 4] = std::array::from_fn(|q| {
                 vertical(
@@ -296,25 +303,7 @@ pub(super) unsafe fn row_u8<const NC: usize>(
                     fy[q],
                 )
             });
-            let v16 = [
-                _mm256_packus_epi32(v[0], v[1]),
-                _mm256_packus_epi32(v[2], v[3]),
-            ];
-            // Lane 0: pixels 0-3 as RGB_, lane 1: pixels 4-7.
-            let v8 = _mm256_packus_epi16(v16[0], v16[1]);
-            let drop = _mm256_setr_epi8(
-                0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1, 0, 1, 2, 4, 5, 6, 8, 9, 10,
-                12, 13, 14, -1, -1, -1, -1,
-            );
-            let packed = _mm256_permutevar8x32_epi32(
-                _mm256_shuffle_epi8(v8, drop),
-                _mm256_setr_epi32(0, 1, 2, 4, 5, 6, 3, 7),
-            );
-            unsafe {
-                let dst = out.add(3 * LANES * k);
-                _mm_storeu_si128(dst.cast(), _mm256_castsi256_si128(packed));
-                _mm_storel_epi64(dst.add(16).cast(), _mm256_extracti128_si256::<1>(packed));
-            }
+            unsafe { store_rgb_u8(out.add(3 * LANES * k), v) };
         }
     };
     // SAFETY: AVX2 is enabled here; the body only writes the step's pixels
@@ -346,7 +335,7 @@ pub(super) unsafe fn row_u16(
     if row.len() != xy.len() / 2 {
         return false;
     }
-    let Some(g) = Geometry::new(2 * src.len(), 2 * stride, 2, w, h, 4) else {
+    let Some(g) = Geometry::new(2 * src.len(), 2 * stride, 2, 2, (w, h), 4) else {
         return false;
     };
     let base = src.as_ptr().cast::<u8>();
@@ -354,8 +343,7 @@ pub(super) unsafe fn row_u16(
     let stride_v = _mm256_set1_epi32(g.stride);
     let low = _mm256_set1_epi32(0xffff);
     let body = |k: usize, s: Step| {
-        // (256 - fx, fx) pairs back to fx.
-        let fx = _mm256_srli_epi32(s.wx, 16);
+        let fx = s.fx;
         let line = |offsets: __m256i| {
             // SAFETY: `step` admitted only reads inside `src`.
             let p = unsafe { gather(base, offsets) };
@@ -367,9 +355,295 @@ pub(super) unsafe fn row_u16(
             )
         };
         let v = vertical(line(s.top), line(_mm256_add_epi32(s.top, stride_v)), s.fy);
-        let v16 = _mm256_permute4x64_epi64::<0b1000>(_mm256_packus_epi32(v, v));
         // SAFETY: step k writes samples 8k .. 8k + 8 of `row`.
-        unsafe { _mm_storeu_si128(out.add(LANES * k).cast(), _mm256_castsi256_si128(v16)) };
+        unsafe { store_u16(out.add(LANES * k), v) };
+    };
+    // SAFETY: as in `row_u8`.
+    unsafe {
+        walk(xy, &g, body, &mut |x| {
+            pixel(x, std::slice::from_raw_parts_mut(out.add(x), 1))
+        })
+    };
+    true
+}
+
+/// Stores eight values in `0..=255`, one per lane, as bytes.
+///
+/// # Safety
+/// AVX2; `dst` is valid for 8 bytes.
+#[target_feature(enable = "avx2")]
+unsafe fn store_gray_u8(dst: *mut u8, v: __m256i) {
+    let v16 = _mm256_packus_epi32(v, v);
+    let v8 = _mm256_packus_epi16(v16, v16);
+    let v8 = _mm256_permutevar8x32_epi32(v8, _mm256_setr_epi32(0, 4, 0, 4, 0, 4, 0, 4));
+    // SAFETY: the caller guarantees 8 writable bytes.
+    unsafe { _mm_storel_epi64(dst.cast(), _mm256_castsi256_si128(v8)) };
+}
+
+/// Stores eight values in `0..=65535`, one per lane, as u16.
+///
+/// # Safety
+/// AVX2; `dst` is valid for 8 samples.
+#[target_feature(enable = "avx2")]
+unsafe fn store_u16(dst: *mut u16, v: __m256i) {
+    let v16 = _mm256_permute4x64_epi64::<0b1000>(_mm256_packus_epi32(v, v));
+    // SAFETY: the caller guarantees 16 writable bytes.
+    unsafe { _mm_storeu_si128(dst.cast(), _mm256_castsi256_si128(v16)) };
+}
+
+/// Stores eight RGB pixels given as four registers, register q holding
+/// pixel q in its low and pixel q + 4 in its high 128-bit lane, each as
+/// R, G, B and a discarded fourth value in `0..=255`.
+///
+/// # Safety
+/// AVX2; `dst` is valid for 24 bytes.
+#[target_feature(enable = "avx2")]
+unsafe fn store_rgb_u8(dst: *mut u8, v: [__m256i; 4]) {
+    let v16 = [
+        _mm256_packus_epi32(v[0], v[1]),
+        _mm256_packus_epi32(v[2], v[3]),
+    ];
+    // Lane 0: pixels 0-3 as RGB_, lane 1: pixels 4-7.
+    let v8 = _mm256_packus_epi16(v16[0], v16[1]);
+    let drop = _mm256_setr_epi8(
+        0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1, 0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13,
+        14, -1, -1, -1, -1,
+    );
+    let packed = _mm256_permutevar8x32_epi32(
+        _mm256_shuffle_epi8(v8, drop),
+        _mm256_setr_epi32(0, 1, 2, 4, 5, 6, 3, 7),
+    );
+    // SAFETY: the caller guarantees 24 writable bytes.
+    unsafe {
+        _mm_storeu_si128(dst.cast(), _mm256_castsi256_si128(packed));
+        _mm_storel_epi64(dst.add(16).cast(), _mm256_extracti128_si256::<1>(packed));
+    }
+}
+
+/// Keys weights of the four taps for fractions `k / 256`, lane by lane:
+/// the same `f32` operations in the same order as [`super::keys_weights`]
+/// (no fused multiply-add), hence the same bits as the scalar table.
+#[target_feature(enable = "avx2")]
+fn keys(k: __m256i) -> [__m256; 4] {
+    let one = _mm256_set1_ps(1.0);
+    // Multiplying by 2^-8 is exact, like the scalar division by 256.
+    let t = _mm256_mul_ps(
+        _mm256_cvtepi32_ps(k),
+        _mm256_set1_ps(1.0 / (1 << FRAC_BITS) as f32),
+    );
+    let u = _mm256_sub_ps(one, t);
+    let near = |d: __m256| {
+        let c = _mm256_sub_ps(
+            _mm256_mul_ps(_mm256_set1_ps(KEYS_A + 2.0), d),
+            _mm256_set1_ps(KEYS_A + 3.0),
+        );
+        _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(c, d), d), one)
+    };
+    let far = |s: __m256| {
+        let s1 = _mm256_sub_ps(s, one);
+        _mm256_mul_ps(
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(KEYS_A), s), s1),
+            s1,
+        )
+    };
+    [far(t), near(t), near(u), far(u)]
+}
+
+/// `Σ_j wy[j] Σ_i wx[i] tap(i, j)` in the scalar `convolve`'s order, from
+/// zero, rounded half up and clamped to `0..=max` (NaN to 0) like
+/// `Sample::from_f32`.
+#[target_feature(enable = "avx2")]
+fn cubic(
+    wx: &[__m256; 4],
+    wy: &[__m256; 4],
+    tap: impl Fn(usize, usize) -> __m256,
+    max: f32,
+) -> __m256i {
+    let mut acc = _mm256_setzero_ps();
+    for (j, b) in wy.iter().enumerate() {
+        let mut line = _mm256_setzero_ps();
+        for (i, a) in wx.iter().enumerate() {
+            line = _mm256_add_ps(line, _mm256_mul_ps(*a, tap(i, j)));
+        }
+        acc = _mm256_add_ps(acc, _mm256_mul_ps(*b, line));
+    }
+    // max_ps returns its second operand for NaN.
+    let v = _mm256_max_ps(_mm256_add_ps(acc, _mm256_set1_ps(0.5)), _mm256_setzero_ps());
+    _mm256_cvttps_epi32(_mm256_min_ps(v, _mm256_set1_ps(max)))
+}
+
+/// The eight lanes of `v`.
+#[target_feature(enable = "avx2")]
+fn lanes(v: __m256i) -> [i32; 8] {
+    let mut o = [0i32; 8];
+    // SAFETY: `o` holds 32 bytes.
+    unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast(), v) };
+    o
+}
+
+/// Bicubic u8 with `NC` = 1 or 3 channels; see [`row_u8`] for the contract.
+///
+/// # Safety
+/// As [`row_u8`].
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn cubic_u8<const NC: usize>(
+    src: &[u8],
+    stride: usize,
+    (w, h): (usize, usize),
+    xy: &[i32],
+    row: &mut [u8],
+    pixel: &mut dyn FnMut(usize, &mut [u8]),
+) -> bool {
+    // Gray reads the 4 bytes of a window row, RGB 16 (12 used).
+    let read = if NC == 1 { 4 } else { 16 };
+    if row.len() != NC * (xy.len() / 2) {
+        return false;
+    }
+    let Some(g) = Geometry::new(src.len(), stride, NC, 4, (w, h), read) else {
+        return false;
+    };
+    let base = src.as_ptr();
+    let out = row.as_mut_ptr();
+    let stride_v = _mm256_set1_epi32(g.stride);
+    let byte = _mm256_set1_epi32(0xff);
+    let body = |k: usize, s: Step| {
+        let (wx, wy) = (keys(s.fx), keys(s.fy));
+        let rows: [__m256i; 4] = std::array::from_fn(|j| {
+            _mm256_add_epi32(
+                s.top,
+                _mm256_mullo_epi32(_mm256_set1_epi32(j as i32), stride_v),
+            )
+        });
+        // SAFETY (loads): `step` admitted only windows whose reads end
+        // inside `src`. (Stores): step k writes pixels 8k .. 8k + 8 of `row`.
+        if NC == 1 {
+            // Lane = pixel; one 4-byte read per window row.
+            let p = rows.map(|r| unsafe { gather(base, r) });
+            let tap = |i: usize, j: usize| {
+                let v = _mm256_and_si256(
+                    _mm256_srlv_epi32(p[j], _mm256_set1_epi32(8 * i as i32)),
+                    byte,
+                );
+                _mm256_cvtepi32_ps(v)
+            };
+            let v = cubic(&wx, &wy, tap, 255.0);
+            unsafe { store_gray_u8(out.add(LANES * k), v) };
+        } else {
+            // Register q: pixel q in the low, q + 4 in the high 128-bit
+            // lane, channels R, G, B, 0 in each; taps moved into place
+            // with one byte shuffle per tap.
+            let offsets = rows.map(|r| lanes(r));
+            let v: [__m256i; 4] = std::array::from_fn(|q| {
+                let p: [__m256i; 4] = std::array::from_fn(|j| unsafe {
+                    let at = |x: usize| _mm_loadu_si128(base.add(offsets[j][x] as usize).cast());
+                    _mm256_set_m128i(at(q + 4), at(q))
+                });
+                let tap = |i: usize, j: usize| {
+                    let b = 3 * i as i8;
+                    let select = _mm256_setr_epi8(
+                        b,
+                        -1,
+                        -1,
+                        -1,
+                        b + 1,
+                        -1,
+                        -1,
+                        -1,
+                        b + 2,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        b,
+                        -1,
+                        -1,
+                        -1,
+                        b + 1,
+                        -1,
+                        -1,
+                        -1,
+                        b + 2,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                        -1,
+                    );
+                    _mm256_cvtepi32_ps(_mm256_shuffle_epi8(p[j], select))
+                };
+                let spread = |w: &[__m256; 4]| {
+                    w.map(|v| match q {
+                        0 => _mm256_shuffle_ps::<0x00>(v, v),
+                        1 => _mm256_shuffle_ps::<0x55>(v, v),
+                        2 => _mm256_shuffle_ps::<0xAA>(v, v),
+                        _ => _mm256_shuffle_ps::<0xFF>(v, v),
+                    })
+                };
+                cubic(&spread(&wx), &spread(&wy), tap, 255.0)
+            });
+            unsafe { store_rgb_u8(out.add(3 * LANES * k), v) };
+        }
+    };
+    // SAFETY: as in `row_u8`.
+    unsafe {
+        walk(xy, &g, body, &mut |x| {
+            pixel(x, std::slice::from_raw_parts_mut(out.add(NC * x), NC))
+        })
+    };
+    true
+}
+
+/// Bicubic u16 with one channel; see [`row_u16`] for the contract.
+///
+/// # Safety
+/// As [`row_u16`].
+#[target_feature(enable = "avx2")]
+pub(super) unsafe fn cubic_u16(
+    src: &[u16],
+    stride: usize,
+    (w, h): (usize, usize),
+    xy: &[i32],
+    row: &mut [u16],
+    pixel: &mut dyn FnMut(usize, &mut [u16]),
+) -> bool {
+    if row.len() != xy.len() / 2 {
+        return false;
+    }
+    let Some(g) = Geometry::new(2 * src.len(), 2 * stride, 2, 4, (w, h), 8) else {
+        return false;
+    };
+    let base = src.as_ptr().cast::<u8>();
+    let out = row.as_mut_ptr();
+    let stride_v = _mm256_set1_epi32(g.stride);
+    let (low, four) = (_mm256_set1_epi32(0xffff), _mm256_set1_epi32(4));
+    let body = |k: usize, s: Step| {
+        let (wx, wy) = (keys(s.fx), keys(s.fy));
+        // Per window row two 4-byte reads: taps (0, 1) and (2, 3).
+        let p: [[__m256i; 2]; 4] = std::array::from_fn(|j| {
+            let r = _mm256_add_epi32(
+                s.top,
+                _mm256_mullo_epi32(_mm256_set1_epi32(j as i32), stride_v),
+            );
+            // SAFETY: `step` admitted only reads inside `src`.
+            unsafe { [gather(base, r), gather(base, _mm256_add_epi32(r, four))] }
+        });
+        let tap = |i: usize, j: usize| {
+            let v = p[j][i / 2];
+            let v = if i % 2 == 0 {
+                _mm256_and_si256(v, low)
+            } else {
+                _mm256_srli_epi32(v, 16)
+            };
+            _mm256_cvtepi32_ps(v)
+        };
+        let v = cubic(&wx, &wy, tap, 65535.0);
+        // SAFETY: step k writes samples 8k .. 8k + 8 of `row`.
+        unsafe { store_u16(out.add(LANES * k), v) };
     };
     // SAFETY: as in `row_u8`.
     unsafe {
