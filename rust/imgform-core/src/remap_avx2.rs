@@ -423,53 +423,69 @@ unsafe fn store_rgb_u8(dst: *mut u8, v: [__m256i; 4]) {
 /// Keys weights of the four taps for fractions `k / 256`, lane by lane:
 /// the same `f32` operations in the same order as [`super::keys_weights`]
 /// (no fused multiply-add), hence the same bits as the scalar table.
-#[target_feature(enable = "avx2")]
-fn keys(k: __m256i) -> [__m256; 4] {
-    let one = _mm256_set1_ps(1.0);
-    // Multiplying by 2^-8 is exact, like the scalar division by 256.
-    let t = _mm256_mul_ps(
-        _mm256_cvtepi32_ps(k),
-        _mm256_set1_ps(1.0 / (1 << FRAC_BITS) as f32),
-    );
-    let u = _mm256_sub_ps(one, t);
-    let near = |d: __m256| {
-        let c = _mm256_sub_ps(
-            _mm256_mul_ps(_mm256_set1_ps(KEYS_A + 2.0), d),
-            _mm256_set1_ps(KEYS_A + 3.0),
+///
+/// Not a `target_feature` function but always inlined into one: LLVM
+/// declined to inline the 4x4 kernels on its own, and the calls with
+/// their vector arguments passed through memory took ~half the time.
+///
+/// # Safety
+/// AVX2.
+#[inline(always)]
+unsafe fn keys(k: __m256i) -> [__m256; 4] {
+    // SAFETY: the caller guarantees AVX2.
+    unsafe {
+        let one = _mm256_set1_ps(1.0);
+        // Multiplying by 2^-8 is exact, like the scalar division by 256.
+        let t = _mm256_mul_ps(
+            _mm256_cvtepi32_ps(k),
+            _mm256_set1_ps(1.0 / (1 << FRAC_BITS) as f32),
         );
-        _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(c, d), d), one)
-    };
-    let far = |s: __m256| {
-        let s1 = _mm256_sub_ps(s, one);
-        _mm256_mul_ps(
-            _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(KEYS_A), s), s1),
-            s1,
-        )
-    };
-    [far(t), near(t), near(u), far(u)]
+        let u = _mm256_sub_ps(one, t);
+        let near = |d: __m256| {
+            let c = _mm256_sub_ps(
+                _mm256_mul_ps(_mm256_set1_ps(KEYS_A + 2.0), d),
+                _mm256_set1_ps(KEYS_A + 3.0),
+            );
+            _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(c, d), d), one)
+        };
+        let far = |s: __m256| {
+            let s1 = _mm256_sub_ps(s, one);
+            _mm256_mul_ps(
+                _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(KEYS_A), s), s1),
+                s1,
+            )
+        };
+        [far(t), near(t), near(u), far(u)]
+    }
 }
 
 /// `Σ_j wy[j] Σ_i wx[i] tap(i, j)` in the scalar `convolve`'s order, from
 /// zero, rounded half up and clamped to `0..=max` (NaN to 0) like
 /// `Sample::from_f32`.
-#[target_feature(enable = "avx2")]
-fn cubic(
+///
+/// # Safety
+/// AVX2 (inlined like [`keys`]).
+#[inline(always)]
+unsafe fn cubic(
     wx: &[__m256; 4],
     wy: &[__m256; 4],
     tap: impl Fn(usize, usize) -> __m256,
     max: f32,
 ) -> __m256i {
-    let mut acc = _mm256_setzero_ps();
-    for (j, b) in wy.iter().enumerate() {
-        let mut line = _mm256_setzero_ps();
-        for (i, a) in wx.iter().enumerate() {
-            line = _mm256_add_ps(line, _mm256_mul_ps(*a, tap(i, j)));
+    // SAFETY: the caller guarantees AVX2.
+    unsafe {
+        let mut acc = _mm256_setzero_ps();
+        for (j, b) in wy.iter().enumerate() {
+            let mut line = _mm256_setzero_ps();
+            for (i, a) in wx.iter().enumerate() {
+                line = _mm256_add_ps(line, _mm256_mul_ps(*a, tap(i, j)));
+            }
+            acc = _mm256_add_ps(acc, _mm256_mul_ps(*b, line));
         }
-        acc = _mm256_add_ps(acc, _mm256_mul_ps(*b, line));
+        // max_ps returns its second operand for NaN.
+        let v = _mm256_max_ps(_mm256_add_ps(acc, _mm256_set1_ps(0.5)), _mm256_setzero_ps());
+        _mm256_cvttps_epi32(_mm256_min_ps(v, _mm256_set1_ps(max)))
     }
-    // max_ps returns its second operand for NaN.
-    let v = _mm256_max_ps(_mm256_add_ps(acc, _mm256_set1_ps(0.5)), _mm256_setzero_ps());
-    _mm256_cvttps_epi32(_mm256_min_ps(v, _mm256_set1_ps(max)))
 }
 
 /// The eight lanes of `v`.
@@ -507,7 +523,8 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
     let stride_v = _mm256_set1_epi32(g.stride);
     let byte = _mm256_set1_epi32(0xff);
     let body = |k: usize, s: Step| {
-        let (wx, wy) = (keys(s.fx), keys(s.fy));
+        // SAFETY: AVX2 is enabled here.
+        let (wx, wy) = unsafe { (keys(s.fx), keys(s.fy)) };
         let rows: [__m256i; 4] = std::array::from_fn(|j| {
             _mm256_add_epi32(
                 s.top,
@@ -526,7 +543,8 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
                 );
                 _mm256_cvtepi32_ps(v)
             };
-            let v = cubic(&wx, &wy, tap, 255.0);
+            // SAFETY: AVX2 is enabled here.
+            let v = unsafe { cubic(&wx, &wy, tap, 255.0) };
             unsafe { store_gray_u8(out.add(LANES * k), v) };
         } else {
             // Register q: pixel q in the low, q + 4 in the high 128-bit
@@ -584,7 +602,8 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
                         _ => _mm256_shuffle_ps::<0xFF>(v, v),
                     })
                 };
-                cubic(&spread(&wx), &spread(&wy), tap, 255.0)
+                // SAFETY: AVX2 is enabled here.
+                unsafe { cubic(&spread(&wx), &spread(&wy), tap, 255.0) }
             });
             unsafe { store_rgb_u8(out.add(3 * LANES * k), v) };
         }
@@ -622,7 +641,8 @@ pub(super) unsafe fn cubic_u16(
     let stride_v = _mm256_set1_epi32(g.stride);
     let (low, four) = (_mm256_set1_epi32(0xffff), _mm256_set1_epi32(4));
     let body = |k: usize, s: Step| {
-        let (wx, wy) = (keys(s.fx), keys(s.fy));
+        // SAFETY: AVX2 is enabled here.
+        let (wx, wy) = unsafe { (keys(s.fx), keys(s.fy)) };
         // Per window row two 4-byte reads: taps (0, 1) and (2, 3).
         let p: [[__m256i; 2]; 4] = std::array::from_fn(|j| {
             let r = _mm256_add_epi32(
@@ -641,7 +661,8 @@ pub(super) unsafe fn cubic_u16(
             };
             _mm256_cvtepi32_ps(v)
         };
-        let v = cubic(&wx, &wy, tap, 65535.0);
+        // SAFETY: AVX2 is enabled here.
+        let v = unsafe { cubic(&wx, &wy, tap, 65535.0) };
         // SAFETY: step k writes samples 8k .. 8k + 8 of `row`.
         unsafe { store_u16(out.add(LANES * k), v) };
     };
