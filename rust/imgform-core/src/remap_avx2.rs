@@ -639,18 +639,36 @@ pub(super) unsafe fn cubic_u16(
     let base = src.as_ptr().cast::<u8>();
     let out = row.as_mut_ptr();
     let stride_v = _mm256_set1_epi32(g.stride);
-    let (low, four) = (_mm256_set1_epi32(0xffff), _mm256_set1_epi32(4));
+    let low = _mm256_set1_epi32(0xffff);
+    // One 8-byte read per pixel and window row; splitting the four reads
+    // of two registers into taps (0, 1) and (2, 3) leaves the pixels in the
+    // order 0 1 4 5 | 2 3 6 7, so the fractions are put in that order too
+    // and the results back (the permutation is its own inverse).
+    let order = _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7);
     let body = |k: usize, s: Step| {
         // SAFETY: AVX2 is enabled here.
-        let (wx, wy) = unsafe { (keys(s.fx), keys(s.fy)) };
-        // Per window row two 4-byte reads: taps (0, 1) and (2, 3).
+        let (wx, wy) = unsafe {
+            (
+                keys(_mm256_permutevar8x32_epi32(s.fx, order)),
+                keys(_mm256_permutevar8x32_epi32(s.fy, order)),
+            )
+        };
         let p: [[__m256i; 2]; 4] = std::array::from_fn(|j| {
             let r = _mm256_add_epi32(
                 s.top,
                 _mm256_mullo_epi32(_mm256_set1_epi32(j as i32), stride_v),
             );
             // SAFETY: `step` admitted only reads inside `src`.
-            unsafe { [gather(base, r), gather(base, _mm256_add_epi32(r, four))] }
+            let (a, b) = unsafe {
+                (
+                    _mm256_castsi256_ps(gather8(base, _mm256_castsi256_si128(r))),
+                    _mm256_castsi256_ps(gather8(base, _mm256_extracti128_si256::<1>(r))),
+                )
+            };
+            [
+                _mm256_castps_si256(_mm256_shuffle_ps::<0b10_00_10_00>(a, b)),
+                _mm256_castps_si256(_mm256_shuffle_ps::<0b11_01_11_01>(a, b)),
+            ]
         });
         let tap = |i: usize, j: usize| {
             let v = p[j][i / 2];
@@ -663,6 +681,7 @@ pub(super) unsafe fn cubic_u16(
         };
         // SAFETY: AVX2 is enabled here.
         let v = unsafe { cubic(&wx, &wy, tap, 65535.0) };
+        let v = _mm256_permutevar8x32_epi32(v, order);
         // SAFETY: step k writes samples 8k .. 8k + 8 of `row`.
         unsafe { store_u16(out.add(LANES * k), v) };
     };
