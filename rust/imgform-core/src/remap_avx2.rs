@@ -192,27 +192,37 @@ unsafe fn gather8(base: *const u8, offsets: __m128i) -> __m256i {
 }
 
 /// Runs `f(k, step)` for every full step of a row whose windows are inside
-/// and `pixel(x)` for the others and for the tail.
+/// and `pixel(x, px)` for the others and for the tail, `px` being the `nc`
+/// samples of pixel `x` at `out`.
 ///
 /// # Safety
-/// AVX2.
+/// AVX2; `out` is valid for `nc · xy.len() / 2` samples, and `f(k, _)`
+/// writes only those of pixels `8k .. 8k + 8` (so the two never overlap).
 #[target_feature(enable = "avx2")]
-unsafe fn walk(
+unsafe fn walk<T>(
     xy: &[i32],
     g: &Geometry,
     mut f: impl FnMut(usize, Step),
-    pixel: &mut dyn FnMut(usize),
+    (out, nc): (*mut T, usize),
+    pixel: &mut dyn FnMut(usize, &mut [T]),
 ) {
+    // SAFETY: x < n, so the pixel's samples are inside `out`, and `f` is
+    // not writing them.
+    let mut scalar = |x: usize| {
+        pixel(x, unsafe {
+            std::slice::from_raw_parts_mut(out.add(nc * x), nc)
+        })
+    };
     let n = xy.len() / 2;
     let steps = n / LANES;
     for k in 0..steps {
         // SAFETY: step k reads xy[16k .. 16k + 16], inside since k < n / 8.
         match unsafe { step(xy.as_ptr().add(2 * LANES * k), g) } {
             Some(s) => f(k, s),
-            None => (LANES * k..LANES * (k + 1)).for_each(&mut *pixel),
+            None => (LANES * k..LANES * (k + 1)).for_each(&mut scalar),
         }
     }
-    (LANES * steps..n).for_each(pixel);
+    (LANES * steps..n).for_each(scalar);
 }
 
 /// u8 with `NC` = 1 or 3 channels; see the module documentation.
@@ -306,13 +316,9 @@ pub(super) unsafe fn row_u8<const NC: usize>(
             unsafe { store_rgb_u8(out.add(3 * LANES * k), v) };
         }
     };
-    // SAFETY: AVX2 is enabled here; the body only writes the step's pixels
-    // and the callback only the pixels the walk hands it, never both.
-    unsafe {
-        walk(xy, &g, body, &mut |x| {
-            pixel(x, std::slice::from_raw_parts_mut(out.add(NC * x), NC))
-        })
-    };
+    // SAFETY: AVX2 is enabled here; `row` holds NC samples per map pixel
+    // (checked above) and the body writes only step k's pixels.
+    unsafe { walk(xy, &g, body, (out, NC), pixel) };
     true
 }
 
@@ -359,11 +365,7 @@ pub(super) unsafe fn row_u16(
         unsafe { store_u16(out.add(LANES * k), v) };
     };
     // SAFETY: as in `row_u8`.
-    unsafe {
-        walk(xy, &g, body, &mut |x| {
-            pixel(x, std::slice::from_raw_parts_mut(out.add(x), 1))
-        })
-    };
+    unsafe { walk(xy, &g, body, (out, 1), pixel) };
     true
 }
 
@@ -609,11 +611,7 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
         }
     };
     // SAFETY: as in `row_u8`.
-    unsafe {
-        walk(xy, &g, body, &mut |x| {
-            pixel(x, std::slice::from_raw_parts_mut(out.add(NC * x), NC))
-        })
-    };
+    unsafe { walk(xy, &g, body, (out, NC), pixel) };
     true
 }
 
@@ -686,10 +684,6 @@ pub(super) unsafe fn cubic_u16(
         unsafe { store_u16(out.add(LANES * k), v) };
     };
     // SAFETY: as in `row_u8`.
-    unsafe {
-        walk(xy, &g, body, &mut |x| {
-            pixel(x, std::slice::from_raw_parts_mut(out.add(x), 1))
-        })
-    };
+    unsafe { walk(xy, &g, body, (out, 1), pixel) };
     true
 }
