@@ -549,70 +549,61 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
             let v = unsafe { cubic(&wx, &wy, tap, 255.0) };
             unsafe { store_gray_u8(out.add(LANES * k), v) };
         } else {
-            // Register q: pixel q in the low, q + 4 in the high 128-bit
-            // lane, channels R, G, B, 0 in each; taps moved into place
-            // with one byte shuffle per tap.
             let offsets = rows.map(|r| lanes(r));
-            let v: [__m256i; 4] = std::array::from_fn(|q| {
-                let p: [__m256i; 4] = std::array::from_fn(|j| unsafe {
-                    let at = |x: usize| _mm_loadu_si128(base.add(offsets[j][x] as usize).cast());
-                    _mm256_set_m128i(at(q + 4), at(q))
-                });
-                let tap = |i: usize, j: usize| {
-                    let b = 3 * i as i8;
-                    let select = _mm256_setr_epi8(
-                        b,
-                        -1,
-                        -1,
-                        -1,
-                        b + 1,
-                        -1,
-                        -1,
-                        -1,
-                        b + 2,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        b,
-                        -1,
-                        -1,
-                        -1,
-                        b + 1,
-                        -1,
-                        -1,
-                        -1,
-                        b + 2,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                        -1,
-                    );
-                    _mm256_cvtepi32_ps(_mm256_shuffle_epi8(p[j], select))
-                };
-                let spread = |w: &[__m256; 4]| {
-                    w.map(|v| match q {
-                        0 => _mm256_shuffle_ps::<0x00>(v, v),
-                        1 => _mm256_shuffle_ps::<0x55>(v, v),
-                        2 => _mm256_shuffle_ps::<0xAA>(v, v),
-                        _ => _mm256_shuffle_ps::<0xFF>(v, v),
-                    })
-                };
-                // SAFETY: AVX2 is enabled here.
-                unsafe { cubic(&spread(&wx), &spread(&wy), tap, 255.0) }
-            });
+            // SAFETY: AVX2 is enabled here; `step` admitted only reads
+            // inside `src`.
+            let v = unsafe {
+                [
+                    rgb_cubic::<0>(base, &offsets, &wx, &wy),
+                    rgb_cubic::<1>(base, &offsets, &wx, &wy),
+                    rgb_cubic::<2>(base, &offsets, &wx, &wy),
+                    rgb_cubic::<3>(base, &offsets, &wx, &wy),
+                ]
+            };
             unsafe { store_rgb_u8(out.add(3 * LANES * k), v) };
         }
     };
     // SAFETY: as in `row_u8`.
     unsafe { walk(xy, &g, body, (out, NC), pixel) };
     true
+}
+
+/// Register `Q` of an RGB bicubic step: pixel `Q` in the low, `Q + 4` in
+/// the high 128-bit lane, channels R, G, B, 0 in each (the layout of
+/// [`store_rgb_u8`]). Each window row is one 16-byte read per pixel (12
+/// used); each tap is moved into place with one byte shuffle. A function
+/// of its own, always inlined, with `Q` a constant: as a closure over `q`
+/// LLVM kept it out of line.
+///
+/// # Safety
+/// AVX2; every `offsets[j][x] .. + 16` lies inside the buffer at `base`.
+#[inline(always)]
+unsafe fn rgb_cubic<const Q: usize>(
+    base: *const u8,
+    offsets: &[[i32; 8]; 4],
+    wx: &[__m256; 4],
+    wy: &[__m256; 4],
+) -> __m256i {
+    // SAFETY: the caller guarantees AVX2 and the reads.
+    unsafe {
+        let p: [__m256i; 4] = std::array::from_fn(|j| {
+            let at = |x: usize| _mm_loadu_si128(base.add(offsets[j][x] as usize).cast());
+            _mm256_set_m128i(at(Q + 4), at(Q))
+        });
+        let tap = |i: usize, j: usize| {
+            let b = 3 * i as i8;
+            #[rustfmt::skip]
+            let select = _mm256_setr_epi8(
+                b, -1, -1, -1, b + 1, -1, -1, -1, b + 2, -1, -1, -1, -1, -1, -1, -1,
+                b, -1, -1, -1, b + 1, -1, -1, -1, b + 2, -1, -1, -1, -1, -1, -1, -1,
+            );
+            _mm256_cvtepi32_ps(_mm256_shuffle_epi8(p[j], select))
+        };
+        // Pixel Q's weights in every lane of the low half, Q + 4's in the high.
+        let spread =
+            |w: &[__m256; 4]| w.map(|v| _mm256_permutevar_ps(v, _mm256_set1_epi32(Q as i32)));
+        cubic(&spread(wx), &spread(wy), tap, 255.0)
+    }
 }
 
 /// Bicubic u16 with one channel; see [`row_u16`] for the contract.
