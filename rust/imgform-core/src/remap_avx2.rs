@@ -25,6 +25,8 @@ const LANES: usize = 8;
 
 /// Source geometry in bytes, as the loads address it.
 struct Geometry {
+    /// The source's first byte.
+    base: *const u8,
     /// Bytes per source row.
     stride: i32,
     /// Bytes per pixel.
@@ -42,6 +44,7 @@ struct Geometry {
 impl Geometry {
     /// `None` when offsets into the buffer may not fit an `i32`.
     fn new(
+        base: *const u8,
         len_bytes: usize,
         stride: usize,
         pixel: usize,
@@ -52,12 +55,39 @@ impl Geometry {
         let len = i32::try_from(len_bytes).ok()?;
         let taps = taps as i32;
         Some(Self {
+            base,
             stride: i32::try_from(stride).ok()?,
             pixel: pixel as i32,
             taps,
             last: (w as i32 - taps + 1, h as i32 - taps + 1),
             reach: len - read as i32 + 1,
         })
+    }
+}
+
+/// Steps ahead whose source windows are prefetched.
+const AHEAD: usize = 4;
+
+impl Geometry {
+    /// Asks for the cache lines of the first and last window rows of map
+    /// pixel `x` (if any): the loads of a step stall on source memory, and
+    /// the hardware prefetcher cannot predict map-driven addresses.
+    #[inline(always)]
+    fn prefetch(&self, xy: &[i32], x: usize) {
+        if let Some(p) = xy.get(2 * x..2 * x + 2) {
+            let lead = self.taps / 2 - 1;
+            let (ix, iy) = ((p[0] >> FRAC_BITS) - lead, (p[1] >> FRAC_BITS) - lead);
+            if ix >= 0 && iy >= 0 && ix < self.last.0 && iy < self.last.1 {
+                let top = (iy * self.stride + ix * self.pixel) as usize;
+                let bottom = top + ((self.taps - 1) * self.stride) as usize;
+                // SAFETY: prefetching has no effect on memory, and the
+                // addresses are inside the source (the window is).
+                unsafe {
+                    _mm_prefetch::<_MM_HINT_T0>(self.base.wrapping_add(top).cast());
+                    _mm_prefetch::<_MM_HINT_T0>(self.base.wrapping_add(bottom).cast());
+                }
+            }
+        }
     }
 }
 
@@ -216,6 +246,7 @@ unsafe fn walk<T>(
     let n = xy.len() / 2;
     let steps = n / LANES;
     for k in 0..steps {
+        g.prefetch(xy, LANES * (k + AHEAD));
         // SAFETY: step k reads xy[16k .. 16k + 16], inside since k < n / 8.
         match unsafe { step(xy.as_ptr().add(2 * LANES * k), g) } {
             Some(s) => f(k, s),
@@ -244,7 +275,7 @@ pub(super) unsafe fn row_u8<const NC: usize>(
     if row.len() != NC * (xy.len() / 2) {
         return false;
     }
-    let Some(g) = Geometry::new(src.len(), stride, NC, 2, (w, h), read) else {
+    let Some(g) = Geometry::new(src.as_ptr(), src.len(), stride, NC, 2, (w, h), read) else {
         return false;
     };
     let base = src.as_ptr();
@@ -341,7 +372,15 @@ pub(super) unsafe fn row_u16(
     if row.len() != xy.len() / 2 {
         return false;
     }
-    let Some(g) = Geometry::new(2 * src.len(), 2 * stride, 2, 2, (w, h), 4) else {
+    let Some(g) = Geometry::new(
+        src.as_ptr().cast(),
+        2 * src.len(),
+        2 * stride,
+        2,
+        2,
+        (w, h),
+        4,
+    ) else {
         return false;
     };
     let base = src.as_ptr().cast::<u8>();
@@ -517,7 +556,7 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
     if row.len() != NC * (xy.len() / 2) {
         return false;
     }
-    let Some(g) = Geometry::new(src.len(), stride, NC, 4, (w, h), read) else {
+    let Some(g) = Geometry::new(src.as_ptr(), src.len(), stride, NC, 4, (w, h), read) else {
         return false;
     };
     let base = src.as_ptr();
@@ -622,7 +661,15 @@ pub(super) unsafe fn cubic_u16(
     if row.len() != xy.len() / 2 {
         return false;
     }
-    let Some(g) = Geometry::new(2 * src.len(), 2 * stride, 2, 4, (w, h), 8) else {
+    let Some(g) = Geometry::new(
+        src.as_ptr().cast(),
+        2 * src.len(),
+        2 * stride,
+        2,
+        4,
+        (w, h),
+        8,
+    ) else {
         return false;
     };
     let base = src.as_ptr().cast::<u8>();
