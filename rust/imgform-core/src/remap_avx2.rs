@@ -66,7 +66,7 @@ impl Geometry {
 }
 
 /// Steps ahead whose source windows are prefetched.
-const AHEAD: usize = 4;
+const AHEAD: usize = 8;
 
 impl Geometry {
     /// Asks for the cache lines of the first and last window rows of map
