@@ -40,9 +40,12 @@
 //! the scalar path, so the output is bit-identical to it (tested). Pixels
 //! near the borders, other layouts, f32 images and the computed positions
 //! of [`crate::chromatic`] take the scalar path. Measured on the shared
-//! 2-core AMD machine (24 MP, `benchmarks/geometry.py`): bilinear
-//! 1.1-1.9x and bicubic 1.0-1.4x faster than `cv2.remap` with either
-//! float32 or fixed-point maps.
+//! 2-core AMD machine (24 MP, best of 5, `benchmarks/geometry.py` and
+//! interleaved runs): u8 RGB bilinear ~1.3-2x faster than `cv2.remap` with
+//! fixed-point maps (its fastest path for RGB), u16 bilinear ~1.2-1.5x
+//! faster than with float32 maps (its fastest for u16), bicubic ~1.3x (u16)
+//! and ~2x (u8 RGB) faster than either. Building a map is still ~4x slower
+//! than `cv2.initUndistortRectifyMap` (scalar f64 per pixel).
 
 use std::ops::{Add, Mul, Range};
 

@@ -14,7 +14,8 @@
 //! load, which reads a few bytes past the last tap, stays inside the
 //! buffer; otherwise the step's pixels go to the scalar `pixel` callback,
 //! which also handles the row's last `width % 8` pixels. In an undistortion
-//! map that is a thin margin along the borders.
+//! map that is a thin margin along the borders. The source windows of the
+//! step [`AHEAD`] steps on are prefetched.
 
 use std::arch::x86_64::*;
 
