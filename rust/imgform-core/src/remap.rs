@@ -761,13 +761,8 @@ mod tests {
 
     /// Both paths over a map that mixes interior windows (all fractions),
     /// borders, far-away and NaN positions, for every kernel layout.
-    fn assert_simd_matches_scalar<T: Resample>(
-        img: &[T],
-        w: usize,
-        h: usize,
-        c: usize,
-        interp: Interpolation,
-    ) {
+    fn assert_simd_matches_scalar<T: Resample>(view: &ImageView<T>, interp: Interpolation) {
+        let (w, h, c) = (view.width(), view.height(), view.channels());
         let (mw, mh) = (37, 9);
         let mut state = 12345u64;
         let mut next = move || {
@@ -806,12 +801,11 @@ mod tests {
             })
             .collect();
         let map = RemapMap::from_interleaved(&xy, mw, mh).unwrap();
-        let view = ImageView::contiguous(img, w, h, c).unwrap();
         let mut fast = vec![T::default(); mw * mh * c];
         let mut slow = fast.clone();
-        remap(&view, &map, interp, 7.0, &mut fast).unwrap();
+        remap(view, &map, interp, 7.0, &mut fast).unwrap();
         let fill = check_fill::<T>(7.0).unwrap();
-        resample(&view, &Scalar(&map), mw, mh, 0..c, interp, fill, &mut slow).unwrap();
+        resample(view, &Scalar(&map), mw, mh, 0..c, interp, fill, &mut slow).unwrap();
         assert_eq!(fast, slow, "{interp:?}, {c} channels");
     }
 
@@ -826,20 +820,25 @@ mod tests {
             (40, 7, Interpolation::Bicubic),
         ] {
             for c in [1, 3, 4] {
-                let n = w * h * c;
-                let u8s: Vec<u8> = (0..n).map(|i| (i * 97 % 256) as u8).collect();
-                assert_simd_matches_scalar(&u8s, w, h, c, interp);
-                // Extreme u16 values exercise the wrap-around in the 32-bit sums.
-                let u16s: Vec<u16> = (0..n)
-                    .map(|i| {
-                        if i % 3 == 0 {
-                            65535
-                        } else {
-                            (i * 7919 % 65536) as u16
-                        }
-                    })
-                    .collect();
-                assert_simd_matches_scalar(&u16s, w, h, c, interp);
+                // Contiguous, and with 5 samples of padding after each row.
+                for stride in [w * c, w * c + 5] {
+                    let n = (h - 1) * stride + w * c;
+                    let u8s: Vec<u8> = (0..n).map(|i| (i * 97 % 256) as u8).collect();
+                    let view = ImageView::new(&u8s, w, h, c, stride).unwrap();
+                    assert_simd_matches_scalar(&view, interp);
+                    // Extreme u16 values exercise the wrap-around in the 32-bit sums.
+                    let u16s: Vec<u16> = (0..n)
+                        .map(|i| {
+                            if i % 3 == 0 {
+                                65535
+                            } else {
+                                (i * 7919 % 65536) as u16
+                            }
+                        })
+                        .collect();
+                    let view = ImageView::new(&u16s, w, h, c, stride).unwrap();
+                    assert_simd_matches_scalar(&view, interp);
+                }
             }
         }
     }
