@@ -164,6 +164,15 @@ impl<'a, T: Copy> ImageView<'a, T> {
     pub fn channels(&self) -> usize {
         self.channels
     }
+    /// Elements between the starts of two consecutive rows.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+    /// The underlying buffer, from the first sample of row 0 (SIMD kernels
+    /// address it with per-pixel offsets).
+    pub fn data(&self) -> &'a [T] {
+        self.data
+    }
     /// Samples in one output row (`width * channels`).
     pub fn row_len(&self) -> usize {
         self.width * self.channels
