@@ -11,6 +11,14 @@ Methods, all for the four Bayer phases and uint8 / uint16 / float32 mosaics:
 - ``"hamilton_adams"``: Hamilton and Adams, US patent 5,629,734 (1997) — green
   interpolated along the direction of smaller gradient plus second derivative,
   red and blue from colour differences, with the same choice between diagonals.
+- ``"rcd"``: Ratio Corrected Demosaicing, Luis Sanz Rodríguez (2017) — green from
+  the four cardinal neighbours, each scaled by a low-pass luminance ratio and
+  weighted by inverse gradients, blended by a local vertical/horizontal statistic;
+  red and blue from colour differences along the diagonals, then the cardinals.
+  Outputs are clamped to the range of the input mosaic. Mean CPSNR 38.7 dB on the
+  benchmark's seven scikit-image images (Hamilton-Adams 38.1).
+
+All methods are Bayer-only.
 
 OpenCV names Bayer codes after the second row's first two pixels: our ``"RGGB"`` is
 ``cv2.COLOR_BayerBG2RGB`` (and OpenCV returns BGR for the ``2BGR`` codes).
@@ -52,7 +60,8 @@ def demosaic(
     ndarray, shape (H, W, 3), same dtype as ``raw``
         R, G, B. Each sampled value comes back unchanged at its own site.
         Integer outputs are rounded half up and clamped to the dtype's range;
-        float outputs are not clamped (Malvar and Hamilton-Adams can overshoot).
+        float outputs are not clamped (Malvar and Hamilton-Adams can overshoot),
+        except by ``"rcd"``, which clamps every output to ``[raw.min(), raw.max()]``.
         Borders are reconstructed from a mirrored mosaic (edge not repeated,
         which keeps the CFA phase): no black frame, no wrap-around.
 

@@ -24,6 +24,8 @@ mod bilinear;
 mod hamilton_adams;
 mod malvar2004;
 mod nearest;
+mod rcd;
+mod tiled;
 
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
@@ -48,15 +50,21 @@ pub enum Method {
     /// then red and blue from colour differences to green, again choosing
     /// the better diagonal at the opposite chroma site.
     HamiltonAdams,
+    /// Ratio Corrected Demosaicing, Luis Sanz Rodríguez (2017): green from
+    /// cardinal neighbours corrected by low-pass luminance ratios, weighted
+    /// by a local direction statistic, then colour differences along the
+    /// diagonals and the cardinals. Outputs are clamped to the input's range.
+    Rcd,
 }
 
 impl Method {
     /// Every method, in the order the documentation lists them.
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
         Method::HamiltonAdams,
+        Method::Rcd,
     ];
 
     /// The name users pass.
@@ -66,6 +74,7 @@ impl Method {
             Method::Bilinear => "bilinear",
             Method::Malvar2004 => "malvar2004",
             Method::HamiltonAdams => "hamilton_adams",
+            Method::Rcd => "rcd",
         }
     }
 
@@ -155,6 +164,7 @@ fn run_method<T: Sample>(
         Method::Bilinear => bilinear::run(raw, phase, isa, out),
         Method::Malvar2004 => malvar2004::run(raw, phase, isa, out),
         Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
+        Method::Rcd => tiled::run_tiled(raw, phase, &rcd::Rcd::new(phase, T::FULL_SCALE), isa, out),
     }
 }
 
@@ -402,6 +412,12 @@ pub(crate) fn write_row<T: Sample>(
     for (dst, src) in packed.0.iter_mut().zip([red, &planes.green, blue]) {
         T::from_f32_row(&mut dst[..w], &src[PAD..PAD + w]);
     }
+    interleave(packed, out);
+}
+
+/// Writes three converted planes as R, G, B pixels.
+#[inline(always)]
+pub(crate) fn interleave<T: Sample>(packed: &Packed<T>, out: &mut [T]) {
     let [r, g, b] = &packed.0;
     for (o, ((r, g), b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g).zip(b)) {
         o[0] = *r;

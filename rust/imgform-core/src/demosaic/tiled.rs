@@ -1,0 +1,207 @@
+//! The skeleton of the multi-stage methods (RCD, Menon 2007): each stage
+//! reads earlier planes several pixels away, so a ring of rows per stage
+//! would need one ring per plane and careful lags. Instead a band of output
+//! rows is computed in a tile of `f32` planes covering the band plus a halo
+//! of mirrored rows and columns on every side; each stage fills the tile
+//! minus its reach, which shrinks from stage to stage, and the band's rows
+//! come out of the middle. Extra memory is a few tile planes per running
+//! task (about 128 rows each), never a full-size temporary.
+//!
+//! The halo is even, so a tile coordinate has the CFA parity of the image
+//! coordinate it stands for; mirroring without repeating the edge keeps the
+//! mosaic plausible across the border, as in the row kernels.
+
+use super::{interleave, Isa, Packed, Phase, RowKind};
+use crate::image::{mirror, ImageView, Sample};
+use rayon::prelude::*;
+
+/// Output rows per tile: the halo (8 to 10 rows each side) is recomputed
+/// for every tile, so tiles are twice as tall as the row kernels' bands
+/// (~15 % overhead) while 24 MP still gives ~30 tasks to balance.
+const ROWS_PER_TILE: usize = 128;
+
+/// Where a tile sits: plane index `ty * stride + tx` is image pixel
+/// `(y0 + ty, tx - K::HALO)`.
+pub(crate) struct Tile {
+    pub(crate) stride: usize,
+    pub(crate) rows: usize,
+    pub(crate) y0: isize,
+}
+
+impl Tile {
+    /// The kind of tile row `ty`.
+    pub(crate) fn kind(&self, phase: Phase, ty: usize) -> RowKind {
+        phase.row(self.y0 + ty as isize)
+    }
+
+    /// Equal-length views of tile row `ty` for a stage of reach `s`: its
+    /// columns `s .. stride - s`.
+    pub(crate) fn span(&self, ty: usize, s: usize) -> Span {
+        Span {
+            stride: self.stride as isize,
+            base: (ty * self.stride + s) as isize,
+            n: self.stride - 2 * s,
+        }
+    }
+}
+
+/// The columns one stage fills in one tile row; see [`Tile::span`].
+#[derive(Clone, Copy)]
+pub(crate) struct Span {
+    stride: isize,
+    base: isize,
+    pub(crate) n: usize,
+}
+
+impl Span {
+    /// Plane `p` seen `dy` rows down and `dx` columns right of the span.
+    #[inline(always)]
+    pub(crate) fn at(self, p: &[f32], dy: isize, dx: isize) -> &[f32] {
+        let start = (self.base + dy * self.stride + dx) as usize;
+        &p[start..start + self.n]
+    }
+
+    /// Plane `p`'s own row, writable.
+    #[inline(always)]
+    pub(crate) fn out(self, p: &mut [f32]) -> &mut [f32] {
+        let start = self.base as usize;
+        &mut p[start..start + self.n]
+    }
+}
+
+/// A multi-stage method run on tiles.
+pub(crate) trait TileKernel: Sync {
+    /// Planes and scratch, made once per tile.
+    type State;
+    /// Mirrored rows and columns needed around the output (even).
+    const HALO: usize;
+    /// Planes of `len` values for tiles `stride` wide.
+    fn state(&self, stride: usize, len: usize) -> Self::State;
+    /// Computes the tile from the raw plane `raw`, returning the planes of
+    /// the row's own chroma, green and the other chroma (see [`RowKind`]),
+    /// valid at least over the tile's middle.
+    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3];
+}
+
+/// The smallest and largest sample of `raw`, to clamp outputs into.
+fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
+    (0..raw.height())
+        .into_par_iter()
+        .map(|y| {
+            raw.row(y)
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| {
+                    let v = v.to_f32();
+                    (lo.min(v), hi.max(v))
+                })
+        })
+        .reduce(
+            || (f32::INFINITY, f32::NEG_INFINITY),
+            |a, b| (a.0.min(b.0), a.1.max(b.1)),
+        )
+}
+
+/// Runs `k` over every tile of rows and writes the result, clamped to the
+/// range of `raw` (min and max are exact whatever the thread count).
+pub(crate) fn run_tiled<T: Sample, K: TileKernel>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    k: &K,
+    isa: Isa,
+    out: &mut [T],
+) {
+    let bounds = range(raw);
+    let w = raw.width();
+    // One set of planes per rayon worker split, reused from tile to tile:
+    // fresh multi-megabyte planes per tile spent a third of the time in
+    // page faults. Each stage only reads what earlier stages of the same
+    // tile wrote, so leftovers of the previous tile never reach the output
+    // (the thread-count tests compare runs with different reuse).
+    let len = (w + 2 * K::HALO) * (ROWS_PER_TILE + 2 * K::HALO);
+    let init = || (vec![0.0f32; len], k.state(w + 2 * K::HALO, len));
+    let tiles = raw.height().div_ceil(ROWS_PER_TILE);
+    out.par_chunks_mut(3 * w * ROWS_PER_TILE)
+        // Tiles cost the same: a run of them per thread makes rayon call
+        // `init` about once per thread instead of once per split.
+        .with_min_len(tiles.div_ceil(2 * rayon::current_num_threads()))
+        .enumerate()
+        .for_each_init(init, |(plane, st), (i, rows)| {
+            let y0 = i * ROWS_PER_TILE;
+            match isa {
+                Isa::Baseline => tile(raw, phase, k, bounds, y0, plane, st, rows),
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+                Isa::Avx2 => unsafe { tile_avx2(raw, phase, k, bounds, y0, plane, st, rows) },
+            }
+        });
+}
+
+/// [`tile`] compiled for AVX2; the kernels inline into it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+fn tile_avx2<T: Sample, K: TileKernel>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    k: &K,
+    bounds: (f32, f32),
+    y0: usize,
+    plane: &mut [f32],
+    st: &mut K::State,
+    rows: &mut [T],
+) {
+    tile(raw, phase, k, bounds, y0, plane, st, rows);
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn tile<T: Sample, K: TileKernel>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    k: &K,
+    (lo, hi): (f32, f32),
+    y0: usize,
+    plane: &mut [f32],
+    st: &mut K::State,
+    rows: &mut [T],
+) {
+    let (w, h, halo) = (raw.width(), raw.height(), K::HALO);
+    let n = rows.len() / (3 * w);
+    let t = Tile {
+        stride: w + 2 * halo,
+        rows: n + 2 * halo,
+        y0: y0 as isize - halo as isize,
+    };
+    let plane = &mut plane[..t.stride * t.rows];
+    for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
+        let src = raw.row(mirror(t.y0 + ty as isize, h));
+        for (d, s) in dst[halo..halo + w].iter_mut().zip(src) {
+            *d = s.to_f32();
+        }
+        for j in 1..=halo {
+            dst[halo - j] = dst[halo + mirror(-(j as isize), w)];
+            dst[halo + w - 1 + j] = dst[halo + mirror((w - 1 + j) as isize, w)];
+        }
+    }
+    let planes = k.run(st, &t, plane);
+    let mut clamped = [0, 1, 2].map(|_| vec![0.0f32; w]);
+    let mut packed = Packed::new(w);
+    for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
+        let ty = halo + i;
+        let kind = t.kind(phase, ty);
+        let [own, green, other] = planes;
+        let rgb = if kind.blue {
+            [other, green, own]
+        } else {
+            [own, green, other]
+        };
+        let start = ty * t.stride + halo;
+        for ((c, src), dst) in clamped.iter_mut().zip(rgb).zip(packed.0.iter_mut()) {
+            for (d, s) in c.iter_mut().zip(&src[start..start + w]) {
+                *d = s.max(lo).min(hi);
+            }
+            T::from_f32_row(dst, c);
+        }
+        interleave(&packed, o);
+    }
+}
