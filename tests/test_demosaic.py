@@ -36,12 +36,23 @@ def flipped_pattern(pattern, shape, vertical, horizontal):
 
 
 def test_methods_are_exactly_the_documented_ones():
-    assert ig.DEMOSAIC_METHODS == ("nearest", "bilinear", "malvar2004", "hamilton_adams", "rcd")
+    assert ig.DEMOSAIC_METHODS == (
+        "nearest",
+        "bilinear",
+        "malvar2004",
+        "hamilton_adams",
+        "rcd",
+        "menon2007",
+    )
 
 
-@given(raw=mosaics(), p=st.sampled_from(BAYER))
-def test_rcd_outputs_stay_within_the_input_range(raw, p):
-    out = ig.demosaic(raw, p, "rcd")
+# The multi-stage methods clamp their outputs to the input's range.
+CLAMPED = ["rcd", "menon2007"]
+
+
+@given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(CLAMPED))
+def test_clamped_methods_stay_within_the_input_range(raw, p, method):
+    out = ig.demosaic(raw, p, method)
     assert raw.min() <= out.min() and out.max() <= raw.max()
 
 
@@ -145,6 +156,24 @@ def test_linear_methods_match_colour_demosaicing_in_the_interior(p, method, peer
     np.testing.assert_allclose(got[2:-2, 2:-2], want[2:-2, 2:-2], rtol=0, atol=1e-5)
 
 
+@pytest.mark.parametrize("p", BAYER)
+def test_menon2007_matches_colour_demosaicing_in_the_interior(p):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cd = pytest.importorskip("colour_demosaicing")
+    ndimage = pytest.importorskip("scipy.ndimage")
+    # A smooth textured image with a little noise: no exact ties in the
+    # a posteriori decision, which float32 and float64 could break apart.
+    rng = np.random.default_rng(5)
+    rgb = ndimage.gaussian_filter(rng.random((60, 70, 3)), (1.5, 1.5, 0))
+    rgb = (rgb + 1e-3 * rng.random(rgb.shape)).astype(np.float32)
+    raw = ig.mosaic(rgb, p)
+    want = cd.demosaicing_CFA_Bayer_Menon2007(raw.astype(np.float64), p)
+    want = np.clip(want, raw.min(), raw.max())
+    got = ig.demosaic(raw, p, "menon2007")
+    np.testing.assert_allclose(got[10:-10, 10:-10], want[10:-10, 10:-10], rtol=0, atol=2e-6)
+
+
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
 @pytest.mark.parametrize(
     ("p", "code"),
@@ -174,6 +203,7 @@ def test_adaptive_methods_beat_bilinear_on_a_natural_image():
     # RCD's ratio-corrected green beats Hamilton-Adams' (38.7 vs 38.1 dB mean
     # CPSNR on the benchmark's seven images).
     assert errors["rcd"] < errors["hamilton_adams"]
+    assert errors["menon2007"] < errors["hamilton_adams"]
 
 
 def test_borders_are_mirrored_not_black_or_wrapped():

@@ -23,6 +23,7 @@
 mod bilinear;
 mod hamilton_adams;
 mod malvar2004;
+mod menon2007;
 mod nearest;
 mod rcd;
 mod tiled;
@@ -55,16 +56,21 @@ pub enum Method {
     /// by a local direction statistic, then colour differences along the
     /// diagonals and the cardinals. Outputs are clamped to the input's range.
     Rcd,
+    /// Menon, Andriani and Calvagno, "Demosaicing with directional
+    /// filtering and a posteriori decision", IEEE TIP 2007, with its
+    /// refinement step. Outputs are clamped to the input's range.
+    Menon2007,
 }
 
 impl Method {
     /// Every method, in the order the documentation lists them.
-    pub const ALL: [Method; 5] = [
+    pub const ALL: [Method; 6] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
         Method::HamiltonAdams,
         Method::Rcd,
+        Method::Menon2007,
     ];
 
     /// The name users pass.
@@ -75,6 +81,7 @@ impl Method {
             Method::Malvar2004 => "malvar2004",
             Method::HamiltonAdams => "hamilton_adams",
             Method::Rcd => "rcd",
+            Method::Menon2007 => "menon2007",
         }
     }
 
@@ -164,6 +171,9 @@ fn run_method<T: Sample>(
         Method::Bilinear => bilinear::run(raw, phase, isa, out),
         Method::Malvar2004 => malvar2004::run(raw, phase, isa, out),
         Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
+        Method::Menon2007 => {
+            tiled::run_tiled(raw, phase, &menon2007::Menon2007 { phase }, isa, out)
+        }
         Method::Rcd => tiled::run_tiled(raw, phase, &rcd::Rcd::new(phase, T::FULL_SCALE), isa, out),
     }
 }

@@ -61,6 +61,12 @@ impl Span {
         &p[start..start + self.n]
     }
 
+    /// The span's indices in a plane (for planes of masks).
+    #[inline(always)]
+    pub(crate) fn range(self) -> std::ops::Range<usize> {
+        self.base as usize..self.base as usize + self.n
+    }
+
     /// Plane `p`'s own row, writable.
     #[inline(always)]
     pub(crate) fn out(self, p: &mut [f32]) -> &mut [f32] {
