@@ -123,11 +123,22 @@ def test_methods_commute_with_the_flips_between_phases(raw, p, method, vertical,
     np.testing.assert_array_equal(flipped_first, ig.demosaic(raw, p, method)[sl])
 
 
+@pytest.mark.parametrize("method", CLAMPED)
+def test_tile_seams_do_not_show(method):
+    # The multi-stage methods work in tiles of 384 columns counted from the
+    # left; flipping a wide mosaic moves every seam, so equal results mean
+    # the seams leave no trace.
+    raw = random_raw(3, 30, 1001, np.uint16)
+    q = flipped_pattern("GRBG", raw.shape, False, True)
+    flipped_first = ig.demosaic(np.ascontiguousarray(raw[:, ::-1]), q, method)
+    np.testing.assert_array_equal(flipped_first, ig.demosaic(raw, "GRBG", method)[:, ::-1])
+
+
 def test_results_do_not_depend_on_the_thread_count():
     code = """
         import sys, numpy as np, imgform_rs as ig
         rng = np.random.default_rng(11)
-        raw16 = rng.integers(0, 65536, (301, 203), dtype=np.uint16)
+        raw16 = rng.integers(0, 65536, (301, 803), dtype=np.uint16)
         rawf = rng.random((150, 97), dtype=np.float32)
         for m in ig.DEMOSAIC_METHODS:
             sys.stdout.buffer.write(ig.demosaic(raw16, "GBRG", m).tobytes())

@@ -20,6 +20,11 @@ use rayon::prelude::*;
 /// (~15 % overhead) while 24 MP still gives ~30 tasks to balance.
 const ROWS_PER_TILE: usize = 128;
 
+/// Output columns per tile: a dozen planes of 148 x 404 values (~3 MB)
+/// stay in cache, where full-width tiles (40 MB at 6000 columns) made two
+/// threads slower than one.
+const COLS_PER_TILE: usize = 384;
+
 /// Where a tile sits: plane index `ty * stride + tx` is image pixel
 /// `(y0 + ty, tx - K::HALO)`.
 pub(crate) struct Tile {
@@ -123,75 +128,101 @@ pub(crate) fn run_tiled<T: Sample, K: TileKernel>(
     // page faults. Each stage only reads what earlier stages of the same
     // tile wrote, so leftovers of the previous tile never reach the output
     // (the thread-count tests compare runs with different reuse).
-    let len = (w + 2 * K::HALO) * (ROWS_PER_TILE + 2 * K::HALO);
-    let init = || (vec![0.0f32; len], k.state(w + 2 * K::HALO, len));
-    let tiles = raw.height().div_ceil(ROWS_PER_TILE);
+    let stride = w.min(COLS_PER_TILE) + 2 * K::HALO;
+    let len = stride * (ROWS_PER_TILE + 2 * K::HALO);
+    let init = || Scratch {
+        plane: vec![0.0f32; len],
+        state: k.state(stride, len),
+        clamped: [0, 1, 2].map(|_| vec![0.0f32; COLS_PER_TILE]),
+        packed: Packed::new(COLS_PER_TILE),
+    };
+    let bands = raw.height().div_ceil(ROWS_PER_TILE);
     out.par_chunks_mut(3 * w * ROWS_PER_TILE)
-        // Tiles cost the same: a run of them per thread makes rayon call
+        // Bands cost the same: a run of them per thread makes rayon call
         // `init` about once per thread instead of once per split.
-        .with_min_len(tiles.div_ceil(2 * rayon::current_num_threads()))
+        .with_min_len(bands.div_ceil(2 * rayon::current_num_threads()))
         .enumerate()
-        .for_each_init(init, |(plane, st), (i, rows)| {
+        .for_each_init(init, |scratch, (i, rows)| {
             let y0 = i * ROWS_PER_TILE;
-            match isa {
-                Isa::Baseline => tile(raw, phase, k, bounds, y0, plane, st, rows),
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
-                Isa::Avx2 => unsafe { tile_avx2(raw, phase, k, bounds, y0, plane, st, rows) },
+            for x0 in (0..w).step_by(COLS_PER_TILE) {
+                match isa {
+                    Isa::Baseline => tile(raw, phase, k, bounds, (x0, y0), scratch, rows),
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+                    Isa::Avx2 => unsafe {
+                        tile_avx2(raw, phase, k, bounds, (x0, y0), scratch, rows)
+                    },
+                }
             }
         });
+}
+
+/// Per-thread buffers of [`run_tiled`].
+struct Scratch<S, T> {
+    plane: Vec<f32>,
+    state: S,
+    clamped: [Vec<f32>; 3],
+    packed: Packed<T>,
 }
 
 /// [`tile`] compiled for AVX2; the kernels inline into it.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
 fn tile_avx2<T: Sample, K: TileKernel>(
     raw: &ImageView<'_, T>,
     phase: Phase,
     k: &K,
     bounds: (f32, f32),
-    y0: usize,
-    plane: &mut [f32],
-    st: &mut K::State,
+    origin: (usize, usize),
+    scratch: &mut Scratch<K::State, T>,
     rows: &mut [T],
 ) {
-    tile(raw, phase, k, bounds, y0, plane, st, rows);
+    tile(raw, phase, k, bounds, origin, scratch, rows);
 }
 
+/// The tile of output columns `x0 .. x0 + COLS_PER_TILE` of the band
+/// `rows` starting at row `y0`.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn tile<T: Sample, K: TileKernel>(
     raw: &ImageView<'_, T>,
     phase: Phase,
     k: &K,
     (lo, hi): (f32, f32),
-    y0: usize,
-    plane: &mut [f32],
-    st: &mut K::State,
+    (x0, y0): (usize, usize),
+    scratch: &mut Scratch<K::State, T>,
     rows: &mut [T],
 ) {
     let (w, h, halo) = (raw.width(), raw.height(), K::HALO);
     let n = rows.len() / (3 * w);
+    let tw = COLS_PER_TILE.min(w - x0);
     let t = Tile {
-        stride: w + 2 * halo,
+        stride: tw + 2 * halo,
         rows: n + 2 * halo,
         y0: y0 as isize - halo as isize,
     };
-    let plane = &mut plane[..t.stride * t.rows];
+    // Image columns `x0 - halo ..` go to tile columns `0 ..`; those inside
+    // the image are converted as one run, the rest mirrored one by one.
+    let left = x0 as isize - halo as isize;
+    let (in_lo, in_hi) = (left.max(0) as usize, (x0 + tw + halo).min(w));
+    let plane = &mut scratch.plane[..t.stride * t.rows];
     for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
         let src = raw.row(mirror(t.y0 + ty as isize, h));
-        for (d, s) in dst[halo..halo + w].iter_mut().zip(src) {
+        let run = (in_lo as isize - left) as usize;
+        for (d, s) in dst[run..run + in_hi - in_lo]
+            .iter_mut()
+            .zip(&src[in_lo..in_hi])
+        {
             *d = s.to_f32();
         }
-        for j in 1..=halo {
-            dst[halo - j] = dst[halo + mirror(-(j as isize), w)];
-            dst[halo + w - 1 + j] = dst[halo + mirror((w - 1 + j) as isize, w)];
+        let outside = (0..run).chain(run + in_hi - in_lo..t.stride);
+        for tx in outside {
+            dst[tx] = src[mirror(left + tx as isize, w)].to_f32();
         }
     }
-    let planes = k.run(st, &t, plane);
-    let mut clamped = [0, 1, 2].map(|_| vec![0.0f32; w]);
-    let mut packed = Packed::new(w);
+    let planes = k.run(&mut scratch.state, &t, plane);
+    let Scratch {
+        clamped, packed, ..
+    } = scratch;
     for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
         let ty = halo + i;
         let kind = t.kind(phase, ty);
@@ -203,11 +234,11 @@ fn tile<T: Sample, K: TileKernel>(
         };
         let start = ty * t.stride + halo;
         for ((c, src), dst) in clamped.iter_mut().zip(rgb).zip(packed.0.iter_mut()) {
-            for (d, s) in c.iter_mut().zip(&src[start..start + w]) {
+            for (d, s) in c[..tw].iter_mut().zip(&src[start..start + tw]) {
                 *d = s.max(lo).min(hi);
             }
-            T::from_f32_row(dst, c);
+            T::from_f32_row(&mut dst[..tw], &c[..tw]);
         }
-        interleave(&packed, o);
+        interleave(packed, &mut o[3 * x0..3 * (x0 + tw)]);
     }
 }
