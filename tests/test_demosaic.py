@@ -43,11 +43,19 @@ def test_methods_are_exactly_the_documented_ones():
         "hamilton_adams",
         "rcd",
         "menon2007",
+        "best",
+    )
+
+
+def test_best_is_menon2007():
+    raw = random_raw(9, 20, 30, np.uint8)
+    np.testing.assert_array_equal(
+        ig.demosaic(raw, "BGGR", "best"), ig.demosaic(raw, "BGGR", "menon2007")
     )
 
 
 # The multi-stage methods clamp their outputs to the input's range.
-CLAMPED = ["rcd", "menon2007"]
+CLAMPED = ["rcd", "menon2007", "best"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(CLAMPED))
