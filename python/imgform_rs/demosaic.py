@@ -31,7 +31,12 @@ Methods, all for the four Bayer phases and uint8 / uint16 / float32 mosaics:
   Menon2007 38.76, LibRaw AAHD 38.78, LibRaw AHD 38.27) at ~200 MP/s on 2 cores for a
   24 MP uint16 mosaic.
 
-All methods are Bayer-only.
+Patterns: every method accepts the four Bayer phases. X-Trans (``"XTRANS"`` or a
+(6, 6) array) is accepted by ``"bilinear"`` only: each missing colour is the mean of
+that colour's samples in the smallest window holding one (3x3 inside the image,
+weights 4/2/1 as for Bayer), from samples inside the image (mirroring would break
+the 6x6 phase); it needs at least 6x6 pixels. Any other method raises ValueError
+for X-Trans. (A directional X-Trans method of Markesteijn's kind is not there yet.)
 
 OpenCV names Bayer codes after the second row's first two pixels: our ``"RGGB"`` is
 ``cv2.COLOR_BayerBG2RGB`` (and OpenCV returns BGR for the ``2BGR`` codes).
@@ -56,7 +61,7 @@ SampleT = TypeVar("SampleT", np.uint8, np.uint16, np.float32)
 def demosaic(
     raw: npt.NDArray[SampleT], pattern: Pattern, method: str = "bilinear"
 ) -> npt.NDArray[SampleT]:
-    """Reconstruct an RGB image from a Bayer mosaic.
+    """Reconstruct an RGB image from a Bayer (or, with "bilinear", X-Trans) mosaic.
 
     Parameters
     ----------
@@ -64,7 +69,8 @@ def demosaic(
         The mosaic, at least 2x2; any layout (copied once if not C-contiguous).
     pattern : str or array_like
         ``"RGGB"``, ``"BGGR"``, ``"GRBG"``, ``"GBRG"`` or a (2, 2) array of
-        channel indices, describing pixel (0, 0) of ``raw``.
+        channel indices, describing pixel (0, 0) of ``raw``; ``"XTRANS"`` or a
+        (6, 6) array with ``method="bilinear"`` only.
     method : str
         One of :data:`DEMOSAIC_METHODS`.
 
@@ -86,7 +92,8 @@ def demosaic(
         or a pattern of the wrong type.
     ValueError
         For a shape other than (H, W), an image smaller than 2x2, an unknown
-        method or pattern, or an X-Trans pattern (not supported by these methods).
+        method or pattern, an X-Trans pattern with a method other than
+        ``"bilinear"``, or an X-Trans mosaic smaller than 6x6.
 
     Examples
     --------

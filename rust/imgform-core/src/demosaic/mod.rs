@@ -27,6 +27,7 @@ mod menon2007;
 mod nearest;
 mod rcd;
 mod tiled;
+mod xtrans;
 
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
@@ -40,7 +41,9 @@ pub enum Method {
     /// Each 2x2 cell's red and blue, and the green of the same row, copied to
     /// the cell's pixels: the cheapest reconstruction, blocky by design.
     Nearest,
-    /// Average of the nearest samples of each colour (3x3 support).
+    /// Average of the nearest samples of each colour (3x3 support). The
+    /// only method that also accepts X-Trans, as the weighted mean of each
+    /// colour's samples in the smallest window holding one.
     Bilinear,
     /// Malvar, He and Cutler, "High-quality linear interpolation for
     /// demosaicing of Bayer-patterned color images", ICASSP 2004: bilinear
@@ -123,8 +126,9 @@ impl Method {
 ///
 /// # Errors
 /// [`CoreError::Shape`] for a multi-channel `raw`, an image smaller than
-/// 2x2 or a wrong output length; [`CoreError::InvalidArgument`] for an
-/// X-Trans pattern (these methods are Bayer-only).
+/// 2x2 (6x6 for X-Trans) or a wrong output length;
+/// [`CoreError::InvalidArgument`] for an X-Trans pattern with a method other
+/// than [`Method::Bilinear`].
 pub fn demosaic<T: Sample>(
     raw: ImageView<'_, T>,
     pattern: &CfaPattern,
@@ -145,10 +149,19 @@ pub fn demosaic<T: Sample>(
     }
     check_out_len(out.len(), 3 * w * h, "demosaic")?;
     let Some((ry, rx)) = pattern.bayer_red() else {
-        return Err(invalid!(
-            "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern",
-            method.name()
-        ));
+        if method != Method::Bilinear {
+            return Err(invalid!(
+                "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern; X-Trans is supported by \"bilinear\"",
+                method.name()
+            ));
+        }
+        if w < 6 || h < 6 {
+            return Err(CoreError::Shape(format!(
+                "demosaic needs an X-Trans mosaic of at least 6x6 pixels (one full CFA tile), got ({h}, {w})"
+            )));
+        }
+        xtrans::run(&raw, pattern, out);
+        return Ok(());
     };
     let phase = Phase { ry, rx };
     run_method(&raw, phase, method, Isa::detect(), out);
