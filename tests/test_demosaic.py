@@ -20,6 +20,14 @@ def random_raw(seed, h, w, dtype):
     return rng.integers(0, np.iinfo(dtype).max, (h, w), endpoint=True).astype(dtype)
 
 
+def smooth_rgb(seed, h, w):
+    """A smooth textured float32 image with a little noise."""
+    ndimage = pytest.importorskip("scipy.ndimage")
+    rng = np.random.default_rng(seed)
+    rgb = ndimage.gaussian_filter(rng.random((h, w, 3)), (1.5, 1.5, 0))
+    return (rgb + 1e-3 * rng.random(rgb.shape)).astype(np.float32)
+
+
 @st.composite
 def mosaics(draw, min_side=2, max_side=24):
     dtype = draw(st.sampled_from(DTYPES))
@@ -43,19 +51,24 @@ def test_methods_are_exactly_the_documented_ones():
         "hamilton_adams",
         "rcd",
         "menon2007",
+        "rcd_menon",
         "best",
     )
 
 
-def test_best_is_menon2007():
-    raw = random_raw(9, 20, 30, np.uint8)
-    np.testing.assert_array_equal(
-        ig.demosaic(raw, "BGGR", "best"), ig.demosaic(raw, "BGGR", "menon2007")
-    )
+def test_best_is_the_rcd_menon_mean():
+    # Smooth data, so that neither method reaches the clamp (the mean is
+    # clamped, not its terms).
+    raw = ig.mosaic(smooth_rgb(9, 20, 30), "BGGR")
+    raw[0, 0], raw[-1, -1] = -1, 2  # widen the clamp range, away from the middle
+    best = ig.demosaic(raw, "BGGR", "best")
+    np.testing.assert_array_equal(best, ig.demosaic(raw, "BGGR", "rcd_menon"))
+    want = 0.5 * (ig.demosaic(raw, "BGGR", "rcd") + ig.demosaic(raw, "BGGR", "menon2007"))
+    np.testing.assert_allclose(best[4:-4, 4:-4], want[4:-4, 4:-4], rtol=0, atol=1e-6)
 
 
 # The multi-stage methods clamp their outputs to the input's range.
-CLAMPED = ["rcd", "menon2007", "best"]
+CLAMPED = ["rcd", "menon2007", "rcd_menon", "best"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(CLAMPED))
@@ -208,13 +221,9 @@ def test_menon2007_matches_colour_demosaicing_in_the_interior(p):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cd = pytest.importorskip("colour_demosaicing")
-    ndimage = pytest.importorskip("scipy.ndimage")
-    # A smooth textured image with a little noise: no exact ties in the
-    # a posteriori decision, which float32 and float64 could break apart.
-    rng = np.random.default_rng(5)
-    rgb = ndimage.gaussian_filter(rng.random((60, 70, 3)), (1.5, 1.5, 0))
-    rgb = (rgb + 1e-3 * rng.random(rgb.shape)).astype(np.float32)
-    raw = ig.mosaic(rgb, p)
+    # No exact ties in the a posteriori decision on this image, which
+    # float32 and float64 could break apart.
+    raw = ig.mosaic(smooth_rgb(5, 60, 70), p)
     want = cd.demosaicing_CFA_Bayer_Menon2007(raw.astype(np.float64), p)
     want = np.clip(want, raw.min(), raw.max())
     got = ig.demosaic(raw, p, "menon2007")
@@ -251,6 +260,7 @@ def test_adaptive_methods_beat_bilinear_on_a_natural_image():
     # CPSNR on the benchmark's seven images).
     assert errors["rcd"] < errors["hamilton_adams"]
     assert errors["menon2007"] < errors["hamilton_adams"]
+    assert errors["rcd_menon"] < min(errors["rcd"], errors["menon2007"])
 
 
 def test_borders_are_mirrored_not_black_or_wrapped():
