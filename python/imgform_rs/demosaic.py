@@ -86,8 +86,8 @@ def demosaic(
         R, G, B. Each sampled value comes back unchanged at its own site.
         Integer outputs are rounded half up and clamped to the dtype's range;
         float outputs are not clamped (Malvar and Hamilton-Adams can overshoot),
-        except by ``"rcd"``, ``"menon2007"`` and ``"rcd_menon"`` (``"best"``), which clamp every output to
-        ``[raw.min(), raw.max()]``.
+        except by ``"rcd"``, ``"menon2007"`` and ``"rcd_menon"`` (``"best"``), which
+        clamp every output to ``[raw.min(), raw.max()]``.
         Borders are reconstructed from a mirrored mosaic (edge not repeated,
         which keeps the CFA phase): no black frame, no wrap-around.
 
