@@ -52,6 +52,7 @@ def test_methods_are_exactly_the_documented_ones():
         "rcd",
         "menon2007",
         "rcd_menon",
+        "ahd",
         "best",
     )
 
@@ -68,7 +69,7 @@ def test_best_is_the_rcd_menon_mean():
 
 
 # The multi-stage methods clamp their outputs to the input's range.
-CLAMPED = ["rcd", "menon2007", "rcd_menon", "best"]
+CLAMPED = ["rcd", "menon2007", "rcd_menon", "ahd", "best"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(CLAMPED))
@@ -261,6 +262,7 @@ def test_adaptive_methods_beat_bilinear_on_a_natural_image():
     assert errors["rcd"] < errors["hamilton_adams"]
     assert errors["menon2007"] < errors["hamilton_adams"]
     assert errors["rcd_menon"] < min(errors["rcd"], errors["menon2007"])
+    assert errors["ahd"] < errors["malvar2004"]
 
 
 def test_borders_are_mirrored_not_black_or_wrapped():

@@ -29,6 +29,11 @@ Methods, all for the four Bayer phases and uint8 / uint16 / float32 mosaics:
   Not a method from the literature: the two err in different places (RCD is better
   on fine texture, Menon on long edges), so the mean has a lower error than either.
   Outputs are clamped to the range of the input mosaic.
+- ``"ahd"``: Hirakawa and Parks, "Adaptive homogeneity-directed demosaicing
+  algorithm", IEEE Transactions on Image Processing 14(3), 2005 — complete images
+  interpolated along rows and along columns, and per pixel the one whose CIELab
+  neighbourhood is more homogeneous (3x3 sums of homogeneity counts). Outputs are
+  clamped to the range of the input mosaic. Mean CPSNR 38.26 dB (LibRaw AHD 38.27).
 - ``"best"``: our highest-quality method, currently ``"rcd_menon"``. Mean CPSNR on
   the seven scikit-image images of ``benchmarks/demosaic.py`` (8-bit protocol,
   RGGB, 10 px crop): 39.63 dB, against ``"menon2007"`` 38.76, ``"rcd"`` 38.68 and the
@@ -86,8 +91,8 @@ def demosaic(
         R, G, B. Each sampled value comes back unchanged at its own site.
         Integer outputs are rounded half up and clamped to the dtype's range;
         float outputs are not clamped (Malvar and Hamilton-Adams can overshoot),
-        except by ``"rcd"``, ``"menon2007"`` and ``"rcd_menon"`` (``"best"``), which
-        clamp every output to ``[raw.min(), raw.max()]``.
+        except by ``"rcd"``, ``"menon2007"``, ``"rcd_menon"`` (``"best"``) and
+        ``"ahd"``, which clamp every output to ``[raw.min(), raw.max()]``.
         Borders are reconstructed from a mirrored mosaic (edge not repeated,
         which keeps the CFA phase): no black frame, no wrap-around.
 

@@ -20,6 +20,7 @@
 //! so a border pixel sees a plausible mosaic and no black frame or
 //! wrap-around appears.
 
+mod ahd;
 mod bilinear;
 mod ensemble;
 mod hamilton_adams;
@@ -71,11 +72,16 @@ pub enum Method {
     /// both (39.63 dB mean CPSNR on the benchmark images against 38.68 and
     /// 38.76). Outputs are clamped to the input's range.
     RcdMenon,
+    /// Hirakawa and Parks, "Adaptive homogeneity-directed demosaicing
+    /// algorithm", IEEE TIP 2005: row- and column-interpolated images, the
+    /// more homogeneous in CIELab chosen per pixel. Outputs are clamped to
+    /// the input's range.
+    Ahd,
 }
 
 impl Method {
     /// Every method, in the order the documentation lists them.
-    pub const ALL: [Method; 7] = [
+    pub const ALL: [Method; 8] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
@@ -83,6 +89,7 @@ impl Method {
         Method::Rcd,
         Method::Menon2007,
         Method::RcdMenon,
+        Method::Ahd,
     ];
 
     /// The name users pass.
@@ -95,6 +102,7 @@ impl Method {
             Method::Rcd => "rcd",
             Method::Menon2007 => "menon2007",
             Method::RcdMenon => "rcd_menon",
+            Method::Ahd => "ahd",
         }
     }
 
@@ -213,6 +221,13 @@ fn run_method<T: Sample>(
         Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
         Method::Menon2007 => tiled::run_tiled(raw, phase, &Menon2007 { phase }, isa, out),
         Method::Rcd => tiled::run_tiled(raw, phase, &Rcd::new(phase, T::FULL_SCALE), isa, out),
+        Method::Ahd => {
+            let k = ahd::Ahd {
+                phase,
+                full_scale: T::FULL_SCALE,
+            };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
         Method::RcdMenon => {
             let k = ensemble::Ensemble {
                 rcd: Rcd::new(phase, T::FULL_SCALE),
