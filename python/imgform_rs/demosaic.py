@@ -39,8 +39,10 @@ Methods, all for the four Bayer phases and uint8 / uint16 / float32 mosaics:
   RGGB, 10 px crop): 39.63 dB, against ``"menon2007"`` 38.76, ``"rcd"`` 38.68 and the
   best peers LibRaw AAHD 38.78, colour-demosaicing Menon2007 38.76, LibRaw AHD 38.27.
   Per image: astronaut 37.01, coffee 35.09, chelsea 41.31, rocket 33.16,
-  immunohistochemistry 42.61, retina 52.36, motorcycle_left 35.86; ~120 MP/s on 2
-  cores for a 24 MP uint16 mosaic (LibRaw AHD ~15 MP/s).
+  immunohistochemistry 42.61, retina 52.36, motorcycle_left 35.86. Speed on a 24 MP uint16
+  mosaic, 2 cores: 124 MP/s on a quiet machine, 80 MP/s in a loaded benchmark run
+  where LibRaw AHD made 15 MP/s (5.3x). Zone-plate false colour is about twice
+  Menon's alone (RCD's share), still below LibRaw AHD's.
 
 Patterns: every method accepts the four Bayer phases. X-Trans (``"XTRANS"`` or a
 (6, 6) array) is accepted by ``"bilinear"`` only: each missing colour is the mean of
