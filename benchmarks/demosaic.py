@@ -15,6 +15,10 @@ edges. Peers:
 - colour-demosaicing (NumPy/SciPy, float64) is slow, so it runs on a 1 MP crop and
   its MP/s is scaled from that.
 
+Artefacts: on a grey zone plate and a grey Siemens star (512 x 512, 8-bit), the
+false-colour energy (any chroma is an error on a grey chart) and Lu and Tan's
+zipper fraction, for every method of ours and of the peers.
+
 CPSNR (the usual 8-bit protocol): uint8 RGB image, mosaic RGGB, demosaic, crop 10
 pixels on every side, ``CPSNR = 10 log10(255^2 / MSE)`` with the MSE over all three
 channels. Float peers are rounded to uint8 first; LibRaw reads the mosaic
@@ -228,8 +232,8 @@ def to_u8(x: np.ndarray, scale: float) -> np.ndarray:
     return np.clip(np.round(x * scale), 0, 255).astype(np.uint8)
 
 
-def quality(tmp: Path) -> None:
-    images = load_images()
+def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]:
+    """Every demosaicer, ours and the peers', as ``f(uint8 RGGB mosaic, name) -> uint8 RGB``."""
     methods: dict[str, Callable[[np.ndarray, str], np.ndarray]] = {}
     for m in ig.DEMOSAIC_METHODS:
         methods[f"ours {m}"] = lambda raw, name, m=m: ig.demosaic(raw, "RGGB", m)
@@ -258,6 +262,11 @@ def quality(tmp: Path) -> None:
                     return to_u8(develop(), 1 / 257)
 
             methods[f"LibRaw {algo}"] = libraw
+    return methods
+
+
+def quality(tmp: Path, methods: dict[str, Callable[[np.ndarray, str], np.ndarray]]) -> None:
+    images = load_images()
     scores = {m: {} for m in methods}
     for name, rgb in images.items():
         raw = ig.mosaic(rgb, "RGGB")
@@ -272,11 +281,73 @@ def quality(tmp: Path) -> None:
     print(table(["method", *names, "mean"], rows))
 
 
+def zone_plate(n: int = 512) -> np.ndarray:
+    """A grey zone plate: rings whose frequency grows to Nyquist at the corners."""
+    y, x = (np.mgrid[0:n, 0:n] - n / 2) / n
+    return 0.5 + 0.5 * np.cos(np.pi * n * (x**2 + y**2))
+
+
+def starburst(n: int = 512, spokes: int = 72) -> np.ndarray:
+    """A grey Siemens star: spokes whose period shrinks towards the centre."""
+    y, x = np.mgrid[0:n, 0:n] - (n - 1) / 2
+    return 0.5 + 0.5 * np.sin(spokes * np.arctan2(y, x))
+
+
+def zipper_fraction(out: np.ndarray, ref: np.ndarray) -> float:
+    """Lu and Tan's zipper measure (IEEE TIP 2003): for each pixel, the
+    8-neighbour of the most similar colour in the reference; a zipper pixel is
+    one whose CIELab difference to that neighbour grows by more than 2.3 in the
+    output. Returns the fraction of zipper pixels (border cropped)."""
+    from skimage.color import rgb2lab
+
+    lab_ref, lab_out = rgb2lab(ref), rgb2lab(out)
+    h, w = ref.shape[:2]
+    core = (slice(10, h - 10), slice(10, w - 10))
+    best_d = np.full((h - 20, w - 20), np.inf)
+    change = np.zeros((h - 20, w - 20))
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            if dy == dx == 0:
+                continue
+            nb = (slice(10 + dy, h - 10 + dy), slice(10 + dx, w - 10 + dx))
+            d_ref = np.linalg.norm(lab_ref[core] - lab_ref[nb], axis=-1)
+            d_out = np.linalg.norm(lab_out[core] - lab_out[nb], axis=-1)
+            closer = d_ref < best_d
+            best_d = np.where(closer, d_ref, best_d)
+            change = np.where(closer, np.abs(d_out - d_ref), change)
+    return float(np.mean(change > 2.3))
+
+
+def artefacts(methods: dict[str, Callable[[np.ndarray, str], np.ndarray]]) -> None:
+    """False colour and zipper on grey test charts, where any chroma is an error."""
+    charts = {"zoneplate": zone_plate(), "starburst": starburst()}
+    rows = []
+    results = {m: [] for m in methods}
+    for name, grey in charts.items():
+        rgb = np.repeat((grey * 255).round().astype(np.uint8)[..., None], 3, axis=2)
+        raw = ig.mosaic(rgb, "RGGB")
+        for m, fn in methods.items():
+            full = fn(raw, name)
+            out = full.astype(np.float64)[10:-10, 10:-10]
+            g = out[..., 1]
+            false_colour = np.mean((out[..., 0] - g) ** 2 + (out[..., 2] - g) ** 2)
+            results[m] += [false_colour, 100 * zipper_fraction(full, rgb)]
+    for m in sorted(methods, key=lambda m: results[m][0] + results[m][2]):
+        rows.append([m, *(f"{v:.1f}" for v in results[m])])
+    print("\n## Artefacts on grey 512x512 charts (RGGB, 8-bit, 10 px crop); lower is better\n")
+    print("false colour: mean of (R-G)^2 + (B-G)^2; zipper: % of pixels (Lu-Tan, CIELab > 2.3)\n")
+    head = ["method", "zone plate false colour", "zone plate zipper %"]
+    head += ["starburst false colour", "starburst zipper %"]
+    print(table(head, rows))
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         speed(Path(d))
         memory()
-        quality(Path(d))
+        methods = all_methods(Path(d))
+        quality(Path(d), methods)
+        artefacts(methods)
 
 
 if __name__ == "__main__":

@@ -51,7 +51,6 @@ fn demosaic<'py>(
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(demosaic, m)?)?;
-    let names = Method::ALL.map(Method::name);
-    m.add("DEMOSAIC_METHODS", PyTuple::new(m.py(), names)?)?;
+    m.add("DEMOSAIC_METHODS", PyTuple::new(m.py(), Method::names())?)?;
     Ok(())
 }

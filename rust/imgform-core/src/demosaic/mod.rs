@@ -20,16 +20,24 @@
 //! so a border pixel sees a plausible mosaic and no black frame or
 //! wrap-around appears.
 
+mod ahd;
 mod bilinear;
+mod ensemble;
 mod hamilton_adams;
 mod malvar2004;
+mod menon2007;
 mod nearest;
+mod rcd;
+mod tiled;
+mod xtrans;
 
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::parallel::for_each_band;
+use menon2007::Menon2007;
+use rcd::Rcd;
 
 /// A demosaicing method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,7 +45,9 @@ pub enum Method {
     /// Each 2x2 cell's red and blue, and the green of the same row, copied to
     /// the cell's pixels: the cheapest reconstruction, blocky by design.
     Nearest,
-    /// Average of the nearest samples of each colour (3x3 support).
+    /// Average of the nearest samples of each colour (3x3 support). The
+    /// only method that also accepts X-Trans, as the weighted mean of each
+    /// colour's samples in the smallest window holding one.
     Bilinear,
     /// Malvar, He and Cutler, "High-quality linear interpolation for
     /// demosaicing of Bayer-patterned color images", ICASSP 2004: bilinear
@@ -48,15 +58,38 @@ pub enum Method {
     /// then red and blue from colour differences to green, again choosing
     /// the better diagonal at the opposite chroma site.
     HamiltonAdams,
+    /// Ratio Corrected Demosaicing, Luis Sanz Rodríguez (2017): green from
+    /// cardinal neighbours corrected by low-pass luminance ratios, weighted
+    /// by a local direction statistic, then colour differences along the
+    /// diagonals and the cardinals. Outputs are clamped to the input's range.
+    Rcd,
+    /// Menon, Andriani and Calvagno, "Demosaicing with directional
+    /// filtering and a posteriori decision", IEEE TIP 2007, with its
+    /// refinement step. Outputs are clamped to the input's range.
+    Menon2007,
+    /// The mean of [`Method::Rcd`] and [`Method::Menon2007`]: not from the
+    /// literature, but their errors are weakly correlated, so the mean beats
+    /// both (39.63 dB mean CPSNR on the benchmark images against 38.68 and
+    /// 38.76). Outputs are clamped to the input's range.
+    RcdMenon,
+    /// Hirakawa and Parks, "Adaptive homogeneity-directed demosaicing
+    /// algorithm", IEEE TIP 2005: row- and column-interpolated images, the
+    /// more homogeneous in CIELab chosen per pixel. Outputs are clamped to
+    /// the input's range.
+    Ahd,
 }
 
 impl Method {
     /// Every method, in the order the documentation lists them.
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 8] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
         Method::HamiltonAdams,
+        Method::Rcd,
+        Method::Menon2007,
+        Method::RcdMenon,
+        Method::Ahd,
     ];
 
     /// The name users pass.
@@ -66,19 +99,40 @@ impl Method {
             Method::Bilinear => "bilinear",
             Method::Malvar2004 => "malvar2004",
             Method::HamiltonAdams => "hamilton_adams",
+            Method::Rcd => "rcd",
+            Method::Menon2007 => "menon2007",
+            Method::RcdMenon => "rcd_menon",
+            Method::Ahd => "ahd",
         }
     }
 
-    /// Parses a method name.
+    /// Our highest-quality method, which the name "best" selects: the
+    /// RCD / Menon 2007 mean, 39.63 dB mean CPSNR on the benchmark's seven
+    /// scikit-image images (Menon 38.76, RCD 38.68; best peer LibRaw AAHD
+    /// 38.78).
+    pub const BEST: Method = Method::RcdMenon;
+
+    /// Every name [`Method::from_name`] accepts: the methods' own, then
+    /// "best".
+    pub fn names() -> Vec<&'static str> {
+        let mut names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
+        names.push("best");
+        names
+    }
+
+    /// Parses a method name ("best" gives [`Method::BEST`]).
     ///
     /// # Errors
     /// [`CoreError::InvalidArgument`] naming the string and the accepted names.
     pub fn from_name(name: &str) -> Result<Self> {
+        if name == "best" {
+            return Ok(Self::BEST);
+        }
         Self::ALL
             .into_iter()
             .find(|m| m.name() == name)
             .ok_or_else(|| {
-                let names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
+                let names = Self::names();
                 invalid!("unknown demosaicing method {name:?}; accepted: {names:?}")
             })
     }
@@ -91,8 +145,9 @@ impl Method {
 ///
 /// # Errors
 /// [`CoreError::Shape`] for a multi-channel `raw`, an image smaller than
-/// 2x2 or a wrong output length; [`CoreError::InvalidArgument`] for an
-/// X-Trans pattern (these methods are Bayer-only).
+/// 2x2 (6x6 for X-Trans) or a wrong output length;
+/// [`CoreError::InvalidArgument`] for an X-Trans pattern with a method other
+/// than [`Method::Bilinear`].
 pub fn demosaic<T: Sample>(
     raw: ImageView<'_, T>,
     pattern: &CfaPattern,
@@ -113,10 +168,19 @@ pub fn demosaic<T: Sample>(
     }
     check_out_len(out.len(), 3 * w * h, "demosaic")?;
     let Some((ry, rx)) = pattern.bayer_red() else {
-        return Err(invalid!(
-            "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern",
-            method.name()
-        ));
+        if method != Method::Bilinear {
+            return Err(invalid!(
+                "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern; X-Trans is supported by \"bilinear\"",
+                method.name()
+            ));
+        }
+        if w < 6 || h < 6 {
+            return Err(CoreError::Shape(format!(
+                "demosaic needs an X-Trans mosaic of at least 6x6 pixels (one full CFA tile), got ({h}, {w})"
+            )));
+        }
+        xtrans::run(&raw, pattern, out);
+        return Ok(());
     };
     let phase = Phase { ry, rx };
     run_method(&raw, phase, method, Isa::detect(), out);
@@ -155,6 +219,22 @@ fn run_method<T: Sample>(
         Method::Bilinear => bilinear::run(raw, phase, isa, out),
         Method::Malvar2004 => malvar2004::run(raw, phase, isa, out),
         Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
+        Method::Menon2007 => tiled::run_tiled(raw, phase, &Menon2007 { phase }, isa, out),
+        Method::Rcd => tiled::run_tiled(raw, phase, &Rcd::new(phase, T::FULL_SCALE), isa, out),
+        Method::Ahd => {
+            let k = ahd::Ahd {
+                phase,
+                full_scale: T::FULL_SCALE,
+            };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
+        Method::RcdMenon => {
+            let k = ensemble::Ensemble {
+                rcd: Rcd::new(phase, T::FULL_SCALE),
+                menon: Menon2007 { phase },
+            };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
     }
 }
 
@@ -402,6 +482,12 @@ pub(crate) fn write_row<T: Sample>(
     for (dst, src) in packed.0.iter_mut().zip([red, &planes.green, blue]) {
         T::from_f32_row(&mut dst[..w], &src[PAD..PAD + w]);
     }
+    interleave(packed, out);
+}
+
+/// Writes three converted planes as R, G, B pixels.
+#[inline(always)]
+pub(crate) fn interleave<T: Sample>(packed: &Packed<T>, out: &mut [T]) {
     let [r, g, b] = &packed.0;
     for (o, ((r, g), b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g).zip(b)) {
         o[0] = *r;

@@ -253,3 +253,43 @@ fn every_instruction_set_gives_the_same_bits() {
         assert_eq!(base, fast, "{method:?}");
     }
 }
+
+#[test]
+fn the_any_pattern_interpolation_is_bilinear_on_bayer() {
+    let (w, h) = (13, 10);
+    let raw = texture(w, h);
+    let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
+    let p = pattern("GBRG");
+    let mut any = vec![0.0f32; 3 * w * h];
+    xtrans::run(&view, &p, &mut any);
+    let bil = run(&raw, w, h, "GBRG", Method::Bilinear);
+    for y in 1..h - 1 {
+        for x in 1..w - 1 {
+            for c in 0..3 {
+                let i = 3 * (y * w + x) + c;
+                assert!((any[i] - bil[i]).abs() <= 1e-3, "({y}, {x}, {c})");
+            }
+        }
+    }
+}
+
+#[test]
+fn xtrans_needs_a_whole_tile_and_keeps_its_samples() {
+    let raw = texture(5, 8);
+    let view = ImageView::contiguous(&raw, 5, 8, 1).unwrap();
+    let mut out = vec![0.0f32; 3 * 40];
+    let err = demosaic(view, &CfaPattern::xtrans(), Method::Bilinear, &mut out).unwrap_err();
+    assert!(err.to_string().contains("6x6"), "{err}");
+    let (w, h) = (9, 7);
+    let raw = texture(w, h);
+    let out = run(&raw, w, h, "XTRANS", Method::Bilinear);
+    let p = CfaPattern::xtrans();
+    for y in 0..h {
+        for x in 0..w {
+            assert_eq!(
+                out[3 * (y * w + x) + p.color_at(y, x) as usize],
+                raw[y * w + x]
+            );
+        }
+    }
+}

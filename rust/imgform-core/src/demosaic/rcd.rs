@@ -1,0 +1,351 @@
+//! Ratio Corrected Demosaicing, Luis Sanz Rodríguez (2017), as described
+//! for RawTherapee: a local vertical/horizontal discrimination from squared
+//! high-pass responses, green from the four cardinal neighbours each
+//! corrected by the ratio of a low-pass luminance at the site and at the
+//! neighbour's far side, weighted by inverse gradients; then the opposite
+//! chroma along the diagonals (same discrimination on the two diagonals)
+//! and the chroma at green sites from colour differences to green.
+//!
+//! Every weighted pair `(g_b a + g_a b) / (g_a + g_b)` is evaluated as
+//! `m + t d` with `m` the mean, `d` the half difference and `t` the
+//! normalised gradient difference. Both forms are equal; this one is
+//! exactly `a` when `a = b`, and a flip of the image swaps the pair into
+//! bit-identical results, which keeps the four Bayer phases consistent.
+
+use super::tiled::{Span, Tile, TileKernel};
+use super::{select, Phase};
+
+/// RCD's tolerance on data scaled to `[0, 1]`; scaled by the sample type's
+/// full scale.
+const EPS: f32 = 1e-5;
+
+pub(super) struct Rcd {
+    pub(super) phase: Phase,
+    /// `EPS` in the data's units, and its square for squared statistics.
+    pub(super) eps: f32,
+}
+
+impl Rcd {
+    pub(super) fn new(phase: Phase, full_scale: f32) -> Self {
+        Self {
+            phase,
+            eps: EPS * full_scale,
+        }
+    }
+}
+
+pub(super) struct State {
+    /// Squared high-pass responses: vertical / horizontal, then reused for
+    /// the two diagonals.
+    sq: [Vec<f32>; 2],
+    /// Direction weights: the share of horizontal estimation (cardinal) and
+    /// the signed diagonal preference, then their refined versions.
+    vh: Vec<f32>,
+    vhd: Vec<f32>,
+    pq: Vec<f32>,
+    pqd: Vec<f32>,
+    lpf: Vec<f32>,
+    green: Vec<f32>,
+    /// The other chroma at chroma sites.
+    x: Vec<f32>,
+    own: Vec<f32>,
+    other: Vec<f32>,
+    /// Chroma-site masks for column parity 0 and 1.
+    chroma: [Vec<u32>; 2],
+}
+
+/// `(g_b a + g_a b) / (g_a + g_b)`: `a` weighted by the gradient on `b`'s
+/// side and vice versa, in the flip-exact form described above.
+#[inline(always)]
+fn weigh(a: f32, g_a: f32, b: f32, g_b: f32) -> f32 {
+    0.5 * (a + b) + (g_b - g_a) / (g_b + g_a) * (0.5 * (a - b))
+}
+
+/// RCD's gradient towards one cardinal neighbour `near` of a site `z`
+/// (`opp` the opposite neighbour, `f2`..`f4` further out on `near`'s side).
+#[inline(always)]
+fn green_grad(z: f32, near: f32, opp: f32, f2: f32, f3: f32, f4: f32) -> f32 {
+    (near - opp).abs() + (z - f2).abs() + (near - f3).abs() + (f2 - f4).abs()
+}
+
+/// The gradient towards a neighbour `near` holding the colour being
+/// interpolated (`opp` opposite it, `far` two steps further), plus the
+/// green change `z - g2` over two steps in that direction.
+#[inline(always)]
+fn diff_grad(z: f32, g2: f32, near: f32, opp: f32, far: f32) -> f32 {
+    (near - opp).abs() + (near - far).abs() + (z - g2).abs()
+}
+
+/// Green `g` of a neighbour scaled by the ratio of the low-pass luminance
+/// at the site (`lc`, already clamped) and at the neighbour's far side
+/// (`lf`): exactly `g` on flat data. Clamped at zero so negative float
+/// data cannot divide by zero.
+#[inline(always)]
+fn ratio_estimate(g: f32, lc: f32, lf: f32, eps: f32) -> f32 {
+    g * (2.0 * lc + eps) / (lc + lf.max(0.0) + eps)
+}
+
+/// The colour difference to green at a green site `z` along one direction,
+/// from the chroma at distances -3, -1, 1, 3 (`k`) and the greens at -1,
+/// 1, -2, 2 (`g`).
+#[inline(always)]
+fn cardinal_diff(z: f32, k: [f32; 4], g: [f32; 4], eps: f32) -> f32 {
+    let (a, b) = (k[1], k[2]);
+    let grad_a = eps + diff_grad(z, g[2], a, b, k[0]);
+    let grad_b = eps + diff_grad(z, g[3], b, a, k[3]);
+    weigh(a - g[0], grad_a, b - g[1], grad_b)
+}
+
+/// The refined direction weight: the mean of the four diagonal neighbours
+/// when it is more decided (further from `neutral`) than the centre.
+#[inline(always)]
+fn refine(c: f32, ul: f32, ur: f32, dl: f32, dr: f32, neutral: f32) -> f32 {
+    let n = 0.25 * ((ul + ur) + (dl + dr));
+    if (neutral - c).abs() < (neutral - n).abs() {
+        n
+    } else {
+        c
+    }
+}
+
+/// RCD's 7-tap high-pass `[1, -3, -1, 6, -1, -3, 1]` squared, along the
+/// direction `(dy, dx)`.
+#[inline(always)]
+fn hpf_sq(sp: Span, c: &[f32], (dy, dx): (isize, isize), out: &mut [f32]) {
+    let at = |k: isize| sp.at(c, k * dy, k * dx);
+    let (m3, m2, m1, z, p1, p2, p3) = (at(-3), at(-2), at(-1), at(0), at(1), at(2), at(3));
+    for i in 0..sp.n {
+        let v = ((m3[i] + p3[i]) - 3.0 * (m2[i] + p2[i])) - (m1[i] + p1[i]) + 6.0 * z[i];
+        out[i] = v * v;
+    }
+}
+
+impl Rcd {
+    /// Squared high-pass responses along `dirs`, then `out` = the first
+    /// direction's share of the summed statistics (`signed`: their
+    /// normalised difference instead), then its refinement into `refined`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn direction(
+        &self,
+        t: &Tile,
+        c: &[f32],
+        sq: &mut [Vec<f32>; 2],
+        dirs: [(isize, isize); 2],
+        signed: bool,
+        out: &mut [f32],
+        refined: &mut [f32],
+    ) {
+        for ty in 3..t.rows - 3 {
+            let sp = t.span(ty, 3);
+            for (q, d) in sq.iter_mut().zip(dirs) {
+                hpf_sq(sp, c, d, sp.out(q));
+            }
+        }
+        let eps2 = self.eps * self.eps;
+        for ty in 4..t.rows - 4 {
+            let sp = t.span(ty, 4);
+            let [(ay, ax), (by, bx)] = dirs;
+            let (a0, am, ap) = (
+                sp.at(&sq[0], 0, 0),
+                sp.at(&sq[0], -ay, -ax),
+                sp.at(&sq[0], ay, ax),
+            );
+            let (b0, bm, bp) = (
+                sp.at(&sq[1], 0, 0),
+                sp.at(&sq[1], -by, -bx),
+                sp.at(&sq[1], by, bx),
+            );
+            let o = sp.out(out);
+            for i in 0..sp.n {
+                let a = ((am[i] + ap[i]) + a0[i]).max(eps2);
+                let b = ((bm[i] + bp[i]) + b0[i]).max(eps2);
+                o[i] = if signed {
+                    (a - b) / (a + b)
+                } else {
+                    a / (a + b)
+                };
+            }
+        }
+        let neutral = if signed { 0.0 } else { 0.5 };
+        for ty in 5..t.rows - 5 {
+            let sp = t.span(ty, 5);
+            let (c0, ul, ur) = (sp.at(out, 0, 0), sp.at(out, -1, -1), sp.at(out, -1, 1));
+            let (dl, dr) = (sp.at(out, 1, -1), sp.at(out, 1, 1));
+            let o = sp.out(refined);
+            for i in 0..sp.n {
+                o[i] = refine(c0[i], ul[i], ur[i], dl[i], dr[i], neutral);
+            }
+        }
+    }
+}
+
+impl TileKernel for Rcd {
+    type State = State;
+    const HALO: usize = 10;
+
+    fn state(&self, stride: usize, len: usize) -> State {
+        let plane = || vec![0.0f32; len];
+        let mask = |parity: usize| {
+            (0..stride)
+                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
+                .collect()
+        };
+        State {
+            sq: [plane(), plane()],
+            vh: plane(),
+            vhd: plane(),
+            pq: plane(),
+            pqd: plane(),
+            lpf: plane(),
+            green: plane(),
+            x: plane(),
+            own: plane(),
+            other: plane(),
+            chroma: [mask(0), mask(1)],
+        }
+    }
+
+    #[inline(always)]
+    fn run<'s>(&self, st: &'s mut State, t: &Tile, c: &[f32]) -> [&'s [f32]; 3] {
+        let eps = self.eps;
+        let State {
+            sq,
+            vh,
+            vhd,
+            pq,
+            pqd,
+            lpf,
+            green,
+            x,
+            own,
+            other,
+            chroma,
+        } = st;
+        // The share of horizontal estimation: vertical activity over total.
+        self.direction(t, c, sq, [(1, 0), (0, 1)], false, vh, vhd);
+        // A luminance estimate: the 3x3 binomial filter sees every colour
+        // in Bayer proportions at any site.
+        for ty in 1..t.rows - 1 {
+            let sp = t.span(ty, 1);
+            let (z, n, s, w, e) = (
+                sp.at(c, 0, 0),
+                sp.at(c, -1, 0),
+                sp.at(c, 1, 0),
+                sp.at(c, 0, -1),
+                sp.at(c, 0, 1),
+            );
+            let (nw, ne, sw, se) = (
+                sp.at(c, -1, -1),
+                sp.at(c, -1, 1),
+                sp.at(c, 1, -1),
+                sp.at(c, 1, 1),
+            );
+            let o = sp.out(lpf);
+            for i in 0..sp.n {
+                o[i] = z[i]
+                    + 0.5 * ((n[i] + s[i]) + (w[i] + e[i]))
+                    + 0.25 * ((nw[i] + ne[i]) + (sw[i] + se[i]));
+            }
+        }
+        // Green at chroma sites.
+        for ty in 5..t.rows - 5 {
+            let sp = t.span(ty, 5);
+            let m = &chroma[t.kind(self.phase, ty).chroma_parity][5..5 + sp.n];
+            let v = |dy, dx| sp.at(c, dy, dx);
+            let l = |dy, dx| sp.at(lpf, dy, dx);
+            let (c0, l0, hd) = (v(0, 0), l(0, 0), sp.at(vhd, 0, 0));
+            let (n1, n2, n3, n4) = (v(-1, 0), v(-2, 0), v(-3, 0), v(-4, 0));
+            let (s1, s2, s3, s4) = (v(1, 0), v(2, 0), v(3, 0), v(4, 0));
+            let (w1, w2, w3, w4) = (v(0, -1), v(0, -2), v(0, -3), v(0, -4));
+            let (e1, e2, e3, e4) = (v(0, 1), v(0, 2), v(0, 3), v(0, 4));
+            let (ln, ls, lw, le) = (l(-2, 0), l(2, 0), l(0, -2), l(0, 2));
+            let o = sp.out(green);
+            for i in 0..sp.n {
+                let z = c0[i];
+                // Gradients towards each side.
+                let gn = eps + green_grad(z, n1[i], s1[i], n2[i], n3[i], n4[i]);
+                let gs = eps + green_grad(z, s1[i], n1[i], s2[i], s3[i], s4[i]);
+                let gw = eps + green_grad(z, w1[i], e1[i], w2[i], w3[i], w4[i]);
+                let ge = eps + green_grad(z, e1[i], w1[i], e2[i], e3[i], e4[i]);
+                // Each neighbour's green scaled by the luminance ratio
+                // between the site and the neighbour's far side; clamped at
+                // zero so negative float data cannot divide by zero.
+                let lc = l0[i].max(0.0);
+                let (en, es) = (
+                    ratio_estimate(n1[i], lc, ln[i], eps),
+                    ratio_estimate(s1[i], lc, ls[i], eps),
+                );
+                let (ew, ee) = (
+                    ratio_estimate(w1[i], lc, lw[i], eps),
+                    ratio_estimate(e1[i], lc, le[i], eps),
+                );
+                let vert = weigh(en, gn, es, gs);
+                let horz = weigh(ew, gw, ee, ge);
+                let g = vert + hd[i] * (horz - vert);
+                o[i] = select(m[i], g, z);
+            }
+        }
+        // Signed diagonal preference: > 0 when the NW-SE diagonal is busier.
+        self.direction(t, c, sq, [(1, 1), (1, -1)], true, pq, pqd);
+        // The other chroma at chroma sites, from colour differences along
+        // the two diagonals (the diagonal neighbours hold it).
+        for ty in 7..t.rows - 7 {
+            let sp = t.span(ty, 7);
+            let v = |dy, dx| sp.at(c, dy, dx);
+            let g = |dy, dx| sp.at(green, dy, dx);
+            let (g0, dq) = (g(0, 0), sp.at(pqd, 0, 0));
+            let (nw, ne, sw, se) = (v(-1, -1), v(-1, 1), v(1, -1), v(1, 1));
+            let (nw3, ne3, sw3, se3) = (v(-3, -3), v(-3, 3), v(3, -3), v(3, 3));
+            let (gnw, gne, gsw, gse) = (g(-1, -1), g(-1, 1), g(1, -1), g(1, 1));
+            let (gnw2, gne2, gsw2, gse2) = (g(-2, -2), g(-2, 2), g(2, -2), g(2, 2));
+            let o = sp.out(x);
+            for i in 0..sp.n {
+                let z = g0[i];
+                let gnw_ = eps + diff_grad(z, gnw2[i], nw[i], se[i], nw3[i]);
+                let gne_ = eps + diff_grad(z, gne2[i], ne[i], sw[i], ne3[i]);
+                let gsw_ = eps + diff_grad(z, gsw2[i], sw[i], ne[i], sw3[i]);
+                let gse_ = eps + diff_grad(z, gse2[i], se[i], nw[i], se3[i]);
+                let p = weigh(nw[i] - gnw[i], gnw_, se[i] - gse[i], gse_);
+                let q = weigh(ne[i] - gne[i], gne_, sw[i] - gsw[i], gsw_);
+                o[i] = z + 0.5 * (p + q) + dq[i] * (0.5 * (q - p));
+            }
+        }
+        // Chroma at green sites from colour differences to the four
+        // cardinal neighbours; the row's own chroma is sampled along the
+        // row and estimated (`x`) along the column, the other vice versa.
+        for ty in 10..t.rows - 10 {
+            let sp = t.span(ty, 10);
+            let m = &chroma[t.kind(self.phase, ty).chroma_parity][10..10 + sp.n];
+            let (c0, x0, g0, hd) = (
+                sp.at(c, 0, 0),
+                sp.at(x, 0, 0),
+                sp.at(green, 0, 0),
+                sp.at(vhd, 0, 0),
+            );
+            let g = |dy, dx| sp.at(green, dy, dx);
+            let (gn1, gs1, gw1, ge1) = (g(-1, 0), g(1, 0), g(0, -1), g(0, 1));
+            let (gn2, gs2, gw2, ge2) = (g(-2, 0), g(2, 0), g(0, -2), g(0, 2));
+            // Sampled / estimated neighbours at distance 1 and 3.
+            let cv: [&[f32]; 4] = [-3, -1, 1, 3].map(|k| sp.at(c, k, 0));
+            let ch: [&[f32]; 4] = [-3, -1, 1, 3].map(|k| sp.at(c, 0, k));
+            let xv: [&[f32]; 4] = [-3, -1, 1, 3].map(|k| sp.at(x, k, 0));
+            let xh: [&[f32]; 4] = [-3, -1, 1, 3].map(|k| sp.at(x, 0, k));
+            let (own_o, other_o) = (sp.out(own), sp.out(other));
+            for i in 0..sp.n {
+                let z = g0[i];
+                let gv = [gn1[i], gs1[i], gn2[i], gs2[i]];
+                let gh = [gw1[i], ge1[i], gw2[i], ge2[i]];
+                let own_v = cardinal_diff(z, [xv[0][i], xv[1][i], xv[2][i], xv[3][i]], gv, eps);
+                let own_h = cardinal_diff(z, [ch[0][i], ch[1][i], ch[2][i], ch[3][i]], gh, eps);
+                let other_v = cardinal_diff(z, [cv[0][i], cv[1][i], cv[2][i], cv[3][i]], gv, eps);
+                let other_h = cardinal_diff(z, [xh[0][i], xh[1][i], xh[2][i], xh[3][i]], gh, eps);
+                let own_g = z + (own_v + hd[i] * (own_h - own_v));
+                let other_g = z + (other_v + hd[i] * (other_h - other_v));
+                own_o[i] = select(m[i], c0[i], own_g);
+                other_o[i] = select(m[i], x0[i], other_g);
+            }
+        }
+        [&*own, &*green, &*other]
+    }
+}

@@ -1,0 +1,244 @@
+//! The skeleton of the multi-stage methods (RCD, Menon 2007): each stage
+//! reads earlier planes several pixels away, so a ring of rows per stage
+//! would need one ring per plane and careful lags. Instead a band of output
+//! rows is computed in a tile of `f32` planes covering the band plus a halo
+//! of mirrored rows and columns on every side; each stage fills the tile
+//! minus its reach, which shrinks from stage to stage, and the band's rows
+//! come out of the middle. Extra memory is a few tile planes per running
+//! task (about 128 rows each), never a full-size temporary.
+//!
+//! The halo is even, so a tile coordinate has the CFA parity of the image
+//! coordinate it stands for; mirroring without repeating the edge keeps the
+//! mosaic plausible across the border, as in the row kernels.
+
+use super::{interleave, Isa, Packed, Phase, RowKind};
+use crate::image::{mirror, ImageView, Sample};
+use rayon::prelude::*;
+
+/// Output rows per tile: the halo (8 to 10 rows each side) is recomputed
+/// for every tile, so tiles are twice as tall as the row kernels' bands
+/// (~15 % overhead) while 24 MP still gives ~30 tasks to balance.
+const ROWS_PER_TILE: usize = 128;
+
+/// Output columns per tile: a dozen planes of 148 x 404 values (~3 MB)
+/// stay in cache, where full-width tiles (40 MB at 6000 columns) made two
+/// threads slower than one.
+const COLS_PER_TILE: usize = 384;
+
+/// Where a tile sits: plane index `ty * stride + tx` is image pixel
+/// `(y0 + ty, tx - K::HALO)`.
+pub(crate) struct Tile {
+    pub(crate) stride: usize,
+    pub(crate) rows: usize,
+    pub(crate) y0: isize,
+}
+
+impl Tile {
+    /// The kind of tile row `ty`.
+    pub(crate) fn kind(&self, phase: Phase, ty: usize) -> RowKind {
+        phase.row(self.y0 + ty as isize)
+    }
+
+    /// Equal-length views of tile row `ty` for a stage of reach `s`: its
+    /// columns `s .. stride - s`.
+    pub(crate) fn span(&self, ty: usize, s: usize) -> Span {
+        Span {
+            stride: self.stride as isize,
+            base: (ty * self.stride + s) as isize,
+            n: self.stride - 2 * s,
+        }
+    }
+}
+
+/// The columns one stage fills in one tile row; see [`Tile::span`].
+#[derive(Clone, Copy)]
+pub(crate) struct Span {
+    stride: isize,
+    base: isize,
+    pub(crate) n: usize,
+}
+
+impl Span {
+    /// Plane `p` seen `dy` rows down and `dx` columns right of the span.
+    #[inline(always)]
+    pub(crate) fn at(self, p: &[f32], dy: isize, dx: isize) -> &[f32] {
+        let start = (self.base + dy * self.stride + dx) as usize;
+        &p[start..start + self.n]
+    }
+
+    /// The span's indices in a plane (for planes of masks).
+    #[inline(always)]
+    pub(crate) fn range(self) -> std::ops::Range<usize> {
+        self.base as usize..self.base as usize + self.n
+    }
+
+    /// Plane `p`'s own row, writable.
+    #[inline(always)]
+    pub(crate) fn out(self, p: &mut [f32]) -> &mut [f32] {
+        let start = self.base as usize;
+        &mut p[start..start + self.n]
+    }
+}
+
+/// A multi-stage method run on tiles.
+pub(crate) trait TileKernel: Sync {
+    /// Planes and scratch, made once per tile.
+    type State;
+    /// Mirrored rows and columns needed around the output (even).
+    const HALO: usize;
+    /// Planes of `len` values for tiles `stride` wide.
+    fn state(&self, stride: usize, len: usize) -> Self::State;
+    /// Computes the tile from the raw plane `raw`, returning the planes of
+    /// the row's own chroma, green and the other chroma (see [`RowKind`]),
+    /// valid at least over the tile's middle.
+    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3];
+}
+
+/// The smallest and largest sample of `raw`, to clamp outputs into.
+fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
+    (0..raw.height())
+        .into_par_iter()
+        .map(|y| {
+            raw.row(y)
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), v| {
+                    let v = v.to_f32();
+                    (lo.min(v), hi.max(v))
+                })
+        })
+        .reduce(
+            || (f32::INFINITY, f32::NEG_INFINITY),
+            |a, b| (a.0.min(b.0), a.1.max(b.1)),
+        )
+}
+
+/// Runs `k` over every tile of rows and writes the result, clamped to the
+/// range of `raw` (min and max are exact whatever the thread count).
+pub(crate) fn run_tiled<T: Sample, K: TileKernel>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    k: &K,
+    isa: Isa,
+    out: &mut [T],
+) {
+    let bounds = range(raw);
+    let w = raw.width();
+    // One set of planes per rayon worker split, reused from tile to tile:
+    // fresh multi-megabyte planes per tile spent a third of the time in
+    // page faults. Each stage only reads what earlier stages of the same
+    // tile wrote, so leftovers of the previous tile never reach the output
+    // (the thread-count tests compare runs with different reuse).
+    let stride = w.min(COLS_PER_TILE) + 2 * K::HALO;
+    let len = stride * (ROWS_PER_TILE + 2 * K::HALO);
+    let init = || Scratch {
+        plane: vec![0.0f32; len],
+        state: k.state(stride, len),
+        clamped: [0, 1, 2].map(|_| vec![0.0f32; COLS_PER_TILE]),
+        packed: Packed::new(COLS_PER_TILE),
+    };
+    let bands = raw.height().div_ceil(ROWS_PER_TILE);
+    out.par_chunks_mut(3 * w * ROWS_PER_TILE)
+        // Bands cost the same: a run of them per thread makes rayon call
+        // `init` about once per thread instead of once per split.
+        .with_min_len(bands.div_ceil(2 * rayon::current_num_threads()))
+        .enumerate()
+        .for_each_init(init, |scratch, (i, rows)| {
+            let y0 = i * ROWS_PER_TILE;
+            for x0 in (0..w).step_by(COLS_PER_TILE) {
+                match isa {
+                    Isa::Baseline => tile(raw, phase, k, bounds, (x0, y0), scratch, rows),
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+                    Isa::Avx2 => unsafe {
+                        tile_avx2(raw, phase, k, bounds, (x0, y0), scratch, rows)
+                    },
+                }
+            }
+        });
+}
+
+/// Per-thread buffers of [`run_tiled`].
+struct Scratch<S, T> {
+    plane: Vec<f32>,
+    state: S,
+    clamped: [Vec<f32>; 3],
+    packed: Packed<T>,
+}
+
+/// [`tile`] compiled for AVX2; the kernels inline into it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn tile_avx2<T: Sample, K: TileKernel>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    k: &K,
+    bounds: (f32, f32),
+    origin: (usize, usize),
+    scratch: &mut Scratch<K::State, T>,
+    rows: &mut [T],
+) {
+    tile(raw, phase, k, bounds, origin, scratch, rows);
+}
+
+/// The tile of output columns `x0 .. x0 + COLS_PER_TILE` of the band
+/// `rows` starting at row `y0`.
+#[inline(always)]
+fn tile<T: Sample, K: TileKernel>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    k: &K,
+    (lo, hi): (f32, f32),
+    (x0, y0): (usize, usize),
+    scratch: &mut Scratch<K::State, T>,
+    rows: &mut [T],
+) {
+    let (w, h, halo) = (raw.width(), raw.height(), K::HALO);
+    let n = rows.len() / (3 * w);
+    let tw = COLS_PER_TILE.min(w - x0);
+    let t = Tile {
+        stride: tw + 2 * halo,
+        rows: n + 2 * halo,
+        y0: y0 as isize - halo as isize,
+    };
+    // Image columns `x0 - halo ..` go to tile columns `0 ..`; those inside
+    // the image are converted as one run, the rest mirrored one by one.
+    let left = x0 as isize - halo as isize;
+    let (in_lo, in_hi) = (left.max(0) as usize, (x0 + tw + halo).min(w));
+    let plane = &mut scratch.plane[..t.stride * t.rows];
+    for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
+        let src = raw.row(mirror(t.y0 + ty as isize, h));
+        let run = (in_lo as isize - left) as usize;
+        for (d, s) in dst[run..run + in_hi - in_lo]
+            .iter_mut()
+            .zip(&src[in_lo..in_hi])
+        {
+            *d = s.to_f32();
+        }
+        let outside = (0..run).chain(run + in_hi - in_lo..t.stride);
+        for tx in outside {
+            dst[tx] = src[mirror(left + tx as isize, w)].to_f32();
+        }
+    }
+    let planes = k.run(&mut scratch.state, &t, plane);
+    let Scratch {
+        clamped, packed, ..
+    } = scratch;
+    for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
+        let ty = halo + i;
+        let kind = t.kind(phase, ty);
+        let [own, green, other] = planes;
+        let rgb = if kind.blue {
+            [other, green, own]
+        } else {
+            [own, green, other]
+        };
+        let start = ty * t.stride + halo;
+        for ((c, src), dst) in clamped.iter_mut().zip(rgb).zip(packed.0.iter_mut()) {
+            for (d, s) in c[..tw].iter_mut().zip(&src[start..start + tw]) {
+                *d = s.max(lo).min(hi);
+            }
+            T::from_f32_row(&mut dst[..tw], &c[..tw]);
+        }
+        interleave(packed, &mut o[3 * x0..3 * (x0 + tw)]);
+    }
+}
