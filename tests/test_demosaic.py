@@ -2,11 +2,11 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 
 BAYER = ["RGGB", "BGGR", "GRBG", "GBRG"]
 METHODS = list(ig.DEMOSAIC_METHODS)

@@ -159,7 +159,7 @@ def test_the_stripped_dng_is_refused_even_after_decoding_another_raw():
         ig.load_raw(RAW_DIR / "bad_exiftool_stripped_DNG.dng")
 
 
-def test_an_x_trans_dng_loads_with_its_tile_and_bayer_demosaicers_refuse_it(tmp_path):
+def test_an_x_trans_dng_loads_with_its_tile_and_only_x_trans_demosaicers_take_it(tmp_path):
     tile = ig.pattern_cells("XTRANS")
     rng = np.random.default_rng(7)
     cfa = rng.integers(0, 4096, (36, 48)).astype(np.uint16)
@@ -168,8 +168,9 @@ def test_an_x_trans_dng_loads_with_its_tile_and_bayer_demosaicers_refuse_it(tmp_
     raw = ig.load_raw(path)
     np.testing.assert_array_equal(ig.pattern_cells(raw.pattern), tile)
     assert raw.channel_tile.shape == (6, 6)
-    with pytest.raises(ValueError, match="X-Trans"):
-        ig.develop(raw, demosaic="bilinear")
+    assert ig.develop(raw, demosaic="bilinear").shape == (36, 48, 3)
+    with pytest.raises(ValueError, match="bilinear"):
+        ig.develop(raw, demosaic="hamilton_adams")
 
 
 def test_stale_pixels_behind_a_small_file_are_refused():
