@@ -3,15 +3,11 @@
 
 use imgform_core::image::{ImageView, Sample};
 use imgform_core::remap::{self, Interpolation, Resample};
-use numpy::ndarray::IxDyn;
-use numpy::{
-    Element, PyArrayDyn, PyArrayMethods, PyReadonlyArray2, PyReadonlyArrayDyn,
-    PyUntypedArrayMethods,
-};
+use numpy::{Element, PyArrayDyn, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, describe, image_dims, to_numpy, AnyImage};
+use crate::arrays::{contiguous, describe, detached_into, image_dims, to_numpy, AnyImage};
 use crate::dispatch_image;
 use crate::distortion::{intrinsics, model};
 use crate::errors::{detached, to_pyerr};
@@ -165,17 +161,10 @@ where
     let (h, w, c) = image_dims(arr.shape(), "image")?;
     let shape = out_shape(arr.shape());
     let src = contiguous(&arr);
-    let out = PyArrayDyn::<T>::zeros(py, IxDyn(&shape), false);
-    {
-        let mut guard = out.readwrite();
-        let slice = guard
-            .as_slice_mut()
-            .map_err(|e| PyValueError::new_err(format!("internal: output not contiguous: {e}")))?;
-        detached(py, || {
-            let view = ImageView::contiguous(&src, w, h, c)?;
-            kernel(&view, slice)
-        })?;
-    }
+    let out = detached_into(py, &shape, |out| {
+        let view = ImageView::contiguous(&src, w, h, c)?;
+        kernel(&view, out)
+    })?;
     Ok(out.into_any())
 }
 
