@@ -131,6 +131,17 @@ def test_black_level_patterns_are_subtracted_as_libraw_does(tmp_path, shape):
         assert psnr(ours(flat), ref, 65535) < 35
 
 
+@pytest.mark.parametrize("aspect", [1.5, 0.6])
+def test_non_square_pixels_are_stretched_as_libraw_does(tmp_path, aspect):
+    # Wide photosites add columns, tall ones rows; a turn swaps the two.
+    path = sensor_dng(tmp_path / "wide.dng", "GBRG", 64, pixel_aspect=aspect, orientation=6)
+    raw = ig.load_raw(path)
+    for orientation, flip in [("none", 0), ("auto", None)]:
+        got, ref = ours(path, orientation=orientation), libraw(path, user_flip=flip)
+        assert got.shape == ref.shape and psnr(got, ref, 65535) >= 40
+    assert got.shape[:2] == raw.output_size
+
+
 @pytest.mark.parametrize("orientation", range(1, 9))
 def test_every_exif_orientation_turns_the_image_as_libraw_does(tmp_path, orientation):
     path = sensor_dng(tmp_path / "turned.dng", "GRBG", 64, orientation=orientation)

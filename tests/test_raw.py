@@ -215,7 +215,7 @@ def test_black_level_patterns_become_levels_and_a_map(tmp_path, black, levels, b
         assert ig.load_raw(r).black_map.tolist() == [[0.0]]
 
 
-def test_write_dng_refuses_bad_black_patterns(tmp_path):
+def test_write_dng_refuses_bad_black_patterns_orientations_and_aspects(tmp_path):
     cfa = np.ones((32, 32), np.uint16)
     for black, message in [
         (np.ones((65, 2), np.int64), "at most 64 x 64"),
@@ -226,6 +226,8 @@ def test_write_dng_refuses_bad_black_patterns(tmp_path):
             write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, black_level=black)
     with pytest.raises(ValueError, match="orientation must be"):
         write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, orientation=9)
+    with pytest.raises(ValueError, match="pixel_aspect must be"):
+        write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, pixel_aspect=0.0)
 
 
 @needs_raws

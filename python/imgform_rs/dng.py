@@ -114,6 +114,7 @@ def write_dng(
     as_shot_neutral: Any = (1.0, 1.0, 1.0),
     model: str = "imgform-rs synthetic",
     orientation: int = 1,
+    pixel_aspect: float = 1.0,
 ) -> None:
     """Write a CFA mosaic as an uncompressed DNG that LibRaw reads back exactly.
 
@@ -140,6 +141,9 @@ def write_dng(
         ``UniqueCameraModel`` (also written as Make / Model).
     orientation : int
         EXIF / TIFF ``Orientation``, 1 (as stored) to 8.
+    pixel_aspect : float
+        Width / height of a photosite, written as ``DefaultScale``
+        (``pixel_aspect``, 1): developers stretch the image to square pixels.
 
     Raises
     ------
@@ -147,8 +151,8 @@ def write_dng(
         For a non-integer mosaic.
     ValueError
         For a mosaic that is not 2-D or is empty, levels outside 0..65535 or
-        black not below white, a black pattern over 64 x 64, or an
-        orientation outside 1..8.
+        black not below white, a black pattern over 64 x 64, an orientation
+        outside 1..8, or a pixel aspect that is not a positive finite number.
 
     Examples
     --------
@@ -168,6 +172,8 @@ def write_dng(
     black = _black_pattern(black_level, white_level)
     if orientation not in range(1, 9):
         raise ValueError(f"orientation must be an EXIF orientation 1..8, got {orientation!r}")
+    if not (np.isfinite(pixel_aspect) and pixel_aspect > 0):
+        raise ValueError(f"pixel_aspect must be a positive number, got {pixel_aspect!r}")
     tile = pattern_cells(pattern)
     h, w = arr.shape
     pixels = np.ascontiguousarray(arr, dtype="<u2").tobytes()
@@ -196,6 +202,7 @@ def write_dng(
     ifd.add(50713, _SHORT, black.shape)  # BlackLevelRepeatDim
     ifd.add(50714, _LONG, black.ravel())
     ifd.add(50717, _LONG, int(white_level))
+    ifd.add(50718, _RATIONAL, (pixel_aspect, 1.0))  # DefaultScale
     ifd.add(50721, _SRATIONAL, color_matrix)
     ifd.add(50728, _RATIONAL, as_shot_neutral)
     ifd.add(50778, _SHORT, _D65)
