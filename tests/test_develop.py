@@ -187,6 +187,16 @@ def test_every_white_balance_matches_libraw(tmp_path, wb):
     assert psnr(ours(path, white_balance=wb), libraw(path, **LIBRAW_WB[wb]), 65535) >= 40
 
 
+def test_unclipped_highlights_match_libraw(tmp_path):
+    # An over-exposed card: clip and unclip differ wherever a channel clips.
+    path = tmp_path / "bright.dng"
+    cfa = ig.simulate_sensor(smooth_scene(96, 128, 0.3, 1.0), "RGGB", full_well=1e7, read_noise=0)
+    write_dng(path, cfa, "RGGB", white_level=4095, as_shot_neutral=(0.5, 1, 0.7))
+    got = ours(path, highlights="unclip")
+    ref = libraw(path, highlight_mode=rawpy.HighlightMode.Ignore)
+    assert psnr(got, ref, 65535) >= 40 and psnr(ours(path), ref, 65535) < 30
+
+
 # rawpy's gamma is (1 / exponent, toe slope): sRGB and BT.709 as LibRaw
 # builds them. The curves are steep near black, so integer outputs differ by
 # a few codes there: the bar is 45 dB.

@@ -16,7 +16,8 @@ user_flip=0)``:
   it is taken as white instead (LibRaw's ``adjust_maximum_thr`` default,
   which absorbs white levels that cameras report a little too high);
 - white balance: the multipliers are divided by the smallest, so no channel
-  is scaled below 1 and all clip together at white (LibRaw ``highlight=0``);
+  is scaled below 1 and all clip together at white (LibRaw ``highlight=0``;
+  ``highlights="unclip"`` divides by the largest, LibRaw ``highlight=1``);
   a file without an as-shot balance falls back to grey world, as LibRaw does;
 - colour: LibRaw's ``rgb_cam`` (``RawImage.camera_to_srgb``, rebuilt by
   :func:`load_raw` from rawpy's matrices and the file's own tags), then a
@@ -57,6 +58,7 @@ TONES: tuple[str, ...] = tuple(_native.TONES)
 """Every tone curve :func:`develop` accepts."""
 
 WHITE_BALANCES = ("camera", "daylight", "auto", "none")
+HIGHLIGHTS = ("clip", "unclip")
 
 # LibRaw's default adjust_maximum_thr (see the module docstring).
 _ADJUST_MAXIMUM = 0.75
@@ -200,8 +202,14 @@ def develop(
         Output transfer curve.
     exposure : float
         Exposure change in stops, applied before clipping.
-    highlights : {"clip"}
-        Highlights clip at white (the only mode so far).
+    highlights : {"clip", "unclip"}
+        "clip": white-balance multipliers are divided by the smallest, so
+        every channel reaches white at the sensor's white and highlights clip
+        to neutral white (LibRaw's ``highlight=0``). "unclip": divided by the
+        largest, so no channel is pushed past the sensor's white: clipped
+        highlights keep the sensor's (often tinted) colour and the image is
+        darker by the multipliers' ratio (LibRaw's ``highlight=1``, rawpy's
+        ``HighlightMode.Ignore``).
     bps : {8, 16, "float"}
         Output uint8, uint16 or float32 in [0, 1].
     orientation : {"auto", "none"}
@@ -247,8 +255,8 @@ def develop(
         raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
     if color not in ("srgb", "camera"):
         raise ValueError(f'color must be "srgb" or "camera", got {color!r}')
-    if highlights != "clip":
-        raise ValueError(f'highlights must be "clip", got {highlights!r}')
+    if highlights not in HIGHLIGHTS:
+        raise ValueError(f"highlights must be one of {HIGHLIGHTS}, got {highlights!r}")
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
     if not np.isfinite(exposure):
@@ -257,7 +265,7 @@ def develop(
         raise TypeError(f"demosaic must be a str, one of {DEMOSAIC_METHODS}, got {demosaic!r}")
     raw = source if isinstance(source, RawImage) else load_raw(source)
     mul = _multipliers(raw, white_balance)
-    mul = mul / mul.min()
+    mul = mul / (mul.min() if highlights == "clip" else mul.max())
     scale4 = mul / _white_range(raw) * 2.0**exposure
     matrix = raw.camera_to_srgb if color == "srgb" else np.eye(3)
     rgb = _native.develop(
