@@ -31,7 +31,10 @@ truncates the weight to zero).
 Where LibRaw develops with data rawpy does not expose and the file cannot
 supply either, the results differ: a colour matrix LibRaw picks in code
 (Canon PowerShot 600, Logitech Fotoman, Nikon E880-E990, Kodak DC20/25), a
-black-level pattern of a non-DNG format, and, for an open ``rawpy.RawPy``
+black-level pattern of a non-DNG format, the white of LibRaw's decoders
+with a fixed maximum (Broadcom, Nokia and Android sensor dumps, 8-bit and
+Kodak YCbCr formats: LibRaw skips the white adjustment for them, and rawpy
+does not say which decoder read a file), and, for an open ``rawpy.RawPy``
 source, whatever :func:`load_raw` reads from the file's bytes (see its
 docs and the README's "Colour science").
 """
