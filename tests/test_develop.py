@@ -131,6 +131,17 @@ def test_black_level_patterns_are_subtracted_as_libraw_does(tmp_path, shape):
         assert psnr(ours(flat), ref, 65535) < 35
 
 
+def test_a_black_map_on_an_x_trans_sensor_repeats_with_the_common_period(tmp_path):
+    # A 4x4 black pattern on the 6x6 X-Trans tile: a 12x12 tile in the core.
+    path = sensor_dng(tmp_path / "xt.dng", ig.pattern_cells("XTRANS"), BLACK_PATTERNS["4x4"])
+    raw = ig.load_raw(path)
+    assert raw.black_map.shape == (4, 4)
+    ref = libraw(path)
+    assert psnr(ours(raw), ref, 65535) >= 40
+    flat = dataclasses.replace(raw, black_map=np.zeros((1, 1)))
+    assert psnr(ours(flat), ref, 65535) < 35
+
+
 @pytest.mark.parametrize("aspect", [1.5, 0.6])
 def test_non_square_pixels_are_stretched_as_libraw_does(tmp_path, aspect):
     # Wide photosites add columns, tall ones rows; a turn swaps the two.
