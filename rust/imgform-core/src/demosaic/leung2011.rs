@@ -132,6 +132,9 @@ impl TileKernel for Leung2011 {
         }
     }
 
+    // The stages are `#[inline(always)]` so that they are compiled into
+    // the AVX2 copy of the tile loop (see `tiled`), not only for the
+    // baseline instruction set.
     #[inline(always)]
     fn run<'s>(&self, st: &'s mut State, t: &Tile, c: &[f32]) -> [&'s [f32]; 3] {
         prefilter(t, c, &mut st.pre);
@@ -148,6 +151,7 @@ impl TileKernel for Leung2011 {
 /// The pre-filters of the three estimates, from 3x3 neighbourhoods: with
 /// `d = 2c - (w + e)` and `s = 2c + (w + e)` per row, `[-1 2 -1]` down `d`,
 /// `[1 2 1]` down `d`, and `[-1 2 -1]` down `s`.
+#[inline(always)]
 fn prefilter(t: &Tile, c: &[f32], pre: &mut [Vec<f32>; 3]) {
     let [p1, pa, pb] = pre;
     for ty in 1..t.rows - 1 {
@@ -176,6 +180,7 @@ fn prefilter(t: &Tile, c: &[f32], pre: &mut [Vec<f32>; 3]) {
 
 /// The symmetric taps `q` down the columns of `src`, over every row the
 /// horizontal pass needs.
+#[inline(always)]
 fn filter_down(t: &Tile, q: &Taps, src: &[f32], dst: &mut [f32]) {
     for ty in 6..t.rows - 6 {
         let sp = t.span(ty, 1);
@@ -190,6 +195,7 @@ fn filter_down(t: &Tile, q: &Taps, src: &[f32], dst: &mut [f32]) {
 }
 
 /// The symmetric taps `q` along the rows of `src`.
+#[inline(always)]
 fn filter_across(t: &Tile, q: &Taps, src: &[f32], dst: &mut [f32]) {
     for ty in 6..t.rows - 6 {
         let sp = t.span(ty, 6);
@@ -206,6 +212,7 @@ fn filter_across(t: &Tile, q: &Taps, src: &[f32], dst: &mut [f32]) {
 /// Local luma energy between the chroma bands, across and down: the
 /// squared response of `[-1 0 2 0 -1]` (peak at π/2, zeros at 0 and π) one
 /// way and `[1 2 1]` (zero at π) the other, summed over 5x5.
+#[inline(always)]
 fn band_energy(
     t: &Tile,
     c: &[f32],
@@ -254,6 +261,7 @@ fn band_energy(
 impl Leung2011 {
     /// Carrier signs, the adaptive `C2`, luma, and the three colours as the
     /// row's own chroma, green and other chroma; measured samples are kept.
+    #[inline(always)]
     fn combine(&self, st: &mut State, t: &Tile, c: &[f32]) {
         let State {
             z,
