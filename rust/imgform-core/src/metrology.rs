@@ -185,35 +185,46 @@ impl Segment {
         }
     }
 
-    /// `v_xy - v_z m`: the direction from the midpoint to `v`.
+    /// `v_xy - v_z m` (the direction from the midpoint to unit `v`) and its
+    /// squared length, or `None` when `v` sits on the midpoint. Every `v`
+    /// here is a unit vector (hypotheses and iterates are normalised), so an
+    /// absolute tolerance is a relative one.
     #[inline]
-    fn toward(&self, v: Vec3) -> [f64; 2] {
-        [v[0] - v[2] * self.mid[0], v[1] - v[2] * self.mid[1]]
+    fn toward(&self, v: Vec3) -> Option<([f64; 2], f64)> {
+        let w = [v[0] - v[2] * self.mid[0], v[1] - v[2] * self.mid[1]];
+        let d2 = w[0] * w[0] + w[1] * w[1];
+        (d2 > COINCIDENCE_TOLERANCE * COINCIDENCE_TOLERANCE).then_some((w, d2))
     }
 
     /// Signed distance of an end point from the line through the midpoint
-    /// and `v` (homogeneous, any scale).
+    /// and unit `v`.
     #[inline]
     fn residual(&self, v: Vec3) -> f64 {
-        let w = self.toward(v);
-        let d = w[0].hypot(w[1]);
-        if d <= COINCIDENCE_TOLERANCE * norm(v) {
-            self.half
-        } else {
-            dot(self.line, v) / d
+        match self.toward(v) {
+            Some((_, d2)) => dot(self.line, v) / d2.sqrt(),
+            None => self.half,
+        }
+    }
+
+    /// The squared residual without a square root: RANSAC scores every
+    /// segment against every hypothesis, and this is its inner loop.
+    #[inline]
+    fn residual_sq(&self, v: Vec3) -> f64 {
+        match self.toward(v) {
+            Some((_, d2)) => dot(self.line, v).powi(2) / d2,
+            None => self.half * self.half,
         }
     }
 
     /// Gradient of [`Segment::residual`] with respect to `v`; zero where the
     /// residual is the constant `half`.
     fn gradient(&self, v: Vec3) -> Vec3 {
-        let w = self.toward(v);
-        let d = w[0].hypot(w[1]);
-        if d <= COINCIDENCE_TOLERANCE * norm(v) {
+        let Some((w, d2)) = self.toward(v) else {
             return [0.0; 3];
-        }
+        };
         // r = (line · v) / d, with d = |v_xy - v_z m|:
-        // ∇d = (w_x, w_y, -m · w) / d, so ∇r = line / d - r ∇d / d.
+        // ∇d = (w_x, w_y, -m · w) / d, so ∇r = (line - r ∇d) / d.
+        let d = d2.sqrt();
         let r = dot(self.line, v) / d;
         let grad_d = [w[0], w[1], -(self.mid[0] * w[0] + self.mid[1] * w[1])];
         [
@@ -282,7 +293,7 @@ fn intersect(a: &Segment, b: &Segment) -> Option<Vec3> {
 
 /// MSAC cost: inliers pay their squared residual, outliers the threshold's.
 fn msac_cost(segments: &[Segment], v: Vec3, t2: f64) -> f64 {
-    segments.iter().map(|s| s.residual(v).powi(2).min(t2)).sum()
+    segments.iter().map(|s| s.residual_sq(v).min(t2)).sum()
 }
 
 /// The best hypothesis over all pairs, by cost then by index, so the winner
@@ -325,7 +336,7 @@ fn cost(segments: &[Segment], inliers: &[bool], v: Vec3) -> f64 {
         .iter()
         .zip(inliers)
         .filter(|(_, &inl)| inl)
-        .map(|(s, _)| s.residual(v).powi(2))
+        .map(|(s, _)| s.residual_sq(v))
         .sum()
 }
 
@@ -376,7 +387,9 @@ fn refine(segments: &[Segment], inliers: &[bool], mut v: Vec3) -> (Vec3, [f64; 3
         ]);
         let next = cost(segments, inliers, trial);
         if next.is_finite() && next <= current {
-            let settled = current - next <= 1e-15 * current || d0.hypot(d1) <= 1e-15;
+            // 1e-12 of the unit vector is ~1e-12 of the segments' spread,
+            // far below any pixel: further steps only chase rounding.
+            let settled = current - next <= 1e-12 * current || d0.hypot(d1) <= 1e-12;
             (v, current, lambda) = (trial, next, lambda * 0.1);
             if settled {
                 break;
