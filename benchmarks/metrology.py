@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 from _bench import measure as time_it
 from _bench import table
-from metrology_scene import Pose, measure, pole_scene
+from metrology_scene import measure, random_scenes
 
 import imgform_rs as ig
 
@@ -35,29 +35,12 @@ SIGMAS = (0.0, 0.1, 0.25, 0.5, 1.0, 2.0)
 N_SCENES = 60
 
 
-def scenes(n: int, seed: int = 7) -> list:
-    rng = np.random.default_rng(seed)
-    found = []
-    while len(found) < n:
-        pose = Pose(
-            rng.uniform(1.0, 5.0),
-            rng.uniform(0.15, 0.5),
-            rng.uniform(-np.pi, np.pi),
-            rng.uniform(-0.3, 0.3),
-            np.deg2rad(60.0),
-        )
-        scene = pole_scene(pose, int(rng.integers(1 << 31)), n_poles=10, n_lines=20)
-        if scene is not None:
-            found.append(scene)
-    return found
-
-
 def pct(values: np.ndarray, q: float, unit: float = 1.0) -> str:
     return f"{np.percentile(values, q) * unit:.3g}"
 
 
 def error_curve() -> None:
-    all_scenes = scenes(N_SCENES)
+    all_scenes = random_scenes(N_SCENES, seed=7)
     rows = []
     for sigma in SIGMAS:
         ms = [measure(s, sigma, seed=i) for i, s in enumerate(all_scenes)]

@@ -96,6 +96,26 @@ def pole_scene(pose: Pose, seed: int, n_poles: int = 6, n_lines: int = 8) -> Pol
     return PoleScene(cam, h, heights, poles, ground, directions)
 
 
+def random_scenes(n: int, seed: int) -> list[PoleScene]:
+    """``n`` scenes at random poses (1-5 m up, pitched down 0.15-0.5 rad, any
+    yaw, rolled up to 0.3 rad, 60° field) with 10 poles and 20 lines per
+    direction, the same for the same ``seed``."""
+    rng = np.random.default_rng(seed)
+    found: list[PoleScene] = []
+    while len(found) < n:
+        pose = Pose(
+            rng.uniform(1.0, 5.0),
+            rng.uniform(0.15, 0.5),
+            rng.uniform(-np.pi, np.pi),
+            rng.uniform(-0.3, 0.3),
+            np.deg2rad(60.0),
+        )
+        scene = pole_scene(pose, int(rng.integers(1 << 31)), n_poles=10, n_lines=20)
+        if scene is not None:
+            found.append(scene)
+    return found
+
+
 def vp_angle(cam: ig.Camera, estimate: np.ndarray, truth: np.ndarray) -> float:
     """Angle (radians) between the viewing directions of two homogeneous
     vanishing points, blind to sign (a vanishing point is a line of sight)."""

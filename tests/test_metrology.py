@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
-from metrology_scene import UP, Pose, measure, pole_scene
+from metrology_scene import UP, Pose, measure, pole_scene, random_scenes
 
 import imgform_rs as ig
 from conftest import output_with_threads
@@ -68,19 +68,7 @@ def _forward(cam: ig.Camera) -> np.ndarray:
 def _error_curve(sigmas, n_scenes=12):
     """Median relative height error and median vanishing-point angle per sigma,
     over fixed scenes and noise draws (deterministic)."""
-    rng = np.random.default_rng(2024)
-    scenes = []
-    while len(scenes) < n_scenes:
-        pose = Pose(
-            rng.uniform(1.0, 5.0),
-            rng.uniform(0.15, 0.5),
-            rng.uniform(-np.pi, np.pi),
-            rng.uniform(-0.3, 0.3),
-            np.deg2rad(60.0),
-        )
-        scene = pole_scene(pose, int(rng.integers(1 << 31)), n_poles=10, n_lines=20)
-        if scene is not None:
-            scenes.append(scene)
+    scenes = random_scenes(n_scenes, seed=2024)
     curve = []
     for sigma in sigmas:
         ms = [measure(s, sigma, seed=i) for i, s in enumerate(scenes)]
