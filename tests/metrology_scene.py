@@ -116,6 +116,22 @@ def random_scenes(n: int, seed: int) -> list[PoleScene]:
     return found
 
 
+def algebraic_vanishing_point(segments: np.ndarray) -> np.ndarray:
+    """The textbook peer: the homogeneous point minimising ``sum (l_i · v)²``
+    over the segments' lines ``l_i`` (Hartley-normalised, ``a² + b² = 1``),
+    the smallest right singular vector; no robustness, no end-point model."""
+    ends = np.vstack([segments[:, :2], segments[:, 2:]])
+    c = ends.mean(axis=0)
+    s = np.sqrt(2.0) / np.linalg.norm(ends - c, axis=1).mean()
+    T = np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
+    ones = np.ones((len(segments), 1))
+    p1 = np.hstack([segments[:, :2], ones]) @ T.T
+    p2 = np.hstack([segments[:, 2:], ones]) @ T.T
+    lines = np.cross(p1, p2)
+    lines /= np.linalg.norm(lines[:, :2], axis=1, keepdims=True)
+    return np.linalg.solve(T, np.linalg.svd(lines)[2][-1])
+
+
 def vp_angle(cam: ig.Camera, estimate: np.ndarray, truth: np.ndarray) -> float:
     """Angle (radians) between the viewing directions of two homogeneous
     vanishing points, blind to sign (a vanishing point is a line of sight)."""
