@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 from imgform_rs._png import write_png
 from imgform_rs.cli import main
 

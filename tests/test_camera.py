@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 
 unit = st.floats(-1.0, 1.0)
 quaternions = st.tuples(unit, unit, unit, unit).filter(lambda q: np.linalg.norm(q) > 0.1)

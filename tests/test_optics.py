@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 
 focal = st.floats(1.0, 1000.0)
 fnumber = st.floats(0.7, 64.0)

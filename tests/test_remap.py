@@ -1,10 +1,10 @@
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 
 K = np.array([[300.0, 0.0, 159.5], [0.0, 310.0, 119.5], [0.0, 0.0, 1.0]])
 LENS = np.array([-0.25, 0.08, 1e-3, -8e-4, -0.01])
