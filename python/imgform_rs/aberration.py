@@ -84,10 +84,14 @@ def pupil_psf(
     pixel_pitch, f_number, wavelength : float
         Sensor pixel pitch, f-number and wavelength (same length unit), > 0.
     defocus, spherical : float
-        ``W020`` and ``W040`` in waves. A defocus ``dz`` of the image plane is
-        ``W020 = -dz / (8 N^2 wavelength)`` (positive ``dz`` away from the
-        lens); ``spherical > 0`` is the under-corrected aberration of a simple
-        positive lens, best balanced by ``defocus = -spherical``.
+        ``W020`` and ``W040`` in waves, signed so that a ray's transverse error
+        is ``-dW/drho``: moving the image plane ``dz`` away from the lens is
+        ``W020 = dz / (8 N^2 wavelength)``, and ``spherical > 0`` is the
+        under-corrected aberration of a simple positive lens, whose marginal
+        focus lies ``spherical_lsa = 16 N^2 wavelength W040`` nearer the lens
+        (:func:`spot_diagram`). Its sharpest PSF (least wavefront variance) is
+        at ``defocus = -spherical``, half way to the marginal focus; the least
+        RMS spot is at ``-4/3 spherical``, two thirds of the way.
     oversample : int, optional
         Sub-samples per pixel and axis. At least ``ceil(2 pixel_pitch /
         (wavelength f_number))`` (the Nyquist rate of the PSF; coarser grids
@@ -289,7 +293,7 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
     The convolution ``out[p] = sum_i psf[i] image[p + c - i]``, anchor ``c =
     (kh // 2, kw // 2)`` (the centre of an odd PSF), with mirrored borders (as
     OpenCV's ``BORDER_REFLECT_101``). Sums are in float32; integer results are
-    rounded half up and clamped. PSFs of up to 225 taps are summed directly,
+    rounded half up and clamped. PSFs of up to 36 taps are summed directly,
     larger ones by overlap-save FFT tiles (rustfft), both in parallel over row
     bands, with results identical for any thread count. A delta PSF returns
     integer images bit for bit (float images too through the direct sum, to

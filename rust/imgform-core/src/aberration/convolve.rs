@@ -21,11 +21,13 @@ use crate::parallel::for_each_band;
 
 use super::fft_tiles;
 
-/// Kernels with up to this many taps (15 x 15) are summed directly. Each tap
-/// is one multiply-add per sample, vectorised 8 wide: ~225 taps cost about
-/// what the FFT tiles spend per sample (measured on the 2-core machine, RGB
-/// f32 at 6 MP: the two paths are within 20 % of each other there).
-pub const DIRECT_MAX_TAPS: usize = 225;
+/// Kernels with up to this many taps (6 x 6) are summed directly. Each tap
+/// is one multiply-add per sample, while the FFT tiles cost about the same
+/// per sample whatever the kernel. Measured on the shared 2-core machine,
+/// 6 MP RGB f32: direct 11 x 11 in 1.08 s and 15 x 15 in 1.87 s (~8 ms a
+/// tap), FFT tiles 16 x 16 in 0.36 s and 21 x 21 in 0.45 s, so the direct
+/// sum only wins below ~40 taps.
+pub const DIRECT_MAX_TAPS: usize = 36;
 
 /// Largest PSF side. A 1025-pixel kernel already needs 2048-wide FFT tiles
 /// (32 MB of scratch per thread); a blur that wide is better applied to a
@@ -33,8 +35,8 @@ pub const DIRECT_MAX_TAPS: usize = 225;
 pub const MAX_KERNEL: usize = 1025;
 
 /// Output rows per task of the direct sum: the band converts `kh - 1` rows
-/// beyond its own, so 32 rows keep that overhead small for 15-tap kernels
-/// while a 24 MP image still makes ~125 tasks.
+/// beyond its own, so 32 rows keep that overhead small for the kernels that
+/// take this path while a 24 MP image still makes ~125 tasks.
 const DIRECT_BAND: usize = 32;
 
 /// A validated PSF, row-major.
