@@ -7,6 +7,14 @@ order, camera frame, CFA patterns, shift sign) are documented in
 """
 
 from ._native import RawError
+from .aberration import (
+    SpotDiagram,
+    best_focus,
+    pupil_psf,
+    render_aberrated,
+    spot_diagram,
+    strehl_ratio,
+)
 from .align import (
     Alignment,
     align,
@@ -58,18 +66,20 @@ from .remap import (
 )
 
 __all__ = [
-    "DEMOSAIC_METHODS",
-    "TONES",
     "Alignment",
     "Camera",
+    "DEMOSAIC_METHODS",
     "RawError",
     "RawImage",
     "RemapMap",
+    "SpotDiagram",
+    "TONES",
     "VanishingPoint",
     "VanishingPointFit",
     "add_lateral_ca",
     "align",
     "apply_shift",
+    "best_focus",
     "camera_height",
     "channel_masks",
     "circle_of_confusion",
@@ -95,14 +105,18 @@ __all__ = [
     "pattern_from_rawpy",
     "project_orthographic",
     "project_pinhole",
+    "pupil_psf",
     "read_plate",
     "relative_height",
     "remap",
+    "render_aberrated",
     "render_defocus",
     "shift_pattern",
     "similarity",
     "simulate_sensor",
+    "spot_diagram",
     "stack_channels",
+    "strehl_ratio",
     "undistort_image",
     "undistort_map",
     "undistort_points",

@@ -195,3 +195,22 @@ def camera_height(
     ref_top: npt.NDArray[np.float64],
     ref_height: float,
 ) -> float: ...
+# --- aberration ---
+def pupil_psf(
+    n_pixels: int,
+    pixel_pitch: float,
+    f_number: float,
+    wavelength: float,
+    defocus: float,
+    spherical: float,
+    oversample: int | None = None,
+) -> npt.NDArray[np.float64]: ...
+def spot_diagram(
+    f: float, f_number: float, spherical_lsa: float, n_rays: int, image_plane: float
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float]: ...
+def best_focus(f: float, f_number: float, spherical_lsa: float, n_rays: int) -> float: ...
+def strehl_ratio(psf: npt.NDArray[np.float64], reference: npt.NDArray[np.float64]) -> float: ...
+def render_aberrated(
+    image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
+    psf: npt.NDArray[np.float64],
+) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...

@@ -7,7 +7,8 @@ Renders :mod:`imgform_rs.scene` through
 2. a thin-lens camera focused on the middle box (depth of field);
 3. a barrel-distorting lens (ray-traced through the lens model), and that
    picture undistorted again;
-4. a lens with lateral chromatic aberration, and its correction;
+4. a lens with lateral chromatic aberration, and its correction; and the
+   through-focus PSFs of a lens with and without spherical aberration;
 5. a Bayer sensor: the pinhole picture mosaiced and demosaiced by every
    method, with each method's CPSNR;
 6. a simulated raw capture of the scene, written as a DNG and developed
@@ -29,6 +30,7 @@ import numpy as np
 
 from . import scene
 from ._png import write_png
+from .aberration import pupil_psf
 from .align import colorize_plate
 from .camera import Camera, vanishing_line, vanishing_point
 from .cfa import mosaic, simulate_sensor
@@ -159,6 +161,28 @@ def _demosaic_strip(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray
     return np.hstack(tiles[:-1])
 
 
+def _aberration_strip() -> np.ndarray:
+    """Through-focus PSFs, defocus W020 from -2 to 2 waves left to right: the
+    top row without aberration (mirror-symmetric about the middle, paraxial
+    focus), the bottom row with one wave of spherical aberration (sharpest at
+    W020 = -1, blurred differently on either side). One intensity scale for
+    all, square-rooted so the rings show."""
+    optics = {"n_pixels": 41, "pixel_pitch": 0.55e-3, "f_number": 2.0, "wavelength": 0.55e-3}
+    rows = [
+        [pupil_psf(defocus=d, spherical=w040, **optics) for d in np.linspace(-2.0, 2.0, 9)]
+        for w040 in (0.0, 1.0)
+    ]
+    peak = max(float(p.max()) for row in rows for p in row)
+    gap = np.full((82, 4), 255, np.uint8)
+    strips = []
+    for row in rows:
+        tiles = [np.sqrt(p / peak) * 255 for p in row]
+        tiles = [t.astype(np.uint8).repeat(2, axis=0).repeat(2, axis=1) for t in tiles]
+        strips.append(np.hstack([x for t in tiles for x in (t, gap)][:-1]))
+        strips.append(np.full((4, strips[-1].shape[1]), 255, np.uint8))
+    return np.vstack(strips[:-1])
+
+
 def _raw_round_trip(out: Path, image: np.ndarray, log: Callable[[str], None]) -> list[Path]:
     """The scene as a 12-bit camera would record it, written as a DNG, then
     decoded by LibRaw and developed by us with each demosaicer."""
@@ -225,6 +249,7 @@ def run(
     written.append(
         write_png(out / "lateral_ca_corrected.png", correct_lateral_ca(ca, 1.008, 0.992))
     )
+    written.append(write_png(out / "spherical_aberration.png", _aberration_strip()))
     hyper = float(hyperfocal_distance(FOCAL_MM, F_NUMBER, 0.03))
     log(
         f"scene {WIDTH}x{HEIGHT}, f = {FOCAL_MM:g} mm, N = {F_NUMBER:g}, "

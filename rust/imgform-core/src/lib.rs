@@ -10,6 +10,7 @@ pub mod error;
 pub mod image;
 pub mod parallel;
 
+pub mod aberration;
 pub mod align;
 pub mod camera;
 pub mod cfa;

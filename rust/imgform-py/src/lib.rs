@@ -7,6 +7,7 @@
 mod arrays;
 mod errors;
 
+mod aberration;
 mod align;
 mod camera;
 mod cfa;
@@ -25,6 +26,7 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RawError", m.py().get_type::<errors::RawError>())?;
+    aberration::register(m)?;
     align::register(m)?;
     camera::register(m)?;
     cfa::register(m)?;
