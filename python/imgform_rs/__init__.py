@@ -29,6 +29,7 @@ from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
+from .lightfield import focal_stack, refocus, render_light_field, view_disparity
 from .optics import (
     circle_of_confusion,
     depth_of_field,
@@ -74,6 +75,7 @@ __all__ = [
     "distort_points",
     "dolly_zoom_focal_length",
     "field_of_view",
+    "focal_stack",
     "hyperfocal_distance",
     "image_distance",
     "load_raw",
@@ -85,8 +87,10 @@ __all__ = [
     "project_orthographic",
     "project_pinhole",
     "read_plate",
+    "refocus",
     "remap",
     "render_defocus",
+    "render_light_field",
     "shift_pattern",
     "similarity",
     "simulate_sensor",
@@ -96,5 +100,6 @@ __all__ = [
     "undistort_points",
     "vanishing_line",
     "vanishing_point",
+    "view_disparity",
     "write_image",
 ]

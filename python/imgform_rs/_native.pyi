@@ -171,3 +171,11 @@ def develop(
     method: str,
     bps: str,
 ) -> npt.NDArray[Any]: ...
+
+# --- lightfield ---
+def focal_stack(
+    views: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
+    grid: tuple[int, int],
+    alphas: list[float],
+    aperture: list[bool],
+) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
