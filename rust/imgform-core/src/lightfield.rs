@@ -221,80 +221,71 @@ struct Buffers {
     column: Vec<f32>,
 }
 
-/// Row `y` of a refocused frame: the mean of the shifted views selected by
-/// `aperture`, written to `out`.
-#[inline(always)]
-fn refocus_row<T: Sample>(
-    lf: &LightField<'_, T>,
-    frame: &Frame,
-    aperture: &[bool],
-    y: usize,
-    buf: &mut Buffers,
-    out: &mut [T],
-) {
-    let (gu, gv) = lf.grid;
-    buf.acc.fill(0.0);
-    let mut count = 0usize;
-    for (v, &col_shift) in frame.cols.iter().enumerate() {
-        let selected = (0..gu).filter(|&u| aperture[u * gv + v]);
-        buf.column.fill(0.0);
-        let mut any = false;
-        for u in selected {
-            let view = lf.view(u * gv + v);
-            let Shift { k, f } = frame.rows[u];
-            let a = view.row(mirror(y as isize + k, lf.height));
-            let b = view.row(mirror(y as isize + k + 1, lf.height));
-            add_blend(&mut buf.column, a, b, 1.0 - f, f);
-            count += 1;
-            any = true;
-        }
-        if any {
-            add_shifted_row(&mut buf.acc, &buf.column, col_shift, lf.width, lf.channels);
-        }
-    }
-    let scale = 1.0 / count as f32;
-    for v in buf.acc.iter_mut() {
-        *v *= scale;
-    }
-    T::from_f32_row(out, &buf.acc);
+/// A validated focal-stack job: the light field, one [`Frame`] per alpha and
+/// the views averaged.
+struct Stack<'a, T> {
+    lf: LightField<'a, T>,
+    frames: Vec<Frame>,
+    aperture: &'a [bool],
 }
 
-/// [`refocus_row`] compiled for AVX2, twice the vector width of the x86-64
-/// baseline (SSE2) the crate is built for. The arithmetic is the same
-/// sequence of IEEE operations (no FMA contraction), so both paths give the
-/// same bits.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn refocus_row_avx2<T: Sample>(
-    lf: &LightField<'_, T>,
-    frame: &Frame,
-    aperture: &[bool],
-    y: usize,
-    buf: &mut Buffers,
-    out: &mut [T],
-) {
-    refocus_row(lf, frame, aperture, y, buf, out);
-}
+impl<T: Sample> Stack<'_, T> {
+    /// Row `r` of the stack (row `r % H` of frame `r / H`): the mean of the
+    /// shifted views selected by the aperture, written to `out`.
+    #[inline(always)]
+    fn row(&self, r: usize, buf: &mut Buffers, out: &mut [T]) {
+        let lf = &self.lf;
+        let (frame, y) = (&self.frames[r / lf.height], r % lf.height);
+        let (gu, gv) = lf.grid;
+        buf.acc.fill(0.0);
+        let mut count = 0usize;
+        for (v, &col_shift) in frame.cols.iter().enumerate() {
+            let selected = (0..gu).filter(|&u| self.aperture[u * gv + v]);
+            buf.column.fill(0.0);
+            let mut any = false;
+            for u in selected {
+                let view = lf.view(u * gv + v);
+                let Shift { k, f } = frame.rows[u];
+                let a = view.row(mirror(y as isize + k, lf.height));
+                let b = view.row(mirror(y as isize + k + 1, lf.height));
+                add_blend(&mut buf.column, a, b, 1.0 - f, f);
+                count += 1;
+                any = true;
+            }
+            if any {
+                add_shifted_row(&mut buf.acc, &buf.column, col_shift, lf.width, lf.channels);
+            }
+        }
+        let scale = 1.0 / count as f32;
+        for v in buf.acc.iter_mut() {
+            *v *= scale;
+        }
+        T::from_f32_row(out, &buf.acc);
+    }
 
-/// [`refocus_row`] through the widest vector unit the CPU has.
-fn refocus_row_dispatch<T: Sample>(
-    lf: &LightField<'_, T>,
-    frame: &Frame,
-    aperture: &[bool],
-    y: usize,
-    buf: &mut Buffers,
-    out: &mut [T],
-) {
+    /// [`Stack::row`] compiled for AVX2, twice the vector width of the
+    /// x86-64 baseline (SSE2) the crate is built for. The arithmetic is the
+    /// same sequence of IEEE operations (no FMA contraction), so both paths
+    /// give the same bits.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: AVX2 support was detected just above.
-        unsafe { refocus_row_avx2(lf, frame, aperture, y, buf, out) };
-        return;
+    #[target_feature(enable = "avx2")]
+    unsafe fn row_avx2(&self, r: usize, buf: &mut Buffers, out: &mut [T]) {
+        self.row(r, buf, out);
     }
-    refocus_row(lf, frame, aperture, y, buf, out);
+
+    /// [`Stack::row`] through the widest vector unit the CPU has.
+    fn row_dispatch(&self, r: usize, buf: &mut Buffers, out: &mut [T]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 support was detected just above.
+            unsafe { self.row_avx2(r, buf, out) };
+            return;
+        }
+        self.row(r, buf, out);
+    }
 }
 
 /// Refocuses `lf` at every disparity of `alphas` into `out`, an
@@ -344,10 +335,15 @@ pub fn focal_stack<T: Sample>(
             alphas.len() * frame_len
         )));
     }
-    let frames: Vec<Frame> = alphas
+    let frames = alphas
         .iter()
         .map(|&alpha| Frame::new(&lf, alpha))
         .collect::<Result<_>>()?;
+    let stack = Stack {
+        lf,
+        frames,
+        aperture,
+    };
     let row_len = lf.width * lf.channels;
     for_each_band(out, row_len, ROWS_PER_TASK, |first, rows| {
         let mut buf = Buffers {
@@ -355,8 +351,7 @@ pub fn focal_stack<T: Sample>(
             column: vec![0.0; row_len],
         };
         for (i, row) in rows.chunks_mut(row_len).enumerate() {
-            let (n, y) = ((first + i) / lf.height, (first + i) % lf.height);
-            refocus_row_dispatch(&lf, &frames[n], aperture, y, &mut buf, row);
+            stack.row_dispatch(first + i, &mut buf, row);
         }
     });
     Ok(())
@@ -373,12 +368,26 @@ mod tests {
             .collect()
     }
 
+    /// Refocuses the 3x3 field `data` of [`field`] at `alpha` through
+    /// `aperture`.
+    fn refocus_field(data: &[f32], alpha: f64, aperture: &[bool; 9]) -> Result<Vec<f32>> {
+        let lf = LightField::new(data, (3, 3), 6, 7, 2)?;
+        let mut out = vec![0.0f32; lf.view_len()];
+        focal_stack(lf, &[alpha], aperture, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`refocus_field`] through view `only` alone.
+    fn through_one_view(data: &[f32], only: usize, alpha: f64) -> Vec<f32> {
+        let mut aperture = [false; 9];
+        aperture[only] = true;
+        refocus_field(data, alpha, &aperture).unwrap()
+    }
+
     #[test]
     fn alpha_zero_is_the_mean_of_the_views() {
         let data = field();
-        let lf = LightField::new(&data, (3, 3), 6, 7, 2).unwrap();
-        let mut out = vec![0.0f32; lf.view_len()];
-        focal_stack(lf, &[0.0], &[true; 9], &mut out).unwrap();
+        let out = refocus_field(&data, 0.0, &[true; 9]).unwrap();
         for (i, &got) in out.iter().enumerate() {
             let mean = (0..9).map(|v| data[v * 84 + i]).sum::<f32>() / 9.0;
             assert!((got - mean).abs() < 1e-4, "{i}: {got} vs {mean}");
@@ -390,12 +399,8 @@ mod tests {
         // Alpha = 2 with only the view right of the centre selected: the
         // output is that view moved right by 2 columns, mirrored at the left.
         let data = field();
-        let lf = LightField::new(&data, (3, 3), 6, 7, 2).unwrap();
-        let mut only = [false; 9];
-        only[5] = true;
-        let mut out = vec![0.0f32; lf.view_len()];
-        focal_stack(lf, &[2.0], &only, &mut out).unwrap();
-        let view = lf.view(5);
+        let out = through_one_view(&data, 5, 2.0);
+        let view = ImageView::contiguous(&data[5 * 84..6 * 84], 7, 6, 2).unwrap();
         for y in 0..6 {
             for x in 0..7 {
                 let src = mirror(x as isize - 2, 7);
@@ -409,12 +414,8 @@ mod tests {
         // One view below the centre at alpha = 0.5: rows move down by half a
         // row, so output row y is the mean of source rows y - 1 and y.
         let data = field();
-        let lf = LightField::new(&data, (3, 3), 6, 7, 2).unwrap();
-        let mut only = [false; 9];
-        only[7] = true;
-        let mut out = vec![0.0f32; lf.view_len()];
-        focal_stack(lf, &[0.5], &only, &mut out).unwrap();
-        let view = lf.view(7);
+        let out = through_one_view(&data, 7, 0.5);
+        let view = ImageView::contiguous(&data[7 * 84..8 * 84], 7, 6, 2).unwrap();
         let expect = 0.5 * (view.at(3, 1, 0) + view.at(3, 2, 0));
         assert!((out[(2 * 7 + 3) * 2] - expect).abs() < 1e-4);
     }
@@ -422,9 +423,7 @@ mod tests {
     #[test]
     fn huge_shifts_stay_in_range() {
         let data = field();
-        let lf = LightField::new(&data, (3, 3), 6, 7, 2).unwrap();
-        let mut out = vec![0.0f32; lf.view_len()];
-        focal_stack(lf, &[1e300], &[true; 9], &mut out).unwrap();
+        let mut out = refocus_field(&data, 1e300, &[true; 9]).unwrap();
         assert!(out.iter().all(|v| v.is_finite()));
         // Views 1.5 steps from the centre of a 1x4 grid overflow f64.
         let row = LightField::new(&data[..4 * 84], (1, 4), 6, 7, 2).unwrap();
@@ -442,18 +441,22 @@ mod tests {
             .map(|i| ((i * 53) % 256) as u8)
             .collect();
         let lf = LightField::new(&data, (3, 3), 5, 40, 3).unwrap();
-        let frame = Frame::new(&lf, 1.37).unwrap();
         let mut aperture = [true; 9];
         aperture[0] = false;
+        let stack = Stack {
+            lf,
+            frames: vec![Frame::new(&lf, 1.37).unwrap()],
+            aperture: &aperture,
+        };
         let mut buf = Buffers {
             acc: vec![0.0; 120],
             column: vec![0.0; 120],
         };
         let (mut plain, mut wide) = (vec![0u8; 120], vec![0u8; 120]);
         for y in 0..5 {
-            refocus_row(&lf, &frame, &aperture, y, &mut buf, &mut plain);
+            stack.row(y, &mut buf, &mut plain);
             // SAFETY: AVX2 support was detected above.
-            unsafe { refocus_row_avx2(&lf, &frame, &aperture, y, &mut buf, &mut wide) };
+            unsafe { stack.row_avx2(y, &mut buf, &mut wide) };
             assert_eq!(plain, wide, "row {y}");
         }
     }
