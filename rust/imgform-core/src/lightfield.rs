@@ -214,8 +214,8 @@ fn add_shifted_row(acc: &mut [f32], row: &[f32], shift: Shift, width: usize, c: 
     }
 }
 
-/// Row buffers of one rayon task: the frame row being summed and one grid
-/// column's vertically shifted sum.
+/// Buffers of one rayon task, a band of rows each: the frame rows being
+/// summed and one grid column's vertically shifted sum.
 struct Buffers {
     acc: Vec<f32>,
     column: Vec<f32>,
@@ -230,40 +230,56 @@ struct Stack<'a, T> {
 }
 
 impl<T: Sample> Stack<'_, T> {
-    /// Row `r` of the stack (row `r % H` of frame `r / H`): the mean of the
-    /// shifted views selected by the aperture, written to `out`.
+    /// Consecutive rows of one frame, from row `first` of the stack (row
+    /// `first % H` of frame `first / H`), into `out`: the mean of the shifted
+    /// views selected by the aperture.
+    ///
+    /// Views are the outer loop and the band's rows the inner one, so each
+    /// view is read as one run of consecutive rows. Reading one row of
+    /// each of 81 views per output row instead left the loads waiting on
+    /// memory (81 streams defeat the hardware prefetcher): 40 % of the time
+    /// sat on one load. Each output sample still sums its views in the same
+    /// order, so the result does not depend on how rows are banded.
     #[inline(always)]
-    fn row(&self, r: usize, buf: &mut Buffers, out: &mut [T]) {
+    fn run(&self, first: usize, buf: &mut Buffers, out: &mut [T]) {
         let lf = &self.lf;
-        let (frame, y) = (&self.frames[r / lf.height], r % lf.height);
-        let (gu, gv) = lf.grid;
-        buf.acc.fill(0.0);
+        let (h, gu, gv) = (lf.height, lf.grid.0, lf.grid.1);
+        let row_len = lf.width * lf.channels;
+        let (frame, y0) = (&self.frames[first / h], first % h);
+        let acc = &mut buf.acc[..out.len()];
+        let column = &mut buf.column[..out.len()];
+        acc.fill(0.0);
         let mut count = 0usize;
         for (v, &col_shift) in frame.cols.iter().enumerate() {
-            let selected = (0..gu).filter(|&u| self.aperture[u * gv + v]);
-            buf.column.fill(0.0);
+            column.fill(0.0);
             let mut any = false;
-            for u in selected {
+            for u in (0..gu).filter(|&u| self.aperture[u * gv + v]) {
                 let view = lf.view(u * gv + v);
                 let Shift { k, f } = frame.rows[u];
-                let a = view.row(mirror(y as isize + k, lf.height));
-                let b = view.row(mirror(y as isize + k + 1, lf.height));
-                add_blend(&mut buf.column, a, b, 1.0 - f, f);
+                for (j, col) in column.chunks_mut(row_len).enumerate() {
+                    let y = (y0 + j) as isize + k;
+                    let (a, b) = (view.row(mirror(y, h)), view.row(mirror(y + 1, h)));
+                    add_blend(col, a, b, 1.0 - f, f);
+                }
                 count += 1;
                 any = true;
             }
             if any {
-                add_shifted_row(&mut buf.acc, &buf.column, col_shift, lf.width, lf.channels);
+                for (a, c) in acc.chunks_mut(row_len).zip(column.chunks(row_len)) {
+                    add_shifted_row(a, c, col_shift, lf.width, lf.channels);
+                }
             }
         }
         let scale = 1.0 / count as f32;
-        for v in buf.acc.iter_mut() {
+        for v in acc.iter_mut() {
             *v *= scale;
         }
-        T::from_f32_row(out, &buf.acc);
+        for (o, a) in out.chunks_mut(row_len).zip(acc.chunks(row_len)) {
+            T::from_f32_row(o, a);
+        }
     }
 
-    /// [`Stack::row`] compiled for AVX2, twice the vector width of the
+    /// [`Stack::run`] compiled for AVX2, twice the vector width of the
     /// x86-64 baseline (SSE2) the crate is built for. The arithmetic is the
     /// same sequence of IEEE operations (no FMA contraction), so both paths
     /// give the same bits.
@@ -272,19 +288,36 @@ impl<T: Sample> Stack<'_, T> {
     /// The CPU must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2(&self, r: usize, buf: &mut Buffers, out: &mut [T]) {
-        self.row(r, buf, out);
+    unsafe fn run_avx2(&self, first: usize, buf: &mut Buffers, out: &mut [T]) {
+        self.run(first, buf, out);
     }
 
-    /// [`Stack::row`] through the widest vector unit the CPU has.
-    fn row_dispatch(&self, r: usize, buf: &mut Buffers, out: &mut [T]) {
+    /// [`Stack::run`] through the widest vector unit the CPU has.
+    fn run_dispatch(&self, first: usize, buf: &mut Buffers, out: &mut [T]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 support was detected just above.
-            unsafe { self.row_avx2(r, buf, out) };
+            unsafe { self.run_avx2(first, buf, out) };
             return;
         }
-        self.row(r, buf, out);
+        self.run(first, buf, out);
+    }
+
+    /// A band of rows from row `first` of the stack, split where it
+    /// crosses from one frame into the next.
+    fn band(&self, first: usize, rows: &mut [T]) {
+        let row_len = self.lf.width * self.lf.channels;
+        let mut buf = Buffers {
+            acc: vec![0.0; rows.len()],
+            column: vec![0.0; rows.len()],
+        };
+        let (mut r, mut rest) = (first, rows);
+        while !rest.is_empty() {
+            let n = (rest.len() / row_len).min(self.lf.height - r % self.lf.height);
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(n * row_len);
+            self.run_dispatch(r, &mut buf, part);
+            (r, rest) = (r + n, tail);
+        }
     }
 }
 
@@ -346,13 +379,7 @@ pub fn focal_stack<T: Sample>(
     };
     let row_len = lf.width * lf.channels;
     for_each_band(out, row_len, ROWS_PER_TASK, |first, rows| {
-        let mut buf = Buffers {
-            acc: vec![0.0; row_len],
-            column: vec![0.0; row_len],
-        };
-        for (i, row) in rows.chunks_mut(row_len).enumerate() {
-            stack.row_dispatch(first + i, &mut buf, row);
-        }
+        stack.band(first, rows)
     });
     Ok(())
 }
@@ -449,15 +476,27 @@ mod tests {
             aperture: &aperture,
         };
         let mut buf = Buffers {
-            acc: vec![0.0; 120],
-            column: vec![0.0; 120],
+            acc: vec![0.0; 600],
+            column: vec![0.0; 600],
         };
-        let (mut plain, mut wide) = (vec![0u8; 120], vec![0u8; 120]);
-        for y in 0..5 {
-            stack.row(y, &mut buf, &mut plain);
-            // SAFETY: AVX2 support was detected above.
-            unsafe { stack.row_avx2(y, &mut buf, &mut wide) };
-            assert_eq!(plain, wide, "row {y}");
+        let (mut plain, mut wide) = (vec![0u8; 600], vec![0u8; 600]);
+        stack.run(0, &mut buf, &mut plain);
+        // SAFETY: AVX2 support was detected above.
+        unsafe { stack.run_avx2(0, &mut buf, &mut wide) };
+        assert_eq!(plain, wide);
+    }
+
+    #[test]
+    fn banding_does_not_change_the_result() {
+        // Frames of 6 rows in bands of ROWS_PER_TASK = 8: bands straddle
+        // frames; every row must equal the frame refocused on its own.
+        let data = field();
+        let lf = LightField::new(&data, (3, 3), 6, 7, 2).unwrap();
+        let alphas = [0.3, -1.7, 2.2];
+        let mut stack = vec![0.0f32; 3 * lf.view_len()];
+        focal_stack(lf, &alphas, &[true; 9], &mut stack).unwrap();
+        for (frame, &alpha) in stack.chunks(lf.view_len()).zip(&alphas) {
+            assert_eq!(frame, refocus_field(&data, alpha, &[true; 9]).unwrap());
         }
     }
 
