@@ -44,6 +44,7 @@ from .metrology import (
     fit_vanishing_point,
     relative_height,
 )
+from .lightfield import focal_stack, refocus, render_light_field, view_disparity
 from .optics import (
     circle_of_confusion,
     depth_of_field,
@@ -95,6 +96,7 @@ __all__ = [
     "field_of_view",
     "fit_horizon",
     "fit_vanishing_point",
+    "focal_stack",
     "hyperfocal_distance",
     "image_distance",
     "load_raw",
@@ -107,10 +109,12 @@ __all__ = [
     "project_pinhole",
     "pupil_psf",
     "read_plate",
+    "refocus",
     "relative_height",
     "remap",
     "render_aberrated",
     "render_defocus",
+    "render_light_field",
     "shift_pattern",
     "similarity",
     "simulate_sensor",
@@ -122,5 +126,6 @@ __all__ = [
     "undistort_points",
     "vanishing_line",
     "vanishing_point",
+    "view_disparity",
     "write_image",
 ]

@@ -213,4 +213,10 @@ def strehl_ratio(psf: npt.NDArray[np.float64], reference: npt.NDArray[np.float64
 def render_aberrated(
     image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
     psf: npt.NDArray[np.float64],
+# --- lightfield ---
+def focal_stack(
+    views: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
+    grid: tuple[int, int],
+    alphas: list[float],
+    aperture: list[bool],
 ) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...

@@ -21,6 +21,7 @@ pub mod develop;
 pub mod distortion;
 pub mod intrinsics;
 pub mod metrology;
+pub mod lightfield;
 pub mod optics;
 pub mod projection;
 pub mod remap;

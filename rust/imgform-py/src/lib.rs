@@ -17,6 +17,7 @@ mod demosaic;
 mod develop;
 mod distortion;
 mod metrology;
+mod lightfield;
 mod optics;
 mod projection;
 mod remap;
@@ -36,6 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     develop::register(m)?;
     distortion::register(m)?;
     metrology::register(m)?;
+    lightfield::register(m)?;
     optics::register(m)?;
     projection::register(m)?;
     remap::register(m)?;
