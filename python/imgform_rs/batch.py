@@ -323,11 +323,12 @@ def develop_many(
     Examples
     --------
     >>> import tempfile
-    >>> from imgform_rs.dng import write_dng
     >>> import numpy as np
     >>> from distributed import Client
+    >>> from imgform_rs.dng import write_dng
     >>> with tempfile.TemporaryDirectory() as d, Client(processes=False) as client:
-    ...     write_dng(f"{d}/a.dng", np.full((16, 16), 900, np.uint16), "RGGB")
+    ...     cfa = (np.arange(32 * 32) % 2000 + 100).astype(np.uint16).reshape(32, 32)
+    ...     write_dng(f"{d}/a.dng", cfa, "RGGB", white_level=4095)
     ...     report = develop_many([f"{d}/a.dng"], f"{d}/out", client=client)
     ...     again = develop_many([f"{d}/a.dng"], f"{d}/out", client=client)
     >>> [f.status for f in report.files], [f.status for f in again.files]
