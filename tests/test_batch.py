@@ -15,7 +15,14 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from imgform_rs import DEMOSAIC_METHODS, demosaic, develop, load_raw, simulate_sensor
+from imgform_rs import (
+    DEMOSAIC_METHODS,
+    demosaic,
+    demosaic_halo,
+    develop,
+    load_raw,
+    simulate_sensor,
+)
 from imgform_rs.cli import main
 from imgform_rs.dng import write_dng
 
@@ -111,13 +118,13 @@ def test_demosaic_dask_is_demosaic_bit_for_bit(
 
 
 def test_every_method_declares_a_halo():
-    from imgform_rs import _native
-
     for method in DEMOSAIC_METHODS:
         for pattern in PATTERNS:
-            assert _native.demosaic_halo(method, pattern) >= 1
+            assert demosaic_halo(method, pattern) >= 1
     with pytest.raises(ValueError, match="unknown demosaicing method"):
-        _native.demosaic_halo("sharpest", "RGGB")
+        demosaic_halo("sharpest", "RGGB")
+    with pytest.raises(TypeError, match="method must be a str"):
+        demosaic_halo(None, "RGGB")
 
 
 def test_demosaic_dask_chunks_sit_on_the_cfa_period():

@@ -26,7 +26,7 @@ from .cfa import (
     simulate_sensor,
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
-from .demosaic import DEMOSAIC_METHODS, demosaic
+from .demosaic import DEMOSAIC_METHODS, demosaic, demosaic_halo
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
 from .optics import (
@@ -67,6 +67,7 @@ __all__ = [
     "colorize_plate",
     "correct_lateral_ca",
     "demosaic",
+    "demosaic_halo",
     "depth_of_field",
     "develop",
     "distort_image",

@@ -2,7 +2,7 @@
 
 Each chunk is demosaiced with a margin of neighbouring pixels
 (``map_overlap``-style: overlap, run, trim) at least as wide as the method's
-reach (:func:`demosaic_halo`), so its interior sees exactly the pixels the
+reach (:func:`imgform_rs.demosaic_halo`), so its interior sees exactly the pixels the
 whole-image call sees. At the true image edges no margin is added: the chunk
 starts at the edge, and the Rust kernel mirrors there just as it does for the
 whole image. Chunk boundaries sit on multiples of the CFA period, so every
@@ -28,9 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from . import _native
 from .cfa import as_pattern, pattern_cells
-from .demosaic import demosaic
+from .demosaic import demosaic, demosaic_halo
 from .develop import DEFAULT_DEMOSAIC, develop
 from .raw import RawImage
 
@@ -186,7 +185,7 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
         raise TypeError(f"method must be a str, got {method!r}")
     pat = as_pattern(pattern)
     period = pattern_cells(pat).shape[0]
-    halo = _native.demosaic_halo(method, pat)
+    halo = demosaic_halo(method, pat)
     # Fail now, not in a worker: one tile through the native checks refuses
     # a method that cannot demosaic this pattern (X-Trans).
     demosaic(np.zeros((6, 6), mosaic.dtype), pat, method)
@@ -310,9 +309,7 @@ def develop_dask(
         develop_kwargs["white_balance"] = "camera"
     template = dataclasses.replace(raw, cfa=np.zeros((0, 0), np.uint16), **meta)
     method = develop_kwargs.get("demosaic", DEFAULT_DEMOSAIC)
-    if not isinstance(method, str):
-        raise TypeError(f"demosaic must be a str, got {method!r}")
-    halo = _native.demosaic_halo(method, as_pattern(raw.pattern))
+    halo = demosaic_halo(method, raw.pattern)
     bps = develop_kwargs.get("bps", 8)
     dtype = {8: np.uint8, 16: np.uint16}.get(bps, np.float32)
 
