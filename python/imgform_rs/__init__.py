@@ -34,7 +34,7 @@ from .cfa import (
     simulate_sensor,
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
-from .demosaic import DEMOSAIC_METHODS, demosaic
+from .demosaic import DEMOSAIC_METHODS, demosaic, demosaic_halo
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
 from .metrology import (
@@ -87,6 +87,7 @@ __all__ = [
     "colorize_plate",
     "correct_lateral_ca",
     "demosaic",
+    "demosaic_halo",
     "depth_of_field",
     "develop",
     "distort_image",

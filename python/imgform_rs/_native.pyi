@@ -157,6 +157,7 @@ DEMOSAIC_METHODS: tuple[str, ...]
 def demosaic(
     raw: npt.NDArray[Any], pattern: str | npt.NDArray[np.int64], method: str = "bilinear"
 ) -> npt.NDArray[Any]: ...
+def demosaic_halo(method: str, pattern: str | npt.NDArray[np.int64]) -> int: ...
 
 # --- develop ---
 TONES: tuple[str, ...]

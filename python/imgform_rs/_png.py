@@ -44,3 +44,11 @@ def write_png(path: str | Path, image: np.ndarray) -> Path:
     path = Path(path)
     path.write_bytes(data)
     return path
+
+
+def for_png(rgb: np.ndarray) -> np.ndarray:
+    """uint8/uint16 pass through; float images are clipped to [0, 1] and
+    written with 16 bits."""
+    if rgb.dtype in (np.uint8, np.uint16):
+        return rgb
+    return np.floor(np.clip(rgb, 0.0, 1.0) * 65535.0 + 0.5).astype(np.uint16)

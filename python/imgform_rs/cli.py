@@ -27,16 +27,6 @@ def _demo(args: argparse.Namespace) -> int:
     return 0
 
 
-def _for_png(rgb):
-    """uint8/uint16 pass through; float plates are clipped to [0, 1] and
-    written with 16 bits."""
-    import numpy as np
-
-    if rgb.dtype in (np.uint8, np.uint16):
-        return rgb
-    return np.floor(np.clip(rgb, 0.0, 1.0) * 65535.0 + 0.5).astype(np.uint16)
-
-
 def _progress(done: int, total: int, unit: str = "plates") -> None:
     """A one-line bar on stderr, drawn only on a terminal (logs stay clean)."""
     if total < 2 or not sys.stderr.isatty():
@@ -48,10 +38,66 @@ def _progress(done: int, total: int, unit: str = "plates") -> None:
     sys.stderr.flush()
 
 
+def _cluster(args: argparse.Namespace):
+    """A Dask client for ``--scheduler`` or ``--workers`` (closed on exit)."""
+    from .batch import local_client
+
+    if args.scheduler:
+        from distributed import Client
+
+        return Client(args.scheduler)
+    return local_client(args.workers)
+
+
+def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, **options) -> int:
+    """Runs a batch on Dask, printing each file as it finishes."""
+    command = f"imgform {args.command}"
+
+    def report(result, done: int, total: int) -> None:
+        if result.status == "ok":
+            took = f"{result.detail} in {result.seconds:.2f} s"
+            print(f"{result.source}: {took} -> {result.output}")
+        elif result.status == "skipped":
+            print(f"{result.source}: {result.output} exists, kept (use --overwrite to replace it)")
+        else:
+            print(f"{command}: {result.reason}", file=sys.stderr)
+        _progress(done, total, unit)
+
+    try:
+        with _cluster(args) as client:
+            batch = many(
+                sources,
+                args.out,
+                client=client,
+                overwrite=args.overwrite,
+                on_result=report,
+                **options,
+            )
+    except ImportError as exc:
+        print(f"{command}: {exc}", file=sys.stderr)
+        return 2
+    failed = len(batch.failed)
+    if failed:
+        print(f"{command}: {failed} of {len(sources)} {unit} failed", file=sys.stderr)
+    print(f"report: {batch.path}")
+    return 1 if failed else 0
+
+
 def _align(args: argparse.Namespace) -> int:
     import time
 
-    from ._png import write_png
+    if args.scheduler or args.workers:
+        from .batch import align_many
+
+        options = {
+            "reference": args.reference,
+            "metric": args.metric,
+            "max_shift": args.max_shift,
+            "features": args.features,
+        }
+        return _on_cluster(args, align_many, args.plates, "plates", **options)
+
+    from ._png import for_png, write_png
     from .align import colorize_plate, read_plate
 
     out = Path(args.out)
@@ -72,7 +118,7 @@ def _align(args: argparse.Namespace) -> int:
                     max_shift=args.max_shift,
                     features=args.features,
                 )
-                write_png(target, _for_png(rgb))
+                write_png(target, for_png(rgb))
             except (ValueError, TypeError, OSError) as exc:
                 failed += 1
                 print(f"imgform align: {path}: {exc}", file=sys.stderr)
@@ -101,6 +147,12 @@ def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
 
 def _develop(args: argparse.Namespace) -> int:
     from concurrent.futures import ThreadPoolExecutor
+
+    if args.scheduler or args.workers:
+        from .batch import develop_many
+
+        options = {"demosaic": args.demosaic, "bps": args.bps, "format": args.format}
+        return _on_cluster(args, develop_many, args.raws, "raws", **options)
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -133,8 +185,24 @@ def _develop(args: argparse.Namespace) -> int:
 def _jobs(text: str) -> int:
     value = int(text)
     if value < 1:
-        raise argparse.ArgumentTypeError(f"-j must be >= 1, got {value}")
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
     return value
+
+
+def _add_cluster_options(parser: argparse.ArgumentParser) -> None:
+    """--scheduler / --workers: run the files on Dask (pip install imgform-rs[dask])."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--scheduler",
+        metavar="tcp://HOST:PORT",
+        help="run one task per file on this Dask scheduler's workers",
+    )
+    where.add_argument(
+        "--workers",
+        type=_jobs,
+        metavar="N",
+        help="run one task per file on a local Dask cluster of N worker processes",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -172,6 +240,7 @@ def build_parser() -> argparse.ArgumentParser:
     align.add_argument(
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )
+    _add_cluster_options(align)
     align.set_defaults(run=_align)
     from .demosaic import DEMOSAIC_METHODS
     from .develop import DEFAULT_DEMOSAIC
@@ -192,6 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
     dev.add_argument(
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )
+    _add_cluster_options(dev)
     dev.set_defaults(run=_develop)
     return parser
 

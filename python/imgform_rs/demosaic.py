@@ -132,3 +132,38 @@ def demosaic(
     if not isinstance(method, str):
         raise TypeError(f"method must be a str, one of {DEMOSAIC_METHODS}, got {method!r}")
     return _native.demosaic(as_image(raw, "raw"), as_pattern(pattern), method)
+
+
+def demosaic_halo(method: str, pattern: Pattern) -> int:
+    """How far a method's output reaches into the mosaic, in pixels.
+
+    Output pixel ``(y, x)`` of :func:`demosaic` depends only on the mosaic
+    pixels with ``|dy|, |dx| <= halo`` (and, for the methods that clamp, on
+    the mosaic's range). A chunked caller pads each chunk by at least this
+    much to reproduce the whole-image result; :func:`imgform_rs.batch.demosaic_dask`
+    does.
+
+    Parameters
+    ----------
+    method : str
+        One of :data:`DEMOSAIC_METHODS`.
+    pattern : str or array_like
+        X-Trans widens the bilinear window near corners.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        For an unknown method or pattern.
+
+    Examples
+    --------
+    >>> demosaic_halo("bilinear", "RGGB"), demosaic_halo("malvar2004", "RGGB")
+    (1, 2)
+    """
+    if not isinstance(method, str):
+        raise TypeError(f"method must be a str, one of {DEMOSAIC_METHODS}, got {method!r}")
+    return _native.demosaic_halo(method, as_pattern(pattern))

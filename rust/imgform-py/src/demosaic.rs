@@ -49,8 +49,16 @@ fn demosaic<'py>(
     dispatch_image!(img, demosaic_typed(py, &p, method))
 }
 
+/// How far a method's output reaches into the mosaic (see `Method::halo`).
+#[pyfunction]
+fn demosaic_halo(method: &str, pattern: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let method = Method::from_name(method).map_err(to_pyerr)?;
+    Ok(method.halo(&pattern_arg(pattern)?))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(demosaic, m)?)?;
+    m.add_function(wrap_pyfunction!(demosaic_halo, m)?)?;
     m.add("DEMOSAIC_METHODS", PyTuple::new(m.py(), Method::names())?)?;
     Ok(())
 }

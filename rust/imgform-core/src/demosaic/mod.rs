@@ -39,6 +39,7 @@ use crate::invalid;
 use crate::parallel::for_each_band;
 use menon2007::Menon2007;
 use rcd::Rcd;
+use tiled::TileKernel;
 
 /// A demosaicing method.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -128,6 +129,33 @@ impl Method {
         let mut names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
         names.push("best");
         names
+    }
+
+    /// How far, in pixels, an output pixel's value reaches into the mosaic:
+    /// output `(y, x)` depends only on input pixels with `|dy|, |dx| <= halo`
+    /// (besides the input's range, which the clamping methods use). Chunked
+    /// callers (Dask's `map_overlap`) pad each chunk by at least this much so
+    /// that its interior equals the whole-image result bit for bit.
+    ///
+    /// X-Trans widens the bilinear window up to radius 5 near image corners
+    /// (see `xtrans.rs`), so the halo depends on the pattern. Every method
+    /// must state its reach here: the match is exhaustive on purpose.
+    pub fn halo(self, pattern: &CfaPattern) -> usize {
+        match self {
+            // The pixel's 2x2 cell, or the mirrored row/column of a half cell.
+            Method::Nearest => 1,
+            Method::Bilinear if !pattern.is_bayer() => xtrans::MAX_RADIUS,
+            // The 3x3 neighbourhood.
+            Method::Bilinear => 1,
+            // The 5x5 Laplacian-corrected kernel.
+            Method::Malvar2004 => 2,
+            // Chroma reads green one pixel away, computed from raw two further.
+            Method::HamiltonAdams => 3,
+            Method::Rcd => <Rcd as TileKernel>::HALO,
+            Method::Menon2007 => <Menon2007 as TileKernel>::HALO,
+            Method::RcdMenon => <ensemble::Ensemble as TileKernel>::HALO,
+            Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
+        }
     }
 
     /// Parses a method name ("best" gives [`Method::BEST`]).

@@ -293,3 +293,35 @@ fn xtrans_needs_a_whole_tile_and_keeps_its_samples() {
         }
     }
 }
+
+/// The halo is a true bound on the reach: a change one pixel beyond it (a
+/// value inside the mosaic's range, so clamping methods clamp alike) leaves
+/// the centre pixel unchanged, in the image interior and at a corner.
+#[test]
+fn no_output_reaches_beyond_its_methods_halo() {
+    let (w, h) = (48, 46);
+    let raw = texture(w, h);
+    for (name, methods) in [
+        ("GRBG", &Method::ALL[..]),
+        ("XTRANS", &[Method::Bilinear][..]),
+    ] {
+        for &method in methods {
+            let halo = method.halo(&pattern(name));
+            let base = run(&raw, w, h, name, method);
+            for (cy, cx) in [(h / 2, w / 2), (0, 0)] {
+                for (dy, dx) in [(halo + 1, 0), (0, halo + 1), (halo + 1, halo + 1)] {
+                    let mut moved = raw.clone();
+                    let i = (cy + dy) * w + cx + dx;
+                    moved[i] = 1000.0 - moved[i];
+                    let out = run(&moved, w, h, name, method);
+                    let c = 3 * (cy * w + cx);
+                    assert_eq!(
+                        out[c..c + 3],
+                        base[c..c + 3],
+                        "{name} {method:?} ({dy}, {dx})"
+                    );
+                }
+            }
+        }
+    }
+}

@@ -21,6 +21,10 @@ use crate::parallel::for_each_band;
 /// Rows per rayon task.
 const ROWS_PER_BAND: usize = 32;
 
+/// The largest window radius searched: a 6x6 window (radius 5 on the far
+/// side) holds a whole tile, so every colour is found by then.
+pub(super) const MAX_RADIUS: usize = 5;
+
 pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, pattern: &CfaPattern, out: &mut [T]) {
     let w = raw.width();
     for_each_band(out, 3 * w, ROWS_PER_BAND, |y0, rows| {
@@ -50,7 +54,7 @@ fn mean_of_colour<T: Sample>(
     c: u8,
 ) -> f32 {
     let (w, h) = (raw.width(), raw.height());
-    for r in 1..=5usize {
+    for r in 1..=MAX_RADIUS {
         let (mut sum, mut weight) = (0.0f32, 0.0f32);
         for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
             let wy = (r + 1 - yy.abs_diff(y)) as f32;

@@ -1,0 +1,192 @@
+"""Scale-out on Dask: many raws on 1 and 2 workers, and a gigapixel demosaic.
+
+Part 1 develops ``--count`` generated DNGs (default 100 of 12 MP, 4000 x 3000
+RGGB, 12 bits, through ``simulate_sensor``) to 8-bit PNGs three ways:
+
+- a plain local loop, ``develop`` + ``write_image`` one file after the other,
+  in a fresh interpreter with ``RAYON_NUM_THREADS=1``;
+- ``develop_many`` on a LocalCluster of 1 worker process, then of 2, each
+  with one thread and ``RAYON_NUM_THREADS=1``, so a worker uses one core and
+  the only difference between the runs is the number of workers.
+
+It reports the overhead of 1 worker against the local loop (scheduling,
+pickling, the atomic rename; goal < 10 %) and the scaling efficiency from 1
+to 2 workers, ``t1 / (2 t2)`` (goal >= 85 % on a 2-core machine).
+
+Part 2 demosaics a ``--side`` x ``--side`` uint16 mosaic (default 32768, 1.07
+gigapixels, 2 GB in and 6 GB out) with ``demosaic_dask`` on 2 workers, chunks
+of ``--chunk`` pixels. The mosaic is generated inside the workers (a lazy
+array of hashed coordinates) and the result reduced per chunk (its channel maxima), so the
+image is never whole anywhere: each worker's peak resident memory (its
+``ru_maxrss`` after the run, minus its size before) is then bounded by a few
+chunks, not by the image.
+
+Each configuration runs once (the machine is shared; the whole run takes
+minutes). Run: ``.venv/bin/python benchmarks/scale_out.py`` (``--count 20``
+for a shorter first part).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from _bench import table
+
+import imgform_rs as ig
+from imgform_rs.batch import demosaic_dask, develop_many, local_client
+from imgform_rs.dng import write_dng
+
+ONE_CORE = {"RAYON_NUM_THREADS": "1"}
+
+LOCAL_LOOP = """
+import sys, time
+from pathlib import Path
+from imgform_rs import develop, write_image
+paths, out = sys.argv[1:-1], Path(sys.argv[-1])
+start = time.perf_counter()
+for p in paths:
+    write_image(out / (Path(p).stem + ".png"), develop(p))
+print(time.perf_counter() - start)
+"""
+
+
+def make_raws(folder: Path, count: int, megapixels: float) -> list[str]:
+    """``count`` DNGs of one scene, each with its own sensor noise."""
+    w = round((megapixels * 1e6 * 4 / 3) ** 0.5 / 2) * 2
+    h = round(w * 3 / 8) * 2
+    y, x = np.mgrid[0:h, 0:w].astype(np.float32)
+    rgb = np.stack(
+        [
+            0.45 + 0.4 * np.sin(x / 97),
+            0.4 + 0.3 * np.cos(y / 61),
+            0.3 + 0.25 * np.sin((x + y) / 43),
+        ],
+        -1,
+    ).astype(np.float32)
+    paths = []
+    for i in range(count):
+        cfa = simulate(rgb, i)
+        paths.append(str(folder / f"raw{i:04d}.dng"))
+        write_dng(paths[-1], cfa, "RGGB", white_level=4095 + 64, black_level=64)
+    return paths
+
+
+def simulate(rgb: np.ndarray, seed: int) -> np.ndarray:
+    return ig.simulate_sensor(rgb, "RGGB", bit_depth=12, black_level=64, seed=seed)
+
+
+def local_loop(paths: list[str], out: Path) -> float:
+    out.mkdir()
+    env = {**os.environ, **ONE_CORE}
+    code = textwrap.dedent(LOCAL_LOOP)
+    run = subprocess.run(
+        [sys.executable, "-c", code, *paths, str(out)], env=env, capture_output=True, text=True
+    )
+    if run.returncode:
+        raise RuntimeError(run.stderr)
+    return float(run.stdout)
+
+
+def on_cluster(paths: list[str], out: Path, workers: int) -> float:
+    with local_client(workers, env=ONE_CORE) as client:
+        client.run(lambda: __import__("imgform_rs"))  # imports are not the batch's cost
+        start = time.perf_counter()
+        report = develop_many(paths, out, client=client)
+        took = time.perf_counter() - start
+    if report.failed:
+        raise RuntimeError(report.failed[0].reason)
+    return took
+
+
+def part_one(folder: Path, count: int, megapixels: float) -> dict:
+    start = time.perf_counter()
+    paths = make_raws(folder, count, megapixels)
+    print(f"generated {count} DNGs in {time.perf_counter() - start:.0f} s", file=sys.stderr)
+    times = {"local loop": local_loop(paths, folder / "local")}
+    for n in (1, 2):
+        times[f"{n} worker{'s' * (n > 1)}"] = on_cluster(paths, folder / f"w{n}", n)
+    return times
+
+
+def peak_rss_kib() -> int:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
+def current_rss_kib() -> int:
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS"))
+
+
+def texture(block: np.ndarray, block_info: dict | None = None) -> np.ndarray:
+    """12-bit pseudo-random values hashed from the pixel coordinates: ten
+    times cheaper than a random generator, so the run measures the demosaic."""
+    (y0, y1), (x0, x1) = block_info[0]["array-location"]
+    y = np.arange(y0, y1, dtype=np.uint32)[:, None] * np.uint32(2654435761)
+    x = np.arange(x0, x1, dtype=np.uint32)[None, :] * np.uint32(40503)
+    return ((y ^ x) * np.uint32(2246822519) >> np.uint32(20)).astype(np.uint16)
+
+
+def part_two(side: int, chunk: int, method: str) -> dict:
+    import dask.array as da
+
+    with local_client(2, env=ONE_CORE) as client:
+        client.run(lambda: __import__("imgform_rs"))
+        before = client.run(current_rss_kib)
+        mosaic = da.zeros((side, side), dtype=np.uint16, chunks=chunk).map_blocks(
+            texture, dtype=np.uint16
+        )
+        start = time.perf_counter()
+        maxima = demosaic_dask(mosaic, "RGGB", method).max(axis=(0, 1)).compute()
+        took = time.perf_counter() - start
+        peaks = client.run(peak_rss_kib)
+    growth = {w: (peaks[w] - before[w]) / 1024 for w in peaks}
+    return {"seconds": took, "maxima": maxima.tolist(), "peak MiB per worker": growth}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--count", type=int, default=100, help="raws in part 1 (default 100)")
+    parser.add_argument("--megapixels", type=float, default=12.0, help="per raw (default 12)")
+    parser.add_argument("--side", type=int, default=32768, help="mosaic side in part 2")
+    parser.add_argument("--chunk", type=int, default=4096, help="chunk side in part 2")
+    parser.add_argument("--method", default="bilinear", choices=ig.DEMOSAIC_METHODS)
+    parser.add_argument("--skip", choices=["batch", "mosaic"], help="leave one part out")
+    args = parser.parse_args()
+    folder = Path(tempfile.mkdtemp(prefix="imgform-scale-out-"))
+    try:
+        if args.skip != "batch":
+            times = part_one(folder, args.count, args.megapixels)
+            t0, t1, t2 = times["local loop"], times["1 worker"], times["2 workers"]
+            rows = [[k, f"{v:.1f}", f"{args.count / v:.2f}"] for k, v in times.items()]
+            print(f"## {args.count} x {args.megapixels:g} MP DNGs -> 8-bit PNG\n")
+            print(table(["run", "seconds", "files/s"], rows))
+            print(f"\noverhead of 1 worker against the local loop: {100 * (t1 / t0 - 1):+.1f} %")
+            print(f"scaling efficiency 1 -> 2 workers: {100 * t1 / (2 * t2):.1f} %\n")
+        if args.skip != "mosaic":
+            res = part_two(args.side, args.chunk, args.method)
+            gp = args.side**2 / 1e9
+            print(f"## demosaic_dask, {gp:.2f} GP uint16, {args.method}, chunks {args.chunk}\n")
+            print(f"{res['seconds']:.1f} s ({args.side**2 / res['seconds'] / 1e6:.0f} MP/s)")
+            chunk_mib = args.chunk**2 * 2 / 2**20
+            print(f"one input chunk: {chunk_mib:.0f} MiB, its RGB result {3 * chunk_mib:.0f} MiB")
+            print("peak growth per worker (MiB):", json.dumps(res["peak MiB per worker"]))
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,321 @@
+"""Demosaicing and development of one huge mosaic held as a ``dask.array``.
+
+Each chunk is demosaiced with a margin of neighbouring pixels
+(``map_overlap``-style: overlap, run, trim) at least as wide as the method's
+reach (:func:`imgform_rs.demosaic_halo`), so its interior sees exactly the pixels the
+whole-image call sees. At the true image edges no margin is added: the chunk
+starts at the edge, and the Rust kernel mirrors there just as it does for the
+whole image. Chunk boundaries sit on multiples of the CFA period, so every
+chunk has the pattern of the whole mosaic.
+
+Two results also depend on the whole image, not on a neighbourhood: the
+clamping methods (RCD, Menon, AHD) clamp to the mosaic's range, and the
+development takes the brightest value of each CFA site as a white-level hint.
+Both are functions of the per-site minima and maxima, so those are reduced
+over the whole array first and written into the outermost rows (or columns)
+of each chunk's margin: cells farther than the halo from every kept pixel,
+which therefore change nothing but the range each chunk's call sees. That
+makes every chunk's range the global one, and the result identical bit for
+bit to the whole-image call.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+from typing import Any
+
+import numpy as np
+
+from .cfa import as_pattern, pattern_cells
+from .demosaic import demosaic, demosaic_halo
+from .develop import DEFAULT_DEMOSAIC, develop
+from .raw import RawImage
+
+_DTYPES = (np.uint8, np.uint16, np.float32)
+# LibRaw's grey world works on 8x8 blocks of photosites (see develop.py);
+# develop_dask's chunks start on multiples of it so blocks never straddle.
+_GREY_BLOCK = 8
+_GREY_MARGIN = 25
+
+
+def require_dask() -> Any:
+    """``dask.array``, or an ImportError that names the extra to install."""
+    try:
+        import dask.array as da
+    except ImportError as exc:
+        raise ImportError(
+            "this needs Dask, an optional dependency: pip install imgform-rs[dask]"
+        ) from exc
+    return da
+
+
+def snap_chunks(chunks: tuple[int, ...], step: int, minimum: int) -> tuple[int, ...]:
+    """Chunk sizes along one axis with every boundary on a multiple of
+    ``step`` and every chunk at least ``minimum`` long (a neighbour's margin
+    is taken from a single chunk), keeping the requested sizes roughly."""
+    n = sum(chunks)
+    cuts, last = [], 0
+    for edge in np.cumsum(chunks)[:-1]:
+        cut = round(int(edge) / step) * step
+        if cut - last >= minimum and n - cut >= minimum:
+            cuts.append(cut)
+            last = cut
+    bounds = [0, *cuts, n]
+    return tuple(int(b - a) for a, b in itertools.pairwise(bounds))
+
+
+def phase_extremes(mosaic: Any, period: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-site minima and maxima, each a ``(period, period)`` array."""
+    import dask
+
+    da = require_dask()
+    cells = [(i, j) for i in range(period) for j in range(period)]
+    reductions = [f(mosaic[i::period, j::period]) for i, j in cells for f in (da.nanmin, da.nanmax)]
+    values = np.array(dask.compute(*reductions), mosaic.dtype).reshape(period, period, 2)
+    return values[..., 0], values[..., 1]
+
+
+def _with_extremes(block: np.ndarray, extremes: tuple, period: int, side: str) -> np.ndarray:
+    """``block`` with the per-site minima and maxima written into its
+    outermost ``2 * period`` rows (or columns) on ``side``. Both ends of a
+    margin are multiples of the period, so each value lands on its own site."""
+    if side == "none":
+        return block
+    out = block.copy()
+    lo, hi = extremes
+    # Columns are handled as the rows of the transposed view.
+    across = side in ("left", "right")
+    view, lo, hi = (out.T, lo.T, hi.T) if across else (out, lo, hi)
+    p = period
+    start = 0 if side in ("top", "left") else view.shape[0] - 2 * p
+    view[start : start + p, :p] = lo
+    view[start + p : start + 2 * p, :p] = hi
+    return out
+
+
+def _margin_side(loc: tuple[int, int], num: tuple[int, int]) -> str:
+    """A side of the block that has a margin, or "none" for a lone block."""
+    for axis, (before, after) in enumerate((("top", "bottom"), ("left", "right"))):
+        if loc[axis] > 0:
+            return before
+        if loc[axis] < num[axis] - 1:
+            return after
+    return "none"
+
+
+def map_cfa(mosaic: Any, period: int, halo: int, step: int, block_fn: Any, dtype: Any) -> Any:
+    """Runs ``block_fn(block) -> (h, w, 3)`` over overlapping chunks of the
+    mosaic (margins of the halo plus the extremes' rows) and trims them."""
+    da = require_dask()
+    depth = math.ceil((halo + 2 * period) / period) * period
+    chunks = tuple(snap_chunks(c, step, depth) for c in mosaic.chunks)
+    if chunks != mosaic.chunks:
+        mosaic = mosaic.rechunk(chunks)
+    extremes = phase_extremes(mosaic, period)
+
+    def run(block: np.ndarray, block_info: Any = None) -> np.ndarray:
+        info = block_info[0]
+        side = _margin_side(info["chunk-location"], info["num-chunks"])
+        return block_fn(_with_extremes(block, extremes, period, side))
+
+    # An axis in one chunk has no neighbour to borrow from (and may be
+    # shorter than the margin).
+    depths = {axis: depth if len(c) > 1 else 0 for axis, c in enumerate(chunks)}
+    padded = da.overlap.overlap(mosaic, depth=depths, boundary="none")
+    rgb = padded.map_blocks(
+        run, new_axis=2, chunks=(*padded.chunks, (3,)), dtype=dtype, meta=np.empty((0, 0, 0), dtype)
+    )
+    return da.overlap.trim_internal(rgb, {**depths, 2: 0}, boundary="none")
+
+
+def _check_mosaic(mosaic: Any, dtypes: tuple) -> None:
+    da = require_dask()
+    if not isinstance(mosaic, da.Array):
+        raise TypeError(f"mosaic must be a dask.array.Array, got {type(mosaic).__name__}")
+    if mosaic.ndim != 2:
+        raise ValueError(f"mosaic must have shape (H, W), got shape {mosaic.shape}")
+    if mosaic.dtype not in dtypes:
+        names = ", ".join(np.dtype(t).name for t in dtypes)
+        raise TypeError(f"mosaic must be {names}, got dtype {mosaic.dtype}")
+
+
+def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
+    """:func:`imgform_rs.demosaic` for a ``dask.array`` mosaic, chunk by chunk.
+
+    The result equals ``demosaic(mosaic.compute(), pattern, method)`` bit for
+    bit, for any chunking; chunk boundaries are moved to multiples of the CFA
+    period (2 for Bayer, 6 for X-Trans) and chunks shorter than the margin are
+    merged with a neighbour. The per-site minima and maxima are computed at
+    once (one pass over the mosaic); the demosaic itself stays lazy.
+
+    Parameters
+    ----------
+    mosaic : dask.array.Array, shape (H, W), uint8, uint16 or float32
+    pattern : str or array_like
+        As for :func:`imgform_rs.demosaic`.
+    method : str
+        One of :data:`imgform_rs.DEMOSAIC_METHODS`.
+
+    Returns
+    -------
+    dask.array.Array, shape (H, W, 3), same dtype
+
+    Raises
+    ------
+    ImportError
+        Without Dask (``pip install imgform-rs[dask]``).
+    TypeError
+        For something other than a dask array of a supported dtype, or a
+        method that is not a str.
+    ValueError
+        For another shape, an unknown method or pattern.
+
+    Examples
+    --------
+    >>> import dask.array as da
+    >>> raw = da.from_array(np.arange(400, dtype=np.uint16).reshape(20, 20), chunks=7)
+    >>> out = demosaic_dask(raw, "RGGB", "malvar2004")
+    >>> bool((out.compute() == demosaic(raw.compute(), "RGGB", "malvar2004")).all())
+    True
+    """
+    _check_mosaic(mosaic, _DTYPES)
+    if not isinstance(method, str):
+        raise TypeError(f"method must be a str, got {method!r}")
+    pat = as_pattern(pattern)
+    period = pattern_cells(pat).shape[0]
+    halo = demosaic_halo(method, pat)
+    # Fail now, not in a worker: one tile through the native checks refuses
+    # a method that cannot demosaic this pattern (X-Trans).
+    demosaic(np.zeros((6, 6), mosaic.dtype), pat, method)
+
+    def block_fn(block: np.ndarray) -> np.ndarray:
+        return demosaic(block, pat, method)
+
+    return map_cfa(mosaic, period, halo, period, block_fn, mosaic.dtype)
+
+
+def _grey_sums(block: np.ndarray, raw: RawImage, y0: int, x0: int) -> np.ndarray:
+    """Per channel (R, G, B, G2): photosites and black-subtracted signal in
+    the block's unclipped 8x8 blocks (LibRaw's grey world, summed)."""
+    h, w = block.shape
+    b = _GREY_BLOCK
+    block_max = np.maximum.reduceat(
+        np.maximum.reduceat(block, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
+    )
+    keep = np.repeat(np.repeat(block_max <= raw.white_level - _GREY_MARGIN, b, 0), b, 1)
+    th, tw = raw.channel_tile.shape
+    rows = (y0 + np.arange(h)) % th
+    cols = (x0 + np.arange(w)) % tw
+    chan = raw.channel_tile[rows[:, None], cols[None, :]]
+    signal = np.maximum(block - raw.black_levels[chan], 0)
+    keep = keep[:h, :w]
+    sums = [(np.sum(keep & (chan == c)), signal[keep & (chan == c)].sum()) for c in range(4)]
+    return np.array(sums, np.float64)[None, None]
+
+
+def _grey_world(raw: RawImage, cfa: Any) -> np.ndarray:
+    """LibRaw's grey-world multipliers reduced over the chunks of ``cfa``."""
+
+    def partial(block: np.ndarray, block_info: Any = None) -> np.ndarray:
+        (y0, _), (x0, _) = block_info[0]["array-location"]
+        return _grey_sums(block, raw, y0, x0)
+
+    sums = cfa.map_blocks(partial, new_axis=(2, 3), chunks=(1, 1, 4, 2), dtype=np.float64)
+    count, total = sums.sum(axis=(0, 1)).compute().T
+    return np.where(total > 0, count / np.where(total > 0, total, 1), 1.0)
+
+
+def _orient_lazy(rgb: Any, flip: int) -> Any:
+    """LibRaw's flip code on a dask array: columns, rows, then transpose."""
+    if flip & 1:
+        rgb = rgb[:, ::-1]
+    if flip & 2:
+        rgb = rgb[::-1]
+    return rgb.transpose(1, 0, 2) if flip & 4 else rgb
+
+
+def develop_dask(
+    raw: RawImage, *, chunks: Any = 2048, orientation: str = "auto", **develop_kwargs: Any
+) -> Any:
+    """:func:`imgform_rs.develop` for one huge raw, chunk by chunk.
+
+    Identical bit for bit to ``develop(raw, ...)``. The global quantities are
+    reduced over the whole mosaic first: the per-site extremes (white-level
+    hint and demosaic range) and, for ``white_balance="auto"`` or a file
+    without an as-shot balance, LibRaw's grey world; then every chunk is
+    developed with those.
+
+    Parameters
+    ----------
+    raw : RawImage
+        From :func:`imgform_rs.load_raw`; its ``cfa`` may be a NumPy array or
+        a ``dask.array`` (then its chunks are kept, snapped as below).
+    chunks : int or tuple
+        Chunk shape for a NumPy ``cfa``; boundaries move to multiples of 8
+        (24 for X-Trans).
+    orientation : {"auto", "none"}
+    **develop_kwargs
+        ``demosaic``, ``white_balance``, ``color``, ``tone``, ``exposure``,
+        ``highlights``, ``bps`` as for :func:`imgform_rs.develop`.
+
+    Returns
+    -------
+    dask.array.Array, shape (H, W, 3), uint8 / uint16 / float32
+
+    Raises
+    ------
+    TypeError
+        For something other than a RawImage.
+    ValueError
+        For non-square photosites (``pixel_aspect != 1``), or options that
+        :func:`imgform_rs.develop` refuses.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from imgform_rs import load_raw
+    >>> from imgform_rs.dng import write_dng
+    >>> cfa = (np.arange(48 * 40) % 3000 + 100).astype(np.uint16).reshape(48, 40)
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     write_dng(f"{d}/a.dng", cfa, "RGGB", white_level=4095, black_level=64)
+    ...     raw = load_raw(f"{d}/a.dng")
+    >>> out = develop_dask(raw, chunks=16, white_balance="auto").compute()
+    >>> bool((out == develop(raw, white_balance="auto")).all())
+    True
+    """
+    da = require_dask()
+    if not isinstance(raw, RawImage):
+        raise TypeError(f"raw must be a RawImage (see load_raw), got {type(raw).__name__}")
+    if raw.pixel_aspect != 1:
+        raise ValueError(
+            f"develop_dask needs square photosites, got pixel_aspect {raw.pixel_aspect}; "
+            "use develop for such (small, old) sensors"
+        )
+    if orientation not in ("auto", "none"):
+        raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
+    cfa = raw.cfa if isinstance(raw.cfa, da.Array) else da.from_array(raw.cfa, chunks=chunks)
+    _check_mosaic(cfa, (np.uint16,))
+    period = raw.channel_tile.shape[0]
+    step = math.lcm(period, _GREY_BLOCK)
+    cfa = cfa.rechunk(tuple(snap_chunks(c, step, 1) for c in cfa.chunks))
+    meta: dict[str, Any] = {"flip": 0, "pixel_aspect": 1.0}
+    wb = develop_kwargs.get("white_balance", "camera")
+    no_shot = isinstance(wb, str) and wb == "camera" and raw.camera_white_balance[0] <= 1e-5
+    if (isinstance(wb, str) and wb == "auto") or no_shot:
+        # The chunks get the global balance as their "as shot" one.
+        meta["camera_white_balance"] = _grey_world(raw, cfa)
+        develop_kwargs["white_balance"] = "camera"
+    template = dataclasses.replace(raw, cfa=np.zeros((0, 0), np.uint16), **meta)
+    method = develop_kwargs.get("demosaic", DEFAULT_DEMOSAIC)
+    halo = demosaic_halo(method, raw.pattern)
+    bps = develop_kwargs.get("bps", 8)
+    dtype = {8: np.uint8, 16: np.uint16}.get(bps, np.float32)
+
+    def block_fn(block: np.ndarray) -> np.ndarray:
+        chunk = dataclasses.replace(template, cfa=block)
+        return develop(chunk, orientation="none", **develop_kwargs)
+
+    rgb = map_cfa(cfa, period, halo, step, block_fn, dtype)
+    return _orient_lazy(rgb, raw.flip) if orientation == "auto" else rgb

@@ -1,0 +1,391 @@
+"""Scale-out on Dask: many raws or plates on a cluster, one huge mosaic in chunks.
+
+Needs the optional extra (``pip install imgform-rs[dask]``); the rest of the
+package never imports Dask, and this module imports it only when called.
+
+:func:`develop_many` and :func:`align_many` run one task per file on a
+``distributed.Client`` (a local cluster of worker processes when none is
+given). The promises that make a large batch safe to run and to re-run:
+
+- **atomic outputs**: each file is written under a temporary name in the
+  output folder and renamed into place (``os.replace``), so a crash or a
+  killed worker never leaves a half-written file under its final name;
+- **resumable**: a file whose output exists is skipped (``overwrite=False``),
+  so re-running an interrupted batch only does what is left;
+- **isolated failures**: a file that cannot be processed is reported with
+  the reason, and every other file is still processed;
+- **retries**: tasks are pure functions of their arguments, submitted with
+  ``retries``, so the tasks of a worker that dies are run again elsewhere.
+
+The report (one entry per file: status ``"ok"``, ``"skipped"`` or
+``"failed"``, reason, seconds, output path) is returned and written as JSON
+next to the outputs, atomically too.
+
+:func:`demosaic_dask` and :func:`develop_dask` process one mosaic too large
+for one machine's memory as a ``dask.array``, with results identical to the
+whole-image :func:`imgform_rs.demosaic` and :func:`imgform_rs.develop`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import json
+import os
+import time
+import uuid
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from ._chunked import demosaic_dask, develop_dask
+
+__all__ = [
+    "BatchReport",
+    "FileResult",
+    "align_many",
+    "demosaic_dask",
+    "develop_dask",
+    "develop_many",
+    "local_client",
+]
+
+RETRIES = 3
+"""How often a task is re-run after its worker died (not after an error in
+the file: those are reported, and re-running would fail again)."""
+
+_EXPECTED = (ValueError, TypeError, OSError)
+_SUFFIX = {"png": ".png", "tiff": ".tif"}
+
+
+@dataclass(frozen=True)
+class FileResult:
+    """What happened to one input file."""
+
+    source: str
+    output: str
+    status: str
+    """``"ok"``, ``"skipped"`` (the output existed) or ``"failed"``."""
+    reason: str
+    seconds: float
+    detail: str = ""
+
+
+@dataclass(frozen=True)
+class BatchReport:
+    """Per-file results, in input order, and where they were written."""
+
+    files: list[FileResult]
+    path: Path
+
+    @property
+    def failed(self) -> list[FileResult]:
+        """The files that could not be processed."""
+        return [f for f in self.files if f.status == "failed"]
+
+    def count(self, status: str) -> int:
+        """How many files ended with ``status``."""
+        return sum(f.status == status for f in self.files)
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError as exc:
+        raise ImportError(
+            "imgform_rs.batch needs Dask, an optional dependency: pip install imgform-rs[dask]"
+        ) from exc
+    return distributed
+
+
+@contextlib.contextmanager
+def local_client(workers: int = 2, *, env: dict[str, str] | None = None) -> Iterator[Any]:
+    """A ``distributed.Client`` on a new local cluster, closed on exit.
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes, one thread each: the Rust kernels are parallel
+        themselves (set ``RAYON_NUM_THREADS`` in ``env`` to share cores
+        fairly between workers).
+    env : dict, optional
+        Environment variables of the worker processes.
+    """
+    if not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an int >= 1, got {workers!r}")
+    distributed = _distributed()
+    cluster = distributed.LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        env=env or {},
+    )
+    try:
+        with distributed.Client(cluster) as client:
+            yield client
+    finally:
+        cluster.close()
+
+
+def _temporary(target: Path) -> Path:
+    """A unique name beside ``target`` with its suffix (writers pick the
+    format from it), hidden, so a half-written file is never mistaken for
+    an output."""
+    return target.with_name(f".{target.stem}.part-{uuid.uuid4().hex}{target.suffix}")
+
+
+def write_atomically(target: Path, write: Callable[[Path], Any]) -> None:
+    """Calls ``write(temporary)`` then renames the file to ``target``; the
+    temporary file is removed if ``write`` fails."""
+    tmp = _temporary(target)
+    try:
+        write(tmp)
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _develop_file(source: Path, tmp: Path, options: dict) -> str:
+    from .develop import develop, write_image
+
+    rgb = develop(source, **options)
+    write_image(tmp, rgb)
+    return f"{rgb.shape[1]}x{rgb.shape[0]}"
+
+
+def _align_file(source: Path, tmp: Path, options: dict) -> str:
+    from ._png import for_png, write_png
+    from .align import colorize_plate, read_plate
+
+    rgb, shifts = colorize_plate(read_plate(source), **options)
+    write_png(tmp, for_png(rgb))
+    reference = options.get("reference", "g")
+    moved = ", ".join(f"{c.upper()} {shifts[c]}" for c in "rgb" if c != reference)
+    return f"{moved} onto {reference.upper()}"
+
+
+_WORK = {"develop": _develop_file, "align": _align_file}
+
+
+def run_file(kind: str, source: str, target: str, options: dict) -> FileResult:
+    """One task: process ``source`` into ``target`` atomically. A pure
+    function of its arguments, so Dask may run it again after a worker dies;
+    errors in the file become a "failed" result, not an exception."""
+    start = time.perf_counter()
+    detail = ""
+
+    def write(tmp: Path) -> None:
+        nonlocal detail
+        detail = _WORK[kind](Path(source), tmp, options)
+
+    try:
+        write_atomically(Path(target), write)
+    except _EXPECTED as exc:
+        # RawError messages already start with the file name.
+        reason = str(exc) if str(exc).startswith(source) else f"{source}: {exc}"
+        return FileResult(source, target, "failed", reason, time.perf_counter() - start)
+    return FileResult(source, target, "ok", "", time.perf_counter() - start, detail)
+
+
+def _write_report(outdir: Path, kind: str, results: list[FileResult]) -> BatchReport:
+    path = outdir / f"imgform-{kind}-report.json"
+    text = json.dumps({"files": [asdict(r) for r in results]}, indent=1)
+    write_atomically(path, lambda tmp: tmp.write_text(text + "\n"))
+    return BatchReport(results, path)
+
+
+def _remove_leftovers(targets: Iterable[Path]) -> None:
+    """Temporary files that workers killed mid-write left behind."""
+    for target in targets:
+        for tmp in target.parent.glob(f".{target.stem}.part-*{target.suffix}"):
+            tmp.unlink(missing_ok=True)
+
+
+OnResult = Callable[[FileResult, int, int], None]
+"""Called as ``on_result(result, done, total)`` as each file finishes."""
+
+
+def _submit_all(
+    client: Any, kind: str, pairs: list, options: dict, tick: Callable[[FileResult], None]
+) -> list[FileResult]:
+    """Runs the pairs one task each; results in completion order."""
+    distributed = _distributed()
+    futures = {
+        client.submit(run_file, kind, str(s), str(t), options, retries=RETRIES): (s, t)
+        for s, t in pairs
+    }
+    results = []
+    for future in distributed.as_completed(futures):
+        try:
+            result = future.result()
+        except Exception as exc:  # a lost worker after all retries, an OOM kill...
+            source, target = futures[future]
+            result = FileResult(str(source), str(target), "failed", f"{source}: {exc!r}", 0.0)
+        results.append(result)
+        tick(result)
+    return results
+
+
+def _run_batch(
+    kind: str,
+    sources: Iterable[Any],
+    outdir: Any,
+    suffix: str,
+    options: dict,
+    *,
+    client: Any,
+    overwrite: bool,
+    on_result: OnResult | None,
+) -> BatchReport:
+    """Skips finished files, runs the rest, writes and returns the report."""
+    _distributed()
+    if isinstance(sources, (str, os.PathLike)):
+        raise TypeError(f"sources must be a list of paths, got the single path {sources!r}")
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    pairs = [(Path(s), out / f"{Path(s).stem}{suffix}") for s in sources]
+    names = [t for _, t in pairs]
+    if len(set(names)) != len(names):
+        raise ValueError("sources must have distinct file names (stems): outputs would collide")
+    skipped = [
+        FileResult(str(s), str(t), "skipped", "output exists", 0.0)
+        for s, t in pairs
+        if t.exists() and not overwrite
+    ]
+    todo = [(s, t) for s, t in pairs if overwrite or not t.exists()]
+    counter = itertools.count(1)
+
+    def tick(result: FileResult) -> None:
+        if on_result:
+            on_result(result, next(counter), len(pairs))
+
+    for result in skipped:
+        tick(result)
+    done: list[FileResult] = []
+    if todo:
+        with contextlib.ExitStack() as stack:
+            if client is None:
+                client = stack.enter_context(local_client())
+            done = _submit_all(client, kind, todo, options, tick)
+        _remove_leftovers(t for _, t in todo)
+    order = {str(t): i for i, (_, t) in enumerate(pairs)}
+    results = sorted(skipped + done, key=lambda r: order[r.output])
+    return _write_report(out, kind, results)
+
+
+def develop_many(
+    sources: Iterable[str | os.PathLike[str]],
+    outdir: str | os.PathLike[str],
+    *,
+    client: Any = None,
+    overwrite: bool = False,
+    format: str = "png",
+    on_result: OnResult | None = None,
+    **develop_kwargs: Any,
+) -> BatchReport:
+    """Develop raw files on a Dask cluster, one task per file.
+
+    Each ``OUTDIR/<stem>.png`` (or ``.tif``) is written atomically; existing
+    outputs are kept unless ``overwrite``; the report is also written to
+    ``OUTDIR/imgform-develop-report.json``.
+
+    Parameters
+    ----------
+    sources : iterable of path
+        Raw files (anything :func:`imgform_rs.load_raw` reads), distinct stems.
+    outdir : path
+        Created if missing.
+    client : distributed.Client, optional
+        Where to run; by default a local cluster of 2 worker processes,
+        closed afterwards.
+    overwrite : bool
+        Process files whose output exists (default: skip them).
+    format : {"png", "tiff"}
+    on_result : callable, optional
+        ``on_result(result, done, total)`` as each file finishes (a progress bar).
+    **develop_kwargs
+        Options of :func:`imgform_rs.develop` (``demosaic``, ``bps``, ...).
+
+    Returns
+    -------
+    BatchReport
+        One :class:`FileResult` per source, in input order.
+
+    Raises
+    ------
+    ImportError
+        Without the ``dask`` extra.
+    ValueError
+        For an unknown format or colliding output names (before any work).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> import numpy as np
+    >>> from distributed import Client
+    >>> from imgform_rs.dng import write_dng
+    >>> with tempfile.TemporaryDirectory() as d, Client(processes=False) as client:
+    ...     cfa = (np.arange(32 * 32) % 2000 + 100).astype(np.uint16).reshape(32, 32)
+    ...     write_dng(f"{d}/a.dng", cfa, "RGGB", white_level=4095)
+    ...     report = develop_many([f"{d}/a.dng"], f"{d}/out", client=client)
+    ...     again = develop_many([f"{d}/a.dng"], f"{d}/out", client=client)
+    >>> [f.status for f in report.files], [f.status for f in again.files]
+    (['ok'], ['skipped'])
+    """
+    if format not in _SUFFIX:
+        raise ValueError(f'format must be "png" or "tiff", got {format!r}')
+    return _run_batch(
+        "develop",
+        sources,
+        outdir,
+        _SUFFIX[format],
+        develop_kwargs,
+        client=client,
+        overwrite=overwrite,
+        on_result=on_result,
+    )
+
+
+def align_many(
+    plates: Iterable[str | os.PathLike[str]],
+    outdir: str | os.PathLike[str],
+    *,
+    client: Any = None,
+    overwrite: bool = False,
+    on_result: OnResult | None = None,
+    **align_kwargs: Any,
+) -> BatchReport:
+    """Colourise Prokudin-Gorskii plates on a Dask cluster, one task per plate.
+
+    What ``imgform align`` does for each plate (:func:`imgform_rs.read_plate`,
+    :func:`imgform_rs.colorize_plate`, a PNG, 16-bit for 16-bit scans), with
+    the guarantees of :func:`develop_many`; the report goes to
+    ``OUTDIR/imgform-align-report.json``.
+
+    Parameters
+    ----------
+    plates : iterable of path
+        8-bit JPG or 16-bit TIFF scans, B, G, R stacked top to bottom.
+    outdir : path
+    client, overwrite, on_result
+        As for :func:`develop_many`.
+    **align_kwargs
+        Options of :func:`imgform_rs.colorize_plate` (``reference``,
+        ``metric``, ``max_shift``, ``features``).
+
+    Returns
+    -------
+    BatchReport
+    """
+    return _run_batch(
+        "align",
+        plates,
+        outdir,
+        ".png",
+        align_kwargs,
+        client=client,
+        overwrite=overwrite,
+        on_result=on_result,
+    )

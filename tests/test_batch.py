@@ -1,0 +1,280 @@
+"""Scale-out on Dask: chunked demosaic/develop identical to the whole-image
+calls, and file batches on a real 2-process LocalCluster."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from imgform_rs import (
+    DEMOSAIC_METHODS,
+    demosaic,
+    demosaic_halo,
+    develop,
+    load_raw,
+    simulate_sensor,
+)
+from imgform_rs.cli import main
+from imgform_rs.dng import write_dng
+
+da = pytest.importorskip("dask.array")
+distributed = pytest.importorskip("distributed")
+batch = pytest.importorskip("imgform_rs.batch")
+iio = pytest.importorskip("imageio.v3")
+
+PATTERNS = ["RGGB", "BGGR", "GRBG", "GBRG", "XTRANS"]
+DTYPES = [np.uint8, np.uint16, np.float32]
+
+
+def test_the_core_never_imports_dask():
+    code = (
+        "import sys, numpy as np, imgform_rs, imgform_rs.batch, imgform_rs.cli\n"
+        "raw = np.arange(64, dtype=np.uint16).reshape(8, 8)\n"
+        "imgform_rs.demosaic(raw, 'RGGB', 'bilinear')\n"
+        "imgform_rs.cli.build_parser()\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('dask', 'distributed')))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_without_dask_the_error_names_the_extra():
+    code = (
+        "import sys\n"
+        "sys.modules['dask'] = sys.modules['distributed'] = None\n"
+        "import numpy as np\n"
+        "from imgform_rs import batch\n"
+        "for call in (lambda: batch.demosaic_dask(np.zeros((4, 4)), 'RGGB'),\n"
+        "             lambda: batch.develop_many([], '.')):\n"
+        "    try:\n"
+        "        call()\n"
+        "    except ImportError as exc:\n"
+        "        print(exc)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    lines = out.stdout.strip().splitlines()
+    assert len(lines) == 2
+    assert all("pip install imgform-rs[dask]" in line for line in lines)
+
+
+def accepts(method: str, pattern: str) -> bool:
+    try:
+        demosaic(np.zeros((6, 6), np.uint8), pattern, method)
+    except ValueError:
+        return False
+    return True
+
+
+def split(n: int, sizes: list[int]) -> tuple[int, ...]:
+    """Chunk sizes along an axis of length n, cycling through ``sizes``."""
+    out, i = [], 0
+    while sum(out) < n:
+        out.append(min(sizes[i % len(sizes)], n - sum(out)))
+        i += 1
+    return tuple(out)
+
+
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow], print_blob=True
+)
+@given(
+    method=st.sampled_from(DEMOSAIC_METHODS),
+    pattern=st.sampled_from(PATTERNS),
+    dtype=st.sampled_from(DTYPES),
+    shape=st.tuples(st.integers(6, 70), st.integers(6, 70)),
+    row_chunks=st.lists(st.integers(1, 40), min_size=1, max_size=4),
+    col_chunks=st.lists(st.integers(1, 40), min_size=1, max_size=4),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_demosaic_dask_is_demosaic_bit_for_bit(
+    method, pattern, dtype, shape, row_chunks, col_chunks, seed
+):
+    if not accepts(method, pattern):
+        with pytest.raises(ValueError, match="X-Trans"):
+            batch.demosaic_dask(da.zeros((12, 12), dtype=dtype), pattern, method)
+        return
+    rng = np.random.default_rng(seed)
+    # A narrow range with one darker and one brighter pixel somewhere: the
+    # clamping methods clamp to the whole mosaic's range, which most chunks
+    # do not hold.
+    raw = (rng.integers(30, 200, shape) / (255.0 if dtype == np.float32 else 1)).astype(dtype)
+    for value in (0, 250 / (255.0 if dtype == np.float32 else 1)):
+        raw[rng.integers(shape[0]), rng.integers(shape[1])] = value
+    chunks = (split(shape[0], row_chunks), split(shape[1], col_chunks))
+    lazy = batch.demosaic_dask(da.from_array(raw, chunks=chunks), pattern, method)
+    got = lazy.compute(scheduler="synchronous")
+    expected = demosaic(raw, pattern, method)
+    assert got.dtype == expected.dtype
+    np.testing.assert_array_equal(got, expected)
+
+
+def test_every_method_declares_a_halo():
+    for method in DEMOSAIC_METHODS:
+        for pattern in PATTERNS:
+            assert demosaic_halo(method, pattern) >= 1
+    with pytest.raises(ValueError, match="unknown demosaicing method"):
+        demosaic_halo("sharpest", "RGGB")
+    with pytest.raises(TypeError, match="method must be a str"):
+        demosaic_halo(None, "RGGB")
+
+
+def test_demosaic_dask_chunks_sit_on_the_cfa_period():
+    raw = da.zeros((100, 90), dtype=np.uint16, chunks=(33, 17))
+    out = batch.demosaic_dask(raw, "XTRANS", "bilinear")
+    for axis in (0, 1):
+        assert all(c % 6 == 0 for c in out.chunks[axis][:-1]), out.chunks
+
+
+def test_demosaic_dask_refuses_bad_input():
+    with pytest.raises(TypeError, match=r"dask\.array"):
+        batch.demosaic_dask(np.zeros((8, 8), np.uint16), "RGGB")
+    with pytest.raises(TypeError, match="int32"):
+        batch.demosaic_dask(da.zeros((8, 8), dtype=np.int32), "RGGB")
+    with pytest.raises(ValueError, match=r"\(H, W\)"):
+        batch.demosaic_dask(da.zeros((8, 8, 3), dtype=np.uint16), "RGGB")
+    with pytest.raises(ValueError, match="unknown demosaicing method"):
+        batch.demosaic_dask(da.zeros((8, 8), dtype=np.uint16), "RGGB", "sharpest")
+
+
+def scene(h: int, w: int, seed: int) -> np.ndarray:
+    """A smooth, colourful linear scene with a few clipped highlights."""
+    y, x = np.mgrid[0:h, 0:w] / max(h, w)
+    rgb = np.stack([0.5 + 0.4 * np.sin(7 * x + seed), 0.4 + 0.3 * y, 0.3 + 0.2 * x * y], -1)
+    rgb[h // 3 : h // 3 + 3, w // 4 : w // 4 + 5] = 1.2
+    return rgb.astype(np.float32)
+
+
+def write_raw(path, h=64, w=72, seed=0, pattern="RGGB", neutral=(0.5, 1.0, 0.7)) -> str:
+    cfa = simulate_sensor(scene(h, w, seed), pattern, seed=seed)
+    write_dng(path, cfa, pattern, white_level=4095 + 64, black_level=64, as_shot_neutral=neutral)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("pattern", "options"),
+    [
+        ("RGGB", {"white_balance": "auto", "bps": 16, "demosaic": "best"}),
+        ("GBRG", {"white_balance": "camera", "bps": 8, "orientation": "none"}),
+        ("XTRANS", {"white_balance": "auto", "bps": "float", "demosaic": "bilinear"}),
+    ],
+)
+def test_develop_dask_is_develop_bit_for_bit(tmp_path, pattern, options):
+    raw = load_raw(write_raw(tmp_path / "a.dng", 90, 100, seed=3, pattern=pattern))
+    for flip, chunks in [(0, 16), (5, (37, 29)), (3, 200)]:
+        flipped = dataclasses.replace(raw, flip=flip)
+        got = batch.develop_dask(flipped, chunks=chunks, **options).compute(scheduler="synchronous")
+        np.testing.assert_array_equal(got, develop(flipped, **options))
+
+
+def test_develop_dask_refuses_what_it_cannot_do(tmp_path):
+    raw = load_raw(write_raw(tmp_path / "a.dng"))
+    with pytest.raises(TypeError, match="RawImage"):
+        batch.develop_dask(raw.cfa)
+    with pytest.raises(ValueError, match="pixel_aspect"):
+        batch.develop_dask(dataclasses.replace(raw, pixel_aspect=0.5))
+
+
+# --- file batches on a real cluster ---
+
+
+@pytest.fixture(scope="module")
+def client():
+    """One 2-process cluster for the whole module (starting one costs seconds)."""
+    with batch.local_client(2, env={"RAYON_NUM_THREADS": "1"}) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def raws(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("raws")
+    paths = [write_raw(folder / f"shot{i}.dng", seed=i) for i in range(4)]
+    corrupt = folder / "corrupt.dng"
+    corrupt.write_bytes(b"II*\x00" + bytes(200))
+    return paths, str(corrupt)
+
+
+def outputs(folder) -> list[str]:
+    return sorted(os.listdir(folder))
+
+
+def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_path, client, raws):
+    paths, corrupt = raws
+    out = tmp_path / "out"
+    report = batch.develop_many([*paths, corrupt], out, client=client, bps=16, format="tiff")
+    assert [f.status for f in report.files] == ["ok"] * 4 + ["failed"]
+    assert "corrupt.dng" in report.failed[0].reason
+    for path, f in zip(paths, report.files, strict=False):
+        np.testing.assert_array_equal(iio.imread(f.output), develop(path, bps=16))
+        assert f.seconds > 0
+    saved = json.loads(report.path.read_text())["files"]
+    assert [f["status"] for f in saved] == ["ok"] * 4 + ["failed"]
+    assert outputs(out) == sorted([*(f"shot{i}.tif" for i in range(4)), report.path.name])
+    stamps = [os.stat(f.output).st_mtime_ns for f in report.files[:4]]
+    again = batch.develop_many(paths, out, client=client, bps=16, format="tiff")
+    assert [f.status for f in again.files] == ["skipped"] * 4
+    assert [os.stat(f.output).st_mtime_ns for f in again.files] == stamps
+
+
+@pytest.mark.slow
+def test_a_killed_worker_loses_no_file_and_leaves_no_partial_file(tmp_path, client):
+    paths = [write_raw(tmp_path / f"big{i}.dng", 600, 800, seed=i) for i in range(8)]
+    pids = list(client.run(os.getpid).values())
+    killed = []
+
+    def kill_once(result, done, total):
+        if not killed:
+            os.kill(pids[0], signal.SIGKILL)
+            killed.append(pids[0])
+
+    out = tmp_path / "out"
+    report = batch.develop_many(paths, out, client=client, on_result=kill_once)
+    client.wait_for_workers(2)
+    assert killed
+    assert killed[0] not in client.run(os.getpid).values()  # the nanny started a new one
+    assert [f.status for f in report.files] == ["ok"] * 8
+    assert outputs(out) == sorted([*(f"big{i}.png" for i in range(8)), report.path.name])
+    for path, f in zip(paths[:2], report.files, strict=False):
+        np.testing.assert_array_equal(iio.imread(f.output), develop(path))
+
+
+def plate(h: int, w: int, seed: int) -> np.ndarray:
+    """A synthetic plate: B, G, R exposures of a textured scene stacked,
+    each a few pixels off."""
+    rng = np.random.default_rng(seed)
+    base = rng.random((h + 20, w + 20))
+    base = (base + np.roll(base, 1, 0) + np.roll(base, 1, 1)) / 3
+    parts = [
+        base[10 + dy : 10 + dy + h, 10 + dx : 10 + dx + w] for dy, dx in [(2, -3), (0, 0), (-4, 1)]
+    ]
+    return (np.concatenate(parts) * 255).astype(np.uint8)
+
+
+def test_cli_align_and_develop_on_a_scheduler(tmp_path, client, raws, capsys):
+    paths, corrupt = raws
+    scheduler = client.scheduler.address
+    plates = []
+    for i in range(2):
+        plates.append(str(tmp_path / f"plate{i}.png"))
+        iio.imwrite(plates[-1], plate(60, 64, i))
+    assert main(["align", *plates, "-o", str(tmp_path / "local")]) == 0
+    assert main(["align", *plates, "-o", str(tmp_path / "dask"), "--scheduler", scheduler]) == 0
+    for i in range(2):
+        local = iio.imread(tmp_path / "local" / f"plate{i}.png")
+        np.testing.assert_array_equal(iio.imread(tmp_path / "dask" / f"plate{i}.png"), local)
+    code = main(
+        ["develop", paths[0], corrupt, "-o", str(tmp_path / "dev"), "--scheduler", scheduler]
+    )
+    assert code == 1
+    err = capsys.readouterr().err
+    assert "corrupt.dng" in err
+    assert "1 of 2 raws failed" in err
+    assert (tmp_path / "dev" / "shot0.png").is_file()
