@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 
 WAVELENGTH, N = 0.5e-3, 4.0
 LAMBDA_N = WAVELENGTH * N

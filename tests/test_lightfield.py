@@ -6,11 +6,11 @@ import itertools
 
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 from imgform_rs import _native, scene
 
 # A camera at the world origin looking along +z (world frame = camera frame),

@@ -37,6 +37,7 @@ from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic, demosaic_halo
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
+from .lightfield import focal_stack, refocus, render_light_field, view_disparity
 from .metrology import (
     VanishingPointFit,
     camera_height,
@@ -44,7 +45,6 @@ from .metrology import (
     fit_vanishing_point,
     relative_height,
 )
-from .lightfield import focal_stack, refocus, render_light_field, view_disparity
 from .optics import (
     circle_of_confusion,
     depth_of_field,
@@ -67,14 +67,14 @@ from .remap import (
 )
 
 __all__ = [
+    "DEMOSAIC_METHODS",
+    "TONES",
     "Alignment",
     "Camera",
-    "DEMOSAIC_METHODS",
     "RawError",
     "RawImage",
     "RemapMap",
     "SpotDiagram",
-    "TONES",
     "VanishingPoint",
     "VanishingPointFit",
     "add_lateral_ca",

@@ -30,14 +30,17 @@ import numpy as np
 
 from .cfa import as_pattern, pattern_cells
 from .demosaic import demosaic, demosaic_halo
-from .develop import DEFAULT_DEMOSAIC, develop
+from .develop import (
+    _GREY_BLOCK,
+    DEFAULT_DEMOSAIC,
+    _grey_multipliers,
+    _grey_sums,
+    _white_range,
+    develop,
+)
 from .raw import RawImage
 
 _DTYPES = (np.uint8, np.uint16, np.float32)
-# LibRaw's grey world works on 8x8 blocks of photosites (see develop.py);
-# develop_dask's chunks start on multiples of it so blocks never straddle.
-_GREY_BLOCK = 8
-_GREY_MARGIN = 25
 
 
 def require_dask() -> Any:
@@ -196,35 +199,16 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
     return map_cfa(mosaic, period, halo, period, block_fn, mosaic.dtype)
 
 
-def _grey_sums(block: np.ndarray, raw: RawImage, y0: int, x0: int) -> np.ndarray:
-    """Per channel (R, G, B, G2): photosites and black-subtracted signal in
-    the block's unclipped 8x8 blocks (LibRaw's grey world, summed)."""
-    h, w = block.shape
-    b = _GREY_BLOCK
-    block_max = np.maximum.reduceat(
-        np.maximum.reduceat(block, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
-    )
-    keep = np.repeat(np.repeat(block_max <= raw.white_level - _GREY_MARGIN, b, 0), b, 1)
-    th, tw = raw.channel_tile.shape
-    rows = (y0 + np.arange(h)) % th
-    cols = (x0 + np.arange(w)) % tw
-    chan = raw.channel_tile[rows[:, None], cols[None, :]]
-    signal = np.maximum(block - raw.black_levels[chan], 0)
-    keep = keep[:h, :w]
-    sums = [(np.sum(keep & (chan == c)), signal[keep & (chan == c)].sum()) for c in range(4)]
-    return np.array(sums, np.float64)[None, None]
-
-
 def _grey_world(raw: RawImage, cfa: Any) -> np.ndarray:
     """LibRaw's grey-world multipliers reduced over the chunks of ``cfa``."""
+    white = _white_range(raw)
 
     def partial(block: np.ndarray, block_info: Any = None) -> np.ndarray:
         (y0, _), (x0, _) = block_info[0]["array-location"]
-        return _grey_sums(block, raw, y0, x0)
+        return _grey_sums(block, raw, y0, x0, white)[None, None]
 
     sums = cfa.map_blocks(partial, new_axis=(2, 3), chunks=(1, 1, 4, 2), dtype=np.float64)
-    count, total = sums.sum(axis=(0, 1)).compute().T
-    return np.where(total > 0, count / np.where(total > 0, total, 1), 1.0)
+    return _grey_multipliers(sums.sum(axis=(0, 1)).compute())
 
 
 def _orient_lazy(rgb: Any, flip: int) -> Any:

@@ -196,6 +196,7 @@ def camera_height(
     ref_top: npt.NDArray[np.float64],
     ref_height: float,
 ) -> float: ...
+
 # --- aberration ---
 def pupil_psf(
     n_pixels: int,
@@ -214,6 +215,8 @@ def strehl_ratio(psf: npt.NDArray[np.float64], reference: npt.NDArray[np.float64
 def render_aberrated(
     image: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],
     psf: npt.NDArray[np.float64],
+) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
+
 # --- lightfield ---
 def focal_stack(
     views: npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32],

@@ -79,23 +79,33 @@ def _grey_world(raw: RawImage) -> npt.NDArray[np.float64]:
     maximum adjustment, :func:`_white_range`); the blocks at the right and
     bottom edges may be partial, as in LibRaw. LibRaw subtracts only the
     per-channel black levels at that point, not the black-level map."""
-    h, w = raw.cfa.shape
+    return _grey_multipliers(_grey_sums(raw.cfa, raw, 0, 0, _white_range(raw)))
+
+
+def _grey_sums(
+    block: npt.NDArray[Any], raw: RawImage, y0: int, x0: int, white: float
+) -> npt.NDArray[np.float64]:
+    """Per channel (R, G, B, G2): the photosites and the black-subtracted
+    signal in the unclipped 8x8 blocks of ``block``, the part of ``raw.cfa``
+    at ``(y0, x0)`` (a multiple of 8), so that chunked callers can add them up."""
+    h, w = block.shape
     b = _GREY_BLOCK
     th, tw = raw.channel_tile.shape
-    chan = np.tile(raw.channel_tile, (-(-h // th), -(-w // tw)))[:h, :w]
-    signal = np.maximum(raw.cfa - raw.black_levels[chan], 0)
+    chan = raw.channel_tile[((y0 + np.arange(h)) % th)[:, None], ((x0 + np.arange(w)) % tw)]
+    signal = np.maximum(block - raw.black_levels[chan], 0)
     block_max = np.maximum.reduceat(
         np.maximum.reduceat(signal, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
     )
-    ok = block_max <= _white_range(raw) - _GREY_MARGIN
+    ok = block_max <= white - _GREY_MARGIN
     keep = np.repeat(np.repeat(ok, b, axis=0), b, axis=1)[:h, :w]
-    mul = np.ones(4)
-    for c in range(4):
-        sel = keep & (chan == c)
-        total = signal[sel].sum()
-        if total > 0:
-            mul[c] = sel.sum() / total
-    return mul
+    sums = [(np.sum(keep & (chan == c)), signal[keep & (chan == c)].sum()) for c in range(4)]
+    return np.array(sums, np.float64)
+
+
+def _grey_multipliers(sums: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Count over signal per channel, 1 for a channel with no signal."""
+    count, total = sums.T
+    return np.where(total > 0, count / np.where(total > 0, total, 1), 1.0)
 
 
 def _multipliers(raw: RawImage, white_balance: Any) -> npt.NDArray[np.float64]:

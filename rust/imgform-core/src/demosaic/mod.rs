@@ -155,6 +155,7 @@ impl Method {
             Method::Menon2007 => <Menon2007 as TileKernel>::HALO,
             Method::RcdMenon => <ensemble::Ensemble as TileKernel>::HALO,
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
+            Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
         }
     }
 
