@@ -52,6 +52,10 @@ test-slow: $(BUILT) ## the slow tests too
 bench: $(BUILT) ## side-by-side benchmarks against the peers
 	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
+.PHONY: filters
+filters: $(BUILT) ## rebuild the leung2011 demosaicer's least-squares filters
+	$(PY) -m imgform_rs.training.leung2011
+
 .PHONY: lint
 lint: $(VENV)/.deps ## cargo fmt, clippy -D warnings, ruff, stubtest
 	cargo fmt --all -- --check

@@ -53,6 +53,7 @@ def test_methods_are_exactly_the_documented_ones():
         "menon2007",
         "rcd_menon",
         "ahd",
+        "leung2011",
         "best",
     )
 
@@ -69,7 +70,7 @@ def test_best_is_the_rcd_menon_mean():
 
 
 # The multi-stage methods clamp their outputs to the input's range.
-CLAMPED = ["rcd", "menon2007", "rcd_menon", "ahd", "best"]
+CLAMPED = ["rcd", "menon2007", "rcd_menon", "ahd", "leung2011", "best"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(CLAMPED))
@@ -263,6 +264,8 @@ def test_adaptive_methods_beat_bilinear_on_a_natural_image():
     assert errors["menon2007"] < errors["hamilton_adams"]
     assert errors["rcd_menon"] < min(errors["rcd"], errors["menon2007"])
     assert errors["ahd"] < errors["malvar2004"]
+    # The frequency-domain method is at least 1 dB better than Malvar's.
+    assert errors["leung2011"] < errors["malvar2004"] / 10**0.1
 
 
 def test_borders_are_mirrored_not_black_or_wrapped():

@@ -188,3 +188,69 @@ def test_stale_pixels_behind_a_small_file_are_refused():
         _check_pixels(cfa, 4095, "second.nef", second, pixels)
     with pytest.raises(ig.RawError, match=r"tiny\.nef: the file is too small"):
         _check_pixels(cfa, 4095, "tiny.nef", b"C" * 100, pixels)
+
+
+@pytest.mark.parametrize(
+    ("black", "levels", "black_map"),
+    [
+        # A pattern longer than the CFA tile: its minimum goes to every
+        # channel, the rest stays a map repeating from pixel (0, 0).
+        ([[70, 90, 80, 75], [95, 85, 72, 99]], [70] * 4, [[0, 20, 10, 5], [25, 15, 2, 29]]),
+        # A 2x2 pattern is per channel (RGGB: R, G, G2, B cells).
+        ([[70, 90], [95, 85]], [70, 90, 85, 95], [[0]]),
+        (64, [64] * 4, [[0]]),
+    ],
+)
+def test_black_level_patterns_become_levels_and_a_map(tmp_path, black, levels, black_map):
+    rng = np.random.default_rng(len(str(black)))
+    cfa = rng.integers(128, 4096, (32, 48)).astype(np.uint16)
+    path = tmp_path / "black.dng"
+    write_dng(path, cfa, "RGGB", white_level=4095, black_level=np.array(black))
+    raw = ig.load_raw(path)
+    assert raw.black_levels.tolist() == levels
+    np.testing.assert_array_equal(raw.black_map, black_map)
+    with rawpy.imread(str(path)) as r:
+        assert r.black_level_per_channel == levels
+        # An open RawPy has no bytes to read the pattern from.
+        assert ig.load_raw(r).black_map.tolist() == [[0.0]]
+
+
+def test_write_dng_refuses_bad_black_patterns_orientations_and_aspects(tmp_path):
+    cfa = np.ones((32, 32), np.uint16)
+    for black, message in [
+        (np.ones((65, 2), np.int64), "at most 64 x 64"),
+        ([[5000]], "black_level < white_level"),
+        (np.array([[1.5]]), "integer pattern"),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, black_level=black)
+    with pytest.raises(ValueError, match="orientation must be"):
+        write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, orientation=9)
+    with pytest.raises(ValueError, match="pixel_aspect must be"):
+        write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, pixel_aspect=0.0)
+
+
+@needs_raws
+@pytest.mark.parametrize(
+    ("name", "first_row"),
+    [
+        ("kodak_dc50_DC0008L.KDC", [1.8125, -0.3365, -0.476]),
+        ("kodak_dc120_P003908_uncompressed.KDC", [1.4815, -0.321, -0.1605]),
+    ],
+)
+def test_kodak_colour_matrices_come_from_the_file(name, first_row):
+    # LibRaw reads these cameras' camera-to-sRGB matrix from TIFF tag 37400
+    # into rgb_cam; rawpy exposes neither, so we read the tag ourselves.
+    raw = ig.load_raw(RAW_DIR / name)
+    np.testing.assert_allclose(raw.camera_to_srgb[0], first_row, atol=1e-4)
+    assert raw.make == "Eastman Kodak Company"
+
+
+@settings(max_examples=60)
+@given(st.binary(max_size=600))
+def test_tiff_tags_of_corrupt_files_never_raise(data):
+    from imgform_rs._tiff import tiff_ifds
+
+    for blob in (b"II*\0" + data, b"MM\0*" + data):
+        for ifd in tiff_ifds(blob):
+            assert all(isinstance(v, (str, tuple)) for v in ifd.values())

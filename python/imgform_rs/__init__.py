@@ -29,6 +29,13 @@ from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import DEMOSAIC_METHODS, demosaic
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
+from .metrology import (
+    VanishingPointFit,
+    camera_height,
+    fit_horizon,
+    fit_vanishing_point,
+    relative_height,
+)
 from .optics import (
     circle_of_confusion,
     depth_of_field,
@@ -59,9 +66,11 @@ __all__ = [
     "RawImage",
     "RemapMap",
     "VanishingPoint",
+    "VanishingPointFit",
     "add_lateral_ca",
     "align",
     "apply_shift",
+    "camera_height",
     "channel_masks",
     "circle_of_confusion",
     "colorize_plate",
@@ -74,6 +83,8 @@ __all__ = [
     "distort_points",
     "dolly_zoom_focal_length",
     "field_of_view",
+    "fit_horizon",
+    "fit_vanishing_point",
     "hyperfocal_distance",
     "image_distance",
     "load_raw",
@@ -85,6 +96,7 @@ __all__ = [
     "project_orthographic",
     "project_pinhole",
     "read_plate",
+    "relative_height",
     "remap",
     "render_defocus",
     "shift_pattern",

@@ -171,3 +171,27 @@ def develop(
     method: str,
     bps: str,
 ) -> npt.NDArray[Any]: ...
+
+# --- metrology ---
+def fit_vanishing_point(
+    segments: npt.NDArray[np.float64], threshold: float, seed: int, allow_infinite: bool
+) -> tuple[tuple[float, float, float], bool, float, npt.NDArray[np.bool_]]: ...
+def fit_horizon(
+    vp1: npt.NDArray[np.float64], vp2: npt.NDArray[np.float64]
+) -> tuple[float, float, float]: ...
+def relative_height(
+    horizon: npt.NDArray[np.float64],
+    vertical_vp: npt.NDArray[np.float64],
+    ref_base: npt.NDArray[np.float64],
+    ref_top: npt.NDArray[np.float64],
+    ref_height: float,
+    base: npt.NDArray[np.float64],
+    top: npt.NDArray[np.float64],
+) -> npt.NDArray[np.float64]: ...
+def camera_height(
+    horizon: npt.NDArray[np.float64],
+    vertical_vp: npt.NDArray[np.float64],
+    ref_base: npt.NDArray[np.float64],
+    ref_top: npt.NDArray[np.float64],
+    ref_height: float,
+) -> float: ...

@@ -34,6 +34,21 @@ Methods, all for the four Bayer phases and uint8 / uint16 / float32 mosaics:
   interpolated along rows and along columns, and per pixel the one whose CIELab
   neighbourhood is more homogeneous (3x3 sums of homogeneity counts). Outputs are
   clamped to the range of the input mosaic. Mean CPSNR 38.26 dB (LibRaw AHD 38.27).
+- ``"leung2011"``: frequency-domain luma-chroma demultiplexing. The mosaic is luma
+  plus chroma modulated at (π, π), (π, 0) and (0, π) (Alleysson, Süsstrunk and
+  Hérault, "Linear demosaicing inspired by the human visual system", IEEE TIP
+  14(4), 2005); the chroma is demodulated by filters designed by least squares on
+  training images (Leung, Jeon and Dubois, "Least-squares luma-chroma
+  demultiplexing algorithm for Bayer demosaicking", IEEE TIP 20(7), 2011), the
+  (π, 0) and (0, π) copies weighted per pixel by the local luma energy that
+  disturbs each (Dubois, "Frequency-domain methods for demosaicking of
+  Bayer-sampled color images", IEEE SPL 12(12), 2005); luma is the rest. Our
+  filters are separable (11 + 2 taps per axis) for speed and put an exact zero
+  on each carrier, so grey flat areas get no false colour at all; they are
+  rebuilt by ``python -m imgform_rs.training.leung2011`` (``make filters``) from
+  openly licensed images, none of the benchmark's. Outputs are clamped to the
+  range of the input mosaic. Mean CPSNR 38.99 dB on the benchmark's images
+  (``"malvar2004"`` 37.39).
 - ``"best"``: our highest-quality method, currently ``"rcd_menon"``. Mean CPSNR on
   the seven scikit-image images of ``benchmarks/demosaic.py`` (8-bit protocol,
   RGGB, 10 px crop): 39.63 dB, against ``"menon2007"`` 38.76, ``"rcd"`` 38.68 and the

@@ -8,25 +8,40 @@ orientation="none")`` matches ``rawpy``'s ``postprocess(demosaic_algorithm=LINEA
 use_camera_wb=True, gamma=(1, 1), no_auto_bright=True, output_bps=16,
 user_flip=0)``:
 
-- black: each channel's level (``RawImage.black_levels``) is subtracted;
+- black: each channel's level (``RawImage.black_levels``) is subtracted,
+  plus, pixel by pixel, a DNG black-level pattern longer than the CFA tile
+  (``RawImage.black_map``, LibRaw's ``cblack[6:]``);
 - white: the data are divided by ``white_level - min(black_levels)``; when the
   brightest value actually present lies between 75 % and 100 % of that range,
   it is taken as white instead (LibRaw's ``adjust_maximum_thr`` default,
   which absorbs white levels that cameras report a little too high);
 - white balance: the multipliers are divided by the smallest, so no channel
-  is scaled below 1 and all clip together at white (LibRaw ``highlight=0``);
+  is scaled below 1 and all clip together at white (LibRaw ``highlight=0``;
+  ``highlights="unclip"`` divides by the largest, LibRaw ``highlight=1``);
   a file without an as-shot balance falls back to grey world, as LibRaw does;
-- colour: LibRaw's ``rgb_cam`` (``RawImage.camera_to_srgb``), then a clip to
-  [0, 1] and the tone curve.
+- colour: LibRaw's ``rgb_cam`` (``RawImage.camera_to_srgb``, rebuilt by
+  :func:`load_raw` from rawpy's matrices and the file's own tags), then a
+  clip to [0, 1] and the tone curve.
 
 Cameras with non-square photosites (``RawImage.pixel_aspect != 1``, e.g. the
 Kodak DC120) are stretched to square pixels along the short axis by
 repeating lines, as LibRaw's ``stretch()`` does (its code interpolates, but
 truncates the weight to zero).
+
+Where LibRaw develops with data rawpy does not expose and the file cannot
+supply either, the results differ: a colour matrix LibRaw picks in code
+(Canon PowerShot 600, Logitech Fotoman, Nikon E880-E990, Kodak DC20/25), a
+black-level pattern of a non-DNG format, the white of LibRaw's decoders
+with a fixed maximum (Broadcom, Nokia and Android sensor dumps, 8-bit and
+Kodak YCbCr formats: LibRaw skips the white adjustment for them, and rawpy
+does not say which decoder read a file), and, for an open ``rawpy.RawPy``
+source, whatever :func:`load_raw` reads from the file's bytes (see its
+docs and the README's "Colour science").
 """
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -46,6 +61,7 @@ TONES: tuple[str, ...] = tuple(_native.TONES)
 """Every tone curve :func:`develop` accepts."""
 
 WHITE_BALANCES = ("camera", "daylight", "auto", "none")
+HIGHLIGHTS = ("clip", "unclip")
 
 # LibRaw's default adjust_maximum_thr (see the module docstring).
 _ADJUST_MAXIMUM = 0.75
@@ -58,18 +74,21 @@ _BPS = {8: "8", 16: "16", "float": "float"}
 
 
 def _grey_world(raw: RawImage) -> npt.NDArray[np.float64]:
-    """LibRaw's automatic white balance: channel means over unclipped blocks
-    (the blocks at the right and bottom edges may be partial, as in LibRaw)."""
+    """LibRaw's automatic white balance: channel means over the blocks whose
+    black-subtracted values all stay 25 below white (white after LibRaw's
+    maximum adjustment, :func:`_white_range`); the blocks at the right and
+    bottom edges may be partial, as in LibRaw. LibRaw subtracts only the
+    per-channel black levels at that point, not the black-level map."""
     h, w = raw.cfa.shape
     b = _GREY_BLOCK
-    block_max = np.maximum.reduceat(
-        np.maximum.reduceat(raw.cfa, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
-    )
-    ok = block_max <= raw.white_level - _GREY_MARGIN
-    keep = np.repeat(np.repeat(ok, b, axis=0), b, axis=1)[:h, :w]
     th, tw = raw.channel_tile.shape
     chan = np.tile(raw.channel_tile, (-(-h // th), -(-w // tw)))[:h, :w]
     signal = np.maximum(raw.cfa - raw.black_levels[chan], 0)
+    block_max = np.maximum.reduceat(
+        np.maximum.reduceat(signal, np.arange(0, h, b), axis=0), np.arange(0, w, b), axis=1
+    )
+    ok = block_max <= _white_range(raw) - _GREY_MARGIN
+    keep = np.repeat(np.repeat(ok, b, axis=0), b, axis=1)[:h, :w]
     mul = np.ones(4)
     for c in range(4):
         sel = keep & (chan == c)
@@ -102,6 +121,18 @@ def _multipliers(raw: RawImage, white_balance: Any) -> npt.NDArray[np.float64]:
             f"got {white_balance!r}"
         )
     return np.array([rgb[0], rgb[1], rgb[2], rgb[1]])
+
+
+def _tiles(
+    raw: RawImage, scale4: npt.NDArray[np.float64]
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Black level and scale per cell of one tile that repeats both the CFA
+    tile and the black-level map (their least common multiple)."""
+    (th, tw), (mh, mw) = raw.channel_tile.shape, raw.black_map.shape
+    rows, cols = math.lcm(th, mh), math.lcm(tw, mw)
+    chan = np.tile(raw.channel_tile, (rows // th, cols // tw))
+    black = raw.black_levels[chan] + np.tile(raw.black_map, (rows // mh, cols // mw))
+    return np.ascontiguousarray(black), np.ascontiguousarray(scale4[chan])
 
 
 def _white_range(raw: RawImage) -> float:
@@ -174,8 +205,14 @@ def develop(
         Output transfer curve.
     exposure : float
         Exposure change in stops, applied before clipping.
-    highlights : {"clip"}
-        Highlights clip at white (the only mode so far).
+    highlights : {"clip", "unclip"}
+        "clip": white-balance multipliers are divided by the smallest, so
+        every channel reaches white at the sensor's white and highlights clip
+        to neutral white (LibRaw's ``highlight=0``). "unclip": divided by the
+        largest, so no channel is pushed past the sensor's white: clipped
+        highlights keep the sensor's (often tinted) colour and the image is
+        darker by the multipliers' ratio (LibRaw's ``highlight=1``, rawpy's
+        ``HighlightMode.Ignore``).
     bps : {8, 16, "float"}
         Output uint8, uint16 or float32 in [0, 1].
     orientation : {"auto", "none"}
@@ -195,6 +232,16 @@ def develop(
         For an unknown option, a bad white balance, or an X-Trans sensor
         with a Bayer-only demosaicer.
 
+    Notes
+    -----
+    The steps and their order are LibRaw's (see the module docstring): with
+    ``demosaic="bilinear", tone="linear", bps=16, orientation="none"`` the
+    result matches rawpy's ``postprocess`` with LINEAR, camera white balance,
+    ``gamma=(1, 1)``, ``no_auto_bright=True``, ``output_bps=16`` and
+    ``user_flip=0`` to >= 40 dB, non-square pixels included; the module
+    docstring lists the cameras where rawpy and the file lack what LibRaw
+    uses.
+
     Examples
     --------
     >>> import tempfile
@@ -211,8 +258,8 @@ def develop(
         raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
     if color not in ("srgb", "camera"):
         raise ValueError(f'color must be "srgb" or "camera", got {color!r}')
-    if highlights != "clip":
-        raise ValueError(f'highlights must be "clip", got {highlights!r}')
+    if highlights not in HIGHLIGHTS:
+        raise ValueError(f"highlights must be one of {HIGHLIGHTS}, got {highlights!r}")
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
     if not np.isfinite(exposure):
@@ -221,14 +268,13 @@ def develop(
         raise TypeError(f"demosaic must be a str, one of {DEMOSAIC_METHODS}, got {demosaic!r}")
     raw = source if isinstance(source, RawImage) else load_raw(source)
     mul = _multipliers(raw, white_balance)
-    mul = mul / mul.min()
+    mul = mul / (mul.min() if highlights == "clip" else mul.max())
     scale4 = mul / _white_range(raw) * 2.0**exposure
     matrix = raw.camera_to_srgb if color == "srgb" else np.eye(3)
     rgb = _native.develop(
         raw.cfa,
         raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64),
-        np.ascontiguousarray(raw.black_levels[raw.channel_tile]),
-        np.ascontiguousarray(scale4[raw.channel_tile]),
+        *_tiles(raw, scale4),
         np.ascontiguousarray(matrix, np.float64),
         tone,
         demosaic,

@@ -4,8 +4,9 @@ We write just what the DNG 1.4 specification requires for an uncompressed CFA
 image, plus the colour tags LibRaw needs to develop it: one little-endian TIFF
 IFD holding the mosaic as a single uint16 strip, ``PhotometricInterpretation =
 CFA``, ``CFARepeatPatternDim`` / ``CFAPattern`` (0 = R, 1 = G, 2 = B, the same
-indices as our patterns), black and white levels, ``ColorMatrix1`` and
-``AsShotNeutral``. It serves the LibRaw benchmark and the raw pipeline's tests.
+indices as our patterns), black and white levels (the black level may be a
+repeating pattern), ``ColorMatrix1``, ``AsShotNeutral`` and the orientation.
+It serves the LibRaw benchmark and the raw pipeline's tests.
 """
 
 from __future__ import annotations
@@ -84,16 +85,36 @@ class _Ifd:
         return table + struct.pack("<I", 0) + data
 
 
+def _black_pattern(black_level: Any, white_level: int) -> npt.NDArray[np.int64]:
+    """The black level as an (r, c) integer pattern, checked against white."""
+    black = np.asarray(black_level)
+    if black.ndim == 0:
+        black = black.reshape(1, 1)
+    if black.dtype.kind not in "iu" or black.ndim != 2 or black.size == 0:
+        raise ValueError(
+            f"black_level must be an int or an (r, c) integer pattern, got {black_level!r}"
+        )
+    if max(black.shape) > 64 or not (0 <= black.min() and black.max() < white_level <= 65535):
+        raise ValueError(
+            "levels must satisfy 0 <= black_level < white_level <= 65535 with a black "
+            f"pattern of at most 64 x 64, got black_level={black_level}, "
+            f"white_level={white_level}"
+        )
+    return black.astype(np.int64)
+
+
 def write_dng(
     path: str | os.PathLike[str],
     cfa: npt.NDArray[np.integer],
     pattern: Pattern,
     *,
     white_level: int,
-    black_level: int = 0,
+    black_level: int | npt.ArrayLike = 0,
     color_matrix: Any = XYZ_TO_SRGB,
     as_shot_neutral: Any = (1.0, 1.0, 1.0),
     model: str = "imgform-rs synthetic",
+    orientation: int = 1,
+    pixel_aspect: float = 1.0,
 ) -> None:
     """Write a CFA mosaic as an uncompressed DNG that LibRaw reads back exactly.
 
@@ -108,8 +129,9 @@ def write_dng(
         Bayer name or tile, or an X-Trans tile, of pixel (0, 0).
     white_level : int
         Saturation level in digital numbers (e.g. 4095 for 12 bits).
-    black_level : int
-        Offset subtracted by raw developers.
+    black_level : int or array_like of int, shape (r, c)
+        Offset subtracted by raw developers; an array is a pattern repeating
+        from pixel (0, 0) (``BlackLevelRepeatDim`` = (r, c), at most 64 x 64).
     color_matrix : array_like (3, 3)
         DNG ``ColorMatrix1``: XYZ (D65) to camera RGB. The default makes camera
         RGB linear sRGB.
@@ -117,13 +139,20 @@ def write_dng(
         White balance as camera RGB of a neutral; (1, 1, 1) leaves it alone.
     model : str
         ``UniqueCameraModel`` (also written as Make / Model).
+    orientation : int
+        EXIF / TIFF ``Orientation``, 1 (as stored) to 8.
+    pixel_aspect : float
+        Width / height of a photosite, written as ``DefaultScale``
+        (``pixel_aspect``, 1): developers stretch the image to square pixels.
 
     Raises
     ------
     TypeError
         For a non-integer mosaic.
     ValueError
-        For a mosaic that is not 2-D or is empty, or levels outside 0..65535.
+        For a mosaic that is not 2-D or is empty, levels outside 0..65535 or
+        black not below white, a black pattern over 64 x 64, an orientation
+        outside 1..8, or a pixel aspect that is not a positive finite number.
 
     Examples
     --------
@@ -140,11 +169,11 @@ def write_dng(
         raise TypeError(f"cfa must be a uint16 (or uint8) mosaic, got dtype {arr.dtype}")
     if arr.ndim != 2 or arr.size == 0:
         raise ValueError(f"cfa must be a non-empty (H, W) mosaic, got shape {arr.shape}")
-    if not (0 <= black_level < white_level <= 65535):
-        raise ValueError(
-            "levels must satisfy 0 <= black_level < white_level <= 65535, "
-            f"got black_level={black_level}, white_level={white_level}"
-        )
+    black = _black_pattern(black_level, white_level)
+    if orientation not in range(1, 9):
+        raise ValueError(f"orientation must be an EXIF orientation 1..8, got {orientation!r}")
+    if not (np.isfinite(pixel_aspect) and pixel_aspect > 0):
+        raise ValueError(f"pixel_aspect must be a positive number, got {pixel_aspect!r}")
     tile = pattern_cells(pattern)
     h, w = arr.shape
     pixels = np.ascontiguousarray(arr, dtype="<u2").tobytes()
@@ -158,7 +187,7 @@ def write_dng(
     ifd.add(262, _SHORT, _CFA)
     ifd.add(271, _ASCII, "imgform-rs")
     ifd.add(272, _ASCII, model)
-    ifd.add(274, _SHORT, 1)  # Orientation: top-left
+    ifd.add(274, _SHORT, orientation)
     ifd.add(277, _SHORT, 1)
     ifd.add(278, _LONG, h)
     ifd.add(279, _LONG, len(pixels))
@@ -170,8 +199,10 @@ def write_dng(
     ifd.add(50708, _ASCII, model)
     ifd.add(50710, _BYTE, (0, 1, 2))  # CFAPlaneColor: our indices are R, G, B
     ifd.add(50711, _SHORT, 1)  # CFALayout: rectangular
-    ifd.add(50714, _LONG, int(black_level))
+    ifd.add(50713, _SHORT, black.shape)  # BlackLevelRepeatDim
+    ifd.add(50714, _LONG, black.ravel())
     ifd.add(50717, _LONG, int(white_level))
+    ifd.add(50718, _RATIONAL, (pixel_aspect, 1.0))  # DefaultScale
     ifd.add(50721, _SRATIONAL, color_matrix)
     ifd.add(50728, _RATIONAL, as_shot_neutral)
     ifd.add(50778, _SHORT, _D65)

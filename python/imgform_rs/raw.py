@@ -23,7 +23,6 @@ from __future__ import annotations
 import hashlib
 import io
 import os
-import struct
 import threading
 from dataclasses import dataclass
 from typing import Any
@@ -32,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ._native import RawError
+from ._tiff import Value, first_tag, tiff_ifds
 from .cfa import pattern_from_rawpy
 
 # Linear sRGB (D65) to XYZ, IEC 61966-2-1.
@@ -42,6 +42,17 @@ SRGB_TO_XYZ = np.array(
         [0.0193339, 0.1191920, 0.9503041],
     ]
 )
+
+# TIFF tags LibRaw develops with that rawpy does not expose.
+_MAKE, _MODEL = 271, 272
+_SUBFILE_TYPE, _PHOTOMETRIC, _CFA_PHOTOMETRIC = 254, 262, 32803
+_DNG_VERSION = 50706
+_BLACK_REPEAT_DIM, _BLACK_LEVEL = 50713, 50714
+_KODAK_RGB_CAM = 37400
+# LibRaw takes a file's cmatrix only when its first entry exceeds this.
+_CMATRIX_MIN = 0.125
+# LibRaw's cblack array holds at most this many pattern entries.
+_MAX_BLACK_CELLS = 4095
 
 # A raw format stores at least one bit per four photosites even for a flat
 # frame under lossless JPEG; a file smaller than that cannot hold its image,
@@ -75,9 +86,19 @@ class RawImage:
         LibRaw's colour index per tile cell (0 = R, 1 = G, 2 = B, 3 = G2),
         the index into the per-channel values below.
     black_levels : ndarray, float64, shape (4,)
-        Black level per channel R, G, B, G2, in digital numbers (LibRaw folds
-        a 2x2 DNG ``BlackLevel`` pattern into these; rawpy does not expose
-        larger black-level patterns, so none is applied).
+        Black level per channel R, G, B, G2, in digital numbers (rawpy's
+        ``black_level_per_channel``: LibRaw folds a DNG ``BlackLevel`` pattern
+        of the CFA tile's size into these, and adds the minimum of a larger
+        pattern and the mean of ``BlackLevelDeltaH`` / ``BlackLevelDeltaV``).
+    black_map : ndarray, float64, shape (r, c)
+        The rest of a black-level pattern that repeats with a period other
+        than the CFA tile's, from ``cfa[0, 0]``: added to ``black_levels``
+        pixel by pixel, as LibRaw subtracts its ``cblack[6:]`` pattern. rawpy
+        does not expose that pattern, so it is read from the file's DNG
+        ``BlackLevelRepeatDim`` / ``BlackLevel`` tags; shape (1, 1) holding 0
+        for every other file (non-DNG formats with such a pattern, such as
+        some Fujifilm RAFs, and an open ``RawPy`` given to :func:`load_raw`
+        cannot supply it).
     white_level : int
         Saturation level in digital numbers.
     camera_white_balance, daylight_white_balance : ndarray, float64, shape (4,)
@@ -93,6 +114,9 @@ class RawImage:
     pixel_aspect : float
         Width / height of one photosite; LibRaw stretches the output when it is not 1.
     make, model : str
+        TIFF ``Make`` / ``Model`` of the file (rawpy does not expose LibRaw's
+        names); empty for formats that are not TIFF-based (CRW, QTK, ...) and
+        for an open ``RawPy``.
     output_size : (int, int)
         ``(H, W)`` of the image LibRaw's ``postprocess`` would return (after
         orientation and aspect correction).
@@ -104,6 +128,7 @@ class RawImage:
     pattern: str | npt.NDArray[np.uint8]
     channel_tile: npt.NDArray[np.uint8]
     black_levels: npt.NDArray[np.float64]
+    black_map: npt.NDArray[np.float64]
     white_level: int
     camera_white_balance: npt.NDArray[np.float64]
     daylight_white_balance: npt.NDArray[np.float64]
@@ -155,13 +180,35 @@ def _wb(values: Any) -> npt.NDArray[np.float64]:
     return wb
 
 
-def _camera_to_srgb(raw: Any) -> npt.NDArray[np.float64]:
-    """LibRaw's ``rgb_cam``: read when LibRaw filled it at open (DNG), else
-    derived from the XYZ-to-camera matrix as LibRaw's ``cam_xyz_coeff`` does,
-    else the identity (a camera LibRaw has no colour data for)."""
-    rgb_cam = np.asarray(raw.color_matrix, np.float64)[:, :3]
-    if np.any(rgb_cam):
-        return rgb_cam.copy()
+def _camera_to_srgb(raw: Any, ifds: list[dict[int, Value]] | None) -> npt.NDArray[np.float64]:
+    """LibRaw's ``rgb_cam``, which rawpy does not expose, rebuilt from its
+    sources in LibRaw's order of precedence (``identify()`` with the options
+    in force when rawpy opens a file):
+
+    1. a DNG's own matrix (``color_matrix``, LibRaw's ``cmatrix``); for other
+       formats LibRaw ignores ``cmatrix`` unless ``use_camera_wb`` is set
+       when the file is opened, which rawpy never does;
+    2. a matrix the file stores as camera RGB to sRGB: the old Kodak tag
+       37400 (Kodak DC50, DC120, ...), read from the file's bytes;
+    3. the XYZ-to-camera matrix (``rgb_xyz_matrix``, from LibRaw's tables)
+       turned around as LibRaw's ``cam_xyz_coeff`` does;
+    4. else the identity (a camera LibRaw has no colour data for).
+
+    ``ifds`` are the file's TIFF IFDs, None without the file's bytes (an
+    open ``RawPy`` was given): then step 2 is skipped and ``color_matrix`` is
+    trusted for every format.
+    """
+    cmatrix = np.asarray(raw.color_matrix, np.float64)[:, :3]
+    if ifds is None:
+        ifds, is_dng = [], True
+    else:
+        is_dng = first_tag(ifds, _DNG_VERSION) is not None
+    if cmatrix[0, 0] > _CMATRIX_MIN and is_dng:
+        return cmatrix.copy()
+    kodak = first_tag(ifds, _KODAK_RGB_CAM)
+    if isinstance(kodak, tuple) and len(kodak) == 12:
+        # Four numbers a row; LibRaw skips the first of each.
+        return np.array(kodak, np.float64).reshape(3, 4)[:, 1:]
     cam_xyz = np.asarray(raw.rgb_xyz_matrix, np.float64)[:3]
     if not np.any(cam_xyz):
         return np.eye(3)
@@ -174,6 +221,41 @@ def _camera_to_srgb(raw: Any) -> npt.NDArray[np.float64]:
         return np.linalg.inv(cam_rgb)
     except np.linalg.LinAlgError:
         return np.linalg.pinv(cam_rgb)
+
+
+def _black_map(
+    ifds: list[dict[int, Value]], black: npt.NDArray[np.float64], tile: tuple[int, ...]
+) -> npt.NDArray[np.float64]:
+    """The black-level pattern LibRaw keeps apart from the per-channel levels
+    (see :attr:`RawImage.black_map`), from the DNG raw IFD's tags, as LibRaw
+    parses them: a ``BlackLevelRepeatDim`` pattern of more than 4095 cells
+    falls back to one value, and the values are truncated to integers."""
+    none = np.zeros((1, 1))
+    if first_tag(ifds, _DNG_VERSION) is None:
+        return none
+    cfa_ifd = next(
+        (
+            ifd
+            for ifd in ifds
+            if ifd.get(_PHOTOMETRIC) == (_CFA_PHOTOMETRIC,)
+            and ifd.get(_SUBFILE_TYPE, (0.0,)) == (0.0,)
+        ),
+        {},
+    )
+    dims, levels = cfa_ifd.get(_BLACK_REPEAT_DIM, (1.0, 1.0)), cfa_ifd.get(_BLACK_LEVEL)
+    if not isinstance(levels, tuple) or not isinstance(dims, tuple) or len(dims) != 2:
+        return none
+    rows, cols = (int(d) for d in dims) if dims[0] * dims[1] <= _MAX_BLACK_CELLS else (1, 1)
+    # LibRaw folds a pattern that fits the CFA tile into the per-channel levels.
+    folded = rows * cols == 1 or (tile == (2, 2) and rows <= 2 and cols <= 2)
+    if folded or rows < 1 or cols < 1 or len(levels) < rows * cols:
+        return none
+    pattern = np.trunc(np.array(levels[: rows * cols])).reshape(rows, cols)
+    # LibRaw moves the pattern's minimum into every channel's level; levels
+    # that differ mean it read another pattern than this one: add nothing.
+    if np.ptp(black) != 0 or black[0] < pattern.min():
+        return none
+    return pattern - pattern.min()
 
 
 def _output_size(sizes: Any) -> tuple[int, int]:
@@ -202,13 +284,16 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
         cfa = np.array(raw.raw_image_visible, dtype=np.uint16, copy=True)
         sizes = raw.sizes
         black = np.asarray(raw.black_level_per_channel, np.float64)
+        tile = np.asarray(raw.raw_pattern, np.uint8)
+        ifds = None if data is None else tiff_ifds(data)
         meta = dict(
-            channel_tile=np.asarray(raw.raw_pattern, np.uint8),
+            channel_tile=tile,
             black_levels=black,
+            black_map=_black_map(ifds or [], black, tile.shape),
             white_level=int(raw.white_level),
             camera_white_balance=_wb(raw.camera_whitebalance),
             daylight_white_balance=_wb(raw.daylight_whitebalance),
-            camera_to_srgb=_camera_to_srgb(raw),
+            camera_to_srgb=_camera_to_srgb(raw, ifds),
             flip=int(sizes.flip),
             pixel_aspect=float(sizes.pixel_aspect),
         )
@@ -218,38 +303,17 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
     except Exception as exc:  # LibRawError, or a bad attribute LibRaw could not fill
         raise RawError(f"{name}: LibRaw cannot decode it ({_reason(exc)})") from exc
     _check_pixels(cfa, meta["white_level"], name, data, pixels)
-    make, model = _tiff_make_model(data) if data is not None else ("", "")
+    make, model = (first_tag(ifds or [], tag) for tag in (_MAKE, _MODEL))
     return RawImage(
         cfa=cfa,
         pattern=pattern,
         camera_to_xyz=SRGB_TO_XYZ @ meta["camera_to_srgb"],
-        make=make,
-        model=model,
+        make=make if isinstance(make, str) else "",
+        model=model if isinstance(model, str) else "",
         output_size=_output_size(sizes),
         source=name,
         **meta,
     )
-
-
-def _tiff_make_model(data: bytes) -> tuple[str, str]:
-    """Make and Model (TIFF tags 271, 272) of IFD0 for TIFF-based raws (DNG,
-    NEF, CR2, ...); rawpy does not expose LibRaw's strings. Empty otherwise."""
-    found = {271: "", 272: ""}
-    order = {b"II": "<", b"MM": ">"}.get(data[:2])
-    if order is None or len(data) < 8:
-        return "", ""
-    try:
-        (ifd,) = struct.unpack_from(order + "I", data, 4)
-        (count,) = struct.unpack_from(order + "H", data, ifd)
-        for i in range(count):
-            tag, kind, n, value = struct.unpack_from(order + "HHI4s", data, ifd + 2 + 12 * i)
-            if tag in found and kind == 2:
-                start = struct.unpack(order + "I", value)[0] if n > 4 else None
-                raw = value[:n] if start is None else data[start : start + n]
-                found[tag] = raw.split(b"\0")[0].decode("latin-1").strip()
-    except struct.error:
-        return "", ""
-    return found[271], found[272]
 
 
 def _reason(exc: BaseException) -> str:
@@ -319,7 +383,9 @@ def load_raw(source: Any) -> RawImage:
     ----------
     source : str, PathLike, bytes, binary file object or rawpy.RawPy
         The file. An open ``rawpy.RawPy`` is read but not closed, and skips
-        the checks that need the file's bytes (size and repeated-data tests).
+        what needs the file's bytes: the size and repeated-data checks, and
+        the tags read beyond rawpy (the Kodak colour matrix, a DNG
+        black-level map, whether the file is a DNG).
 
     Returns
     -------

@@ -407,12 +407,12 @@ fn nonzero(name: &str, v: [f64; 3]) -> Result<[f64; 3]> {
 }
 
 #[inline]
-fn norm(v: [f64; 3]) -> f64 {
+pub(crate) fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 #[inline]
-fn normalized(v: [f64; 3]) -> [f64; 3] {
+pub(crate) fn normalized(v: [f64; 3]) -> [f64; 3] {
     let n = norm(v);
     [v[0] / n, v[1] / n, v[2] / n]
 }

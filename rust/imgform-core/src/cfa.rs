@@ -395,12 +395,12 @@ pub fn simulate_sensor<T: Sample>(
 /// SplitMix64 (Steele, Lea, Flood 2014): a tiny generator whose state can be
 /// set from any counter, which is what makes the noise of each pixel a pure
 /// function of `(seed, y, x)`.
-struct SplitMix64(u64);
+pub(crate) struct SplitMix64(u64);
 
 impl SplitMix64 {
     const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
 
-    fn for_site(seed: u64, y: usize, x: usize) -> Self {
+    pub(crate) fn for_site(seed: u64, y: usize, x: usize) -> Self {
         // Mix the seed and each coordinate in turn, so nearby sites and
         // nearby seeds start from unrelated states.
         let mut g = Self(seed);
@@ -412,7 +412,7 @@ impl SplitMix64 {
         g
     }
 
-    fn next_u64(&mut self) -> u64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(Self::GOLDEN);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);

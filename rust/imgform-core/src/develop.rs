@@ -78,8 +78,12 @@ impl Tone {
 /// Everything the development applies around the demosaic.
 #[derive(Debug, Clone)]
 pub struct DevelopParams {
-    /// Black level per cell of the CFA tile (row-major, `period x period`),
-    /// in digital numbers.
+    /// `(rows, cols)` of the tile `black` and `scale` describe, repeated from
+    /// pixel (0, 0): the CFA period, or a multiple of it when the sensor's
+    /// black level repeats with a longer period (a DNG `BlackLevel` pattern
+    /// larger than the CFA tile, which LibRaw subtracts pixel by pixel).
+    pub tile: (usize, usize),
+    /// Black level per tile cell (row-major), in digital numbers.
     pub black: Vec<f32>,
     /// Multiplier per tile cell applied after black subtraction, mapping
     /// white-balanced white to 1.0 (exposure included).
@@ -94,13 +98,18 @@ pub struct DevelopParams {
 
 impl DevelopParams {
     fn check(&self, pattern: &CfaPattern) -> Result<()> {
-        let cells = pattern.period() * pattern.period();
+        let ((rows, cols), p) = (self.tile, pattern.period());
+        if rows == 0 || cols == 0 || rows % p != 0 || cols % p != 0 {
+            return Err(CoreError::Shape(format!(
+                "the black/scale tile must be a multiple of the {p}x{p} CFA tile, got {rows}x{cols}"
+            )));
+        }
+        let cells = rows * cols;
         for (name, v) in [("black", &self.black), ("scale", &self.scale)] {
             if v.len() != cells {
                 return Err(CoreError::Shape(format!(
-                    "{name} must have one value per cell of the {p}x{p} CFA tile ({cells}), got {}",
-                    v.len(),
-                    p = pattern.period()
+                    "{name} must have one value per cell of the {rows}x{cols} tile ({cells}), got {}",
+                    v.len()
                 )));
             }
             let as_f64: Vec<f64> = v.iter().map(|&x| f64::from(x)).collect();
@@ -181,7 +190,7 @@ fn demosaic_prepared<T: Sample>(
     }
     check_out_len(rgb.len(), 3 * w * h, "develop")?;
     let mut mosaic = vec![T::default(); w * h];
-    prepare(raw, pattern.period(), params, &mut mosaic);
+    prepare(raw, params, &mut mosaic);
     demosaic(
         ImageView::contiguous(&mosaic, w, h, 1)?,
         pattern,
@@ -200,24 +209,23 @@ fn load_row<T: Sample>(src: &[T], px: &mut [f32]) {
 
 /// Black subtraction, scaling and clipping into the demosaic's sample type.
 ///
-/// The per-cell black levels and factors are first laid out along a whole
-/// row for each row of the CFA tile, so the loop over a row is a plain zip
-/// that vectorises (a `x % period` per sample cost more than the rest), and
-/// the conversion runs on its own over the row, where it vectorises too.
-fn prepare<T: Sample>(raw: ImageView<'_, u16>, period: usize, p: &DevelopParams, out: &mut [T]) {
-    let w = raw.width();
-    // Factors in the type's full scale, so one clamp bounds the result.
-    let along = |v: &[f32], cy: usize, k: f32| -> Vec<f32> {
-        (0..w).map(|x| v[cy * period + x % period] * k).collect()
-    };
-    let black: Vec<Vec<f32>> = (0..period).map(|cy| along(&p.black, cy, 1.0)).collect();
-    let scale: Vec<Vec<f32>> = (0..period)
-        .map(|cy| along(&p.scale, cy, T::FULL_SCALE))
-        .collect();
+/// Each task first lays the tile row's black levels and factors out along
+/// the whole image row (the tile may be as large as a black-level map, so
+/// only one row of them is ever expanded), so the loop over the samples is
+/// a plain zip that vectorises (a `x % cols` in it cost more than the rest),
+/// and the conversion runs on its own over the row, where it vectorises too.
+fn prepare<T: Sample>(raw: ImageView<'_, u16>, p: &DevelopParams, out: &mut [T]) {
+    let (w, (rows, cols)) = (raw.width(), p.tile);
     for_each_row(out, w, |y, row| {
-        let (black, scale) = (&black[y % period], &scale[y % period]);
+        let cells = (y % rows) * cols..(y % rows + 1) * cols;
+        let (mut black, mut scale) = (vec![0.0f32; w], vec![0.0f32; w]);
+        let tile_row = p.black[cells.clone()].iter().zip(&p.scale[cells]).cycle();
+        for ((b, s), (&tb, &ts)) in black.iter_mut().zip(scale.iter_mut()).zip(tile_row) {
+            // Factors in the type's full scale, so one clamp bounds the result.
+            (*b, *s) = (tb, ts * T::FULL_SCALE);
+        }
         let mut lin = vec![0.0f32; w];
-        for (((l, &v), b), s) in lin.iter_mut().zip(raw.row(y)).zip(black).zip(scale) {
+        for (((l, &v), b), s) in lin.iter_mut().zip(raw.row(y)).zip(&black).zip(&scale) {
             *l = ((f32::from(v) - b) * s).clamp(0.0, T::FULL_SCALE);
         }
         T::from_f32_row(row, &lin);
@@ -288,6 +296,7 @@ mod tests {
 
     fn params(black: f32, scale: f32, tone: Tone) -> DevelopParams {
         DevelopParams {
+            tile: (2, 2),
             black: vec![black; 4],
             scale: vec![scale; 4],
             matrix: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
@@ -393,6 +402,33 @@ mod tests {
         develop::<u16, u16>(view, &pat, &p, &mut a).unwrap();
         develop_in_place(view, &pat, &p, &mut b).unwrap();
         assert_eq!(a, b);
+    }
+
+    #[test]
+    fn a_black_tile_longer_than_the_cfa_period_repeats_with_its_own_period() {
+        // A 4x2 black pattern on a 2x2 Bayer tile: rows 0-1 of every four
+        // lose 100, rows 2-3 lose nothing; 600 - 100 = 500 -> 0.5, 600 -> 0.6.
+        let (w, h) = (6, 8);
+        let raw = vec![600u16; w * h];
+        let mut p = params(0.0, 1.0 / 1000.0, Tone::Linear);
+        p.tile = (4, 2);
+        p.black = vec![100.0, 100.0, 100.0, 100.0, 0.0, 0.0, 0.0, 0.0];
+        p.scale = vec![1.0 / 1000.0; 8];
+        let pat = CfaPattern::from_name("RGGB").unwrap();
+        let mut mosaic = vec![0.0f32; w * h];
+        p.check(&pat).unwrap();
+        prepare(
+            ImageView::contiguous(&raw, w, h, 1).unwrap(),
+            &p,
+            &mut mosaic,
+        );
+        for (y, row) in mosaic.chunks(w).enumerate() {
+            let want = if y % 4 < 2 { 0.5 } else { 0.6 };
+            assert!(row.iter().all(|&v| (v - want).abs() < 1e-6), "{y}: {row:?}");
+        }
+        p.tile = (3, 2);
+        let err = p.check(&pat).unwrap_err().to_string();
+        assert!(err.contains("multiple of the 2x2"), "{err}");
     }
 
     #[test]

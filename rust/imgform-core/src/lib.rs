@@ -19,6 +19,7 @@ pub mod demosaic;
 pub mod develop;
 pub mod distortion;
 pub mod intrinsics;
+pub mod metrology;
 pub mod optics;
 pub mod projection;
 pub mod remap;

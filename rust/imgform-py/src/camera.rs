@@ -15,7 +15,7 @@ use crate::errors::to_pyerr;
 pub struct NativeCamera(Camera);
 
 /// A float64 array of shape (3,) as a vector.
-fn vec3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
+pub(crate) fn vec3(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<[f64; 3]> {
     Ok(fixed(obj, &[3], name)?
         .try_into()
         .expect("checked shape (3,)"))

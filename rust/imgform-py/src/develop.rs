@@ -33,6 +33,20 @@ fn f32s(v: Vec<f64>) -> Vec<f32> {
     v.into_iter().map(|x| x as f32).collect()
 }
 
+/// The `(rows, cols)` of the `black` array, which `scale` must share: any
+/// 2-D shape (the core checks it against the CFA period), else the CFA tile
+/// so that `fixed` reports what was expected.
+fn tile_shape(black: &Bound<'_, PyAny>, period: usize) -> [usize; 2] {
+    match black
+        .getattr("shape")
+        .and_then(|s| s.extract::<Vec<usize>>())
+        .as_deref()
+    {
+        Ok(&[rows, cols]) => [rows, cols],
+        _ => [period, period],
+    }
+}
+
 /// Develops a uint16 mosaic (H, W) -> (H, W, 3) uint8 / uint16 / float32.
 #[pyfunction]
 #[pyo3(signature = (raw, pattern, black, scale, matrix, tone, method, bps))]
@@ -63,9 +77,10 @@ fn develop<'py>(
         }
     };
     let pattern = pattern_arg(pattern)?;
-    let tile = [pattern.period(), pattern.period()];
+    let tile = tile_shape(black, pattern.period());
     let m = f32s(fixed(matrix, &[3, 3], "matrix")?);
     let params = DevelopParams {
+        tile: (tile[0], tile[1]),
         black: f32s(fixed(black, &tile, "black")?),
         scale: f32s(fixed(scale, &tile, "scale")?),
         matrix: [m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]],

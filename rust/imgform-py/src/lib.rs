@@ -15,6 +15,7 @@ mod defocus;
 mod demosaic;
 mod develop;
 mod distortion;
+mod metrology;
 mod optics;
 mod projection;
 mod remap;
@@ -32,6 +33,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     demosaic::register(m)?;
     develop::register(m)?;
     distortion::register(m)?;
+    metrology::register(m)?;
     optics::register(m)?;
     projection::register(m)?;
     remap::register(m)?;

@@ -37,25 +37,16 @@ pub(super) struct State {
     chroma: [Vec<u32>; 2],
 }
 
-/// First guess of `t^(-1/3)` from the bits of `t`: a float's bits are
-/// roughly `2^23 (log2 t + 127)`, so subtracting a third of them from a
-/// constant divides the exponent by -3; the constant was fitted for the
-/// smallest worst-case error after one Newton step (0.47 %).
-const INV_CBRT_MAGIC: u32 = 0x54a2_1c00;
-
-/// The cube root for CIELab's `f` (`t` >= 0.008856 here): Newton steps on
-/// `r = t^(-1/3)`, `r <- r (4 - t r^3) / 3`, which need no division, then
-/// `t r^2`. Three steps leave a relative error below 5e-7 on [0.0089, 8]
-/// (L within 1e-4), against ~1e-7 for the previous three divisions per
-/// step, at half the cost of AHD's hottest line. Vectorisable, and the same
-/// bits on every CPU, unlike a call to the C library.
+/// The cube root for CIELab's `f`, by a bit-level first guess and three
+/// Newton steps: vectorisable, and the same bits on every CPU, unlike a
+/// call to the C library.
 #[inline(always)]
 fn cbrt(t: f32) -> f32 {
-    let mut r = f32::from_bits(INV_CBRT_MAGIC - t.to_bits() / 3);
+    let mut y = f32::from_bits(t.to_bits() / 3 + 709_921_077);
     for _ in 0..3 {
-        r = r * (4.0 - t * (r * r * r)) * (1.0 / 3.0);
+        y = y - (y * y * y - t) / (3.0 * y * y);
     }
-    t * (r * r)
+    y
 }
 
 /// CIELab's `f`, for `t` > 0 and below (linear part).
@@ -279,8 +270,9 @@ mod tests {
     use super::cbrt;
 
     #[test]
-    fn cube_root_is_within_its_documented_accuracy() {
-        // A geometric sweep over CIELab's cube-root range and beyond, in f64.
+    fn cube_root_is_exact_to_a_few_float_steps() {
+        // A geometric sweep over CIELab's cube-root range and beyond, against
+        // f64: three Newton steps from the bit-level guess leave ~1e-7.
         let (lo, hi, n) = (0.008_856f64, 8.0f64, 100_000);
         let worst = (0..=n)
             .map(|i| {
@@ -289,6 +281,6 @@ mod tests {
                 (f64::from(cbrt(t)) / exact - 1.0).abs()
             })
             .fold(0.0, f64::max);
-        assert!(worst < 5e-7, "worst relative error {worst:e}");
+        assert!(worst < 2e-7, "worst relative error {worst:e}");
     }
 }

@@ -24,6 +24,7 @@ mod ahd;
 mod bilinear;
 mod ensemble;
 mod hamilton_adams;
+mod leung2011;
 mod malvar2004;
 mod menon2007;
 mod nearest;
@@ -77,11 +78,18 @@ pub enum Method {
     /// more homogeneous in CIELab chosen per pixel. Outputs are clamped to
     /// the input's range.
     Ahd,
+    /// Frequency-domain luma-chroma demultiplexing: the mosaic as luma plus
+    /// chroma modulated at (π, π), (π, 0) and (0, π) (Alleysson, Süsstrunk
+    /// and Hérault, IEEE TIP 2005), the less aliased of the two (π, 0) /
+    /// (0, π) chroma copies preferred per pixel (Dubois, IEEE SPL 2005),
+    /// with least-squares-designed filters (Leung, Jeon and Dubois, IEEE TIP
+    /// 2011), separable here. Outputs are clamped to the input's range.
+    Leung2011,
 }
 
 impl Method {
     /// Every method, in the order the documentation lists them.
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 9] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
@@ -90,6 +98,7 @@ impl Method {
         Method::Menon2007,
         Method::RcdMenon,
         Method::Ahd,
+        Method::Leung2011,
     ];
 
     /// The name users pass.
@@ -103,6 +112,7 @@ impl Method {
             Method::Menon2007 => "menon2007",
             Method::RcdMenon => "rcd_menon",
             Method::Ahd => "ahd",
+            Method::Leung2011 => "leung2011",
         }
     }
 
@@ -226,6 +236,10 @@ fn run_method<T: Sample>(
                 phase,
                 full_scale: T::FULL_SCALE,
             };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
+        Method::Leung2011 => {
+            let k = leung2011::Leung2011 { phase };
             tiled::run_tiled(raw, phase, &k, isa, out);
         }
         Method::RcdMenon => {
