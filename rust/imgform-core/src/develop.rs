@@ -141,13 +141,12 @@ pub fn develop<T: Sample, U: Sample>(
     check_out_len(out.len(), 3 * raw.width() * raw.height(), "develop")?;
     let mut rgb = vec![T::default(); out.len()];
     demosaic_prepared(raw, pattern, params, &mut rgb)?;
-    let curve = Curve::new(params.tone, U::FULL_SCALE);
+    let curve = Curve::new(params.tone);
     let row_len = 3 * raw.width();
     for_each_row(out, row_len, |y, row| {
         let mut px = vec![0.0f32; row_len];
         load_row(&rgb[row_len * y..row_len * (y + 1)], &mut px);
-        finish_row(&mut px, &params.matrix, &curve);
-        U::from_f32_row(row, &px);
+        curve.finish_row(&mut px, &params.matrix, row);
     });
     Ok(())
 }
@@ -165,12 +164,11 @@ pub fn develop_in_place<T: Sample>(
     out: &mut [T],
 ) -> Result<()> {
     demosaic_prepared(raw, pattern, params, out)?;
-    let curve = Curve::new(params.tone, T::FULL_SCALE);
+    let curve = Curve::new(params.tone);
     for_each_row(out, 3 * raw.width(), |_, row| {
         let mut px = vec![0.0f32; row.len()];
         load_row(row, &mut px);
-        finish_row(&mut px, &params.matrix, &curve);
-        T::from_f32_row(row, &px);
+        curve.finish_row(&mut px, &params.matrix, row);
     });
     Ok(())
 }
@@ -203,68 +201,91 @@ fn demosaic_prepared<T: Sample>(
 
 /// A row of samples as linear values in [0, 1].
 fn load_row<T: Sample>(src: &[T], px: &mut [f32]) {
+    let inv = 1.0 / T::FULL_SCALE;
     for (p, s) in px.iter_mut().zip(src) {
-        *p = s.to_f32() / T::FULL_SCALE;
+        *p = s.to_f32() * inv;
     }
 }
 
 /// Black subtraction, scaling and clipping into the demosaic's sample type.
+///
+/// Each task first lays the tile row's black levels and factors out along
+/// the whole image row (the tile may be as large as a black-level map, so
+/// only one row of them is ever expanded), so the loop over the samples is
+/// a plain zip that vectorises (a `x % cols` in it cost more than the rest),
+/// and the conversion runs on its own over the row, where it vectorises too.
 fn prepare<T: Sample>(raw: ImageView<'_, u16>, p: &DevelopParams, out: &mut [T]) {
     let (w, (rows, cols)) = (raw.width(), p.tile);
     for_each_row(out, w, |y, row| {
-        let cell_row = (y % rows) * cols;
-        let black = &p.black[cell_row..cell_row + cols];
-        let scale = &p.scale[cell_row..cell_row + cols];
-        for (x, (o, &v)) in row.iter_mut().zip(raw.row(y)).enumerate() {
-            let c = x % cols;
-            let lin = ((f32::from(v) - black[c]) * scale[c]).clamp(0.0, 1.0);
-            *o = T::from_f32(lin * T::FULL_SCALE);
+        let cells = (y % rows) * cols..(y % rows + 1) * cols;
+        let (mut black, mut scale) = (vec![0.0f32; w], vec![0.0f32; w]);
+        let tile_row = p.black[cells.clone()].iter().zip(&p.scale[cells]).cycle();
+        for ((b, s), (&tb, &ts)) in black.iter_mut().zip(scale.iter_mut()).zip(tile_row) {
+            // Factors in the type's full scale, so one clamp bounds the result.
+            (*b, *s) = (tb, ts * T::FULL_SCALE);
         }
+        let mut lin = vec![0.0f32; w];
+        for (((l, &v), b), s) in lin.iter_mut().zip(raw.row(y)).zip(&black).zip(&scale) {
+            *l = ((f32::from(v) - b) * s).clamp(0.0, T::FULL_SCALE);
+        }
+        T::from_f32_row(row, &lin);
     });
 }
 
-/// The tone curve, tabulated for integer outputs (a 16-bit table is exact
-/// to the output's resolution and avoids a `powf` per sample), evaluated
-/// directly for float outputs.
-enum Curve {
+/// The tone curve into samples of `U`: tabulated for integer outputs (one
+/// entry per 16-bit step of the linear value, exact to the output's
+/// resolution, holding the finished sample so that no `powf` and no second
+/// conversion runs per sample), evaluated directly for float outputs.
+enum Curve<U> {
     Exact(Tone),
-    Table(Vec<f32>),
+    Table(Vec<U>),
 }
 
-/// Entries of the tone table: one per 16-bit code value.
+/// Steps of the tone table over [0, 1]: one per 16-bit code value.
 const TABLE_STEPS: usize = 65535;
 
-impl Curve {
-    fn new(tone: Tone, full_scale: f32) -> Self {
-        if full_scale == 1.0 {
+impl<U: Sample> Curve<U> {
+    fn new(tone: Tone) -> Self {
+        if U::FULL_SCALE == 1.0 {
             Curve::Exact(tone)
         } else {
             Curve::Table(
                 (0..=TABLE_STEPS)
-                    .map(|i| tone.apply(i as f32 / TABLE_STEPS as f32) * full_scale)
+                    .map(|i| U::from_f32(tone.apply(i as f32 / TABLE_STEPS as f32) * U::FULL_SCALE))
                     .collect(),
             )
         }
     }
 
-    /// The output value (in the output's full scale) of linear `v` in `[0, 1]`.
-    #[inline(always)]
-    fn at(&self, v: f32) -> f32 {
-        match self {
-            Curve::Exact(t) => t.apply(v),
-            // v is in [0, 1], so the rounded index is in the table.
-            Curve::Table(t) => t[(v * TABLE_STEPS as f32 + 0.5) as usize],
+    /// Colour matrix, highlight clip and tone curve over a row of linear
+    /// RGB `px` (overwritten), into `out`. The matrix loop has no table
+    /// lookup in it, so it vectorises; the lookups follow on their own.
+    fn finish_row(&self, px: &mut [f32], m: &[f32; 9], out: &mut [U]) {
+        // Table positions for integer outputs, linear values for floats.
+        let span = match self {
+            Curve::Exact(_) => 1.0,
+            Curve::Table(_) => TABLE_STEPS as f32,
+        };
+        for p in px.chunks_exact_mut(3) {
+            let (r, g, b) = (p[0], p[1], p[2]);
+            for (i, o) in p.iter_mut().enumerate() {
+                let v = m[3 * i] * r + m[3 * i + 1] * g + m[3 * i + 2] * b;
+                *o = v.clamp(0.0, 1.0) * span;
+            }
         }
-    }
-}
-
-/// Colour matrix, highlight clip and tone curve over a row of linear RGB.
-fn finish_row(px: &mut [f32], m: &[f32; 9], curve: &Curve) {
-    for p in px.chunks_exact_mut(3) {
-        let (r, g, b) = (p[0], p[1], p[2]);
-        for (i, o) in p.iter_mut().enumerate() {
-            let v = m[3 * i] * r + m[3 * i + 1] * g + m[3 * i + 2] * b;
-            *o = curve.at(v.clamp(0.0, 1.0));
+        match self {
+            Curve::Exact(t) => {
+                for (o, &v) in out.iter_mut().zip(px.iter()) {
+                    *o = U::from_f32(t.apply(v));
+                }
+            }
+            // Positions are in [0, TABLE_STEPS], so the rounded index is in
+            // the table; the `min` lets the compiler drop the bounds check.
+            Curve::Table(t) => {
+                for (o, &v) in out.iter_mut().zip(px.iter()) {
+                    *o = t[((v + 0.5) as usize).min(TABLE_STEPS)];
+                }
+            }
         }
     }
 }

@@ -264,3 +264,23 @@ impl TileKernel for Ahd {
         [own, green, other]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::cbrt;
+
+    #[test]
+    fn cube_root_is_exact_to_a_few_float_steps() {
+        // A geometric sweep over CIELab's cube-root range and beyond, against
+        // f64: three Newton steps from the bit-level guess leave ~1e-7.
+        let (lo, hi, n) = (0.008_856f64, 8.0f64, 100_000);
+        let worst = (0..=n)
+            .map(|i| {
+                let t = (lo * (hi / lo).powf(i as f64 / n as f64)) as f32;
+                let exact = f64::from(t).cbrt();
+                (f64::from(cbrt(t)) / exact - 1.0).abs()
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < 2e-7, "worst relative error {worst:e}");
+    }
+}
