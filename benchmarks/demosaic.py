@@ -122,7 +122,7 @@ def speed(tmp: Path) -> None:
         rows.append([name, *ms, f"{mp / t.best:.0f}", note])
         return t
 
-    for m in ig.DEMOSAIC_METHODS:
+    for m in ig.BAYER_DEMOSAIC_METHODS:
         add(f"ours {m}", lambda m=m: ig.demosaic(raw, "RGGB", m), MP, 7)
     if cv2 is not None:
         add("OpenCV bilinear", lambda: cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB), MP, 7)
@@ -159,7 +159,7 @@ def speed(tmp: Path) -> None:
     print("best of N; MP/s at the best time\n")
     print(table(["method", "best ms", "median ms", "MP/s", "note"], rows))
     ratios = []
-    for ours in ig.DEMOSAIC_METHODS:
+    for ours in ig.BAYER_DEMOSAIC_METHODS:
         for peer in ["OpenCV bilinear", "OpenCV EA", "LibRaw LINEAR", "LibRaw AHD"]:
             if peer in results:
                 ratio = results[peer] / results[f"ours {ours}"]
@@ -194,7 +194,7 @@ def memory() -> None:
         print("\n(extra memory: needs Linux's /proc, skipped)")
         return
     rows = []
-    for m in ig.DEMOSAIC_METHODS:
+    for m in ig.BAYER_DEMOSAIC_METHODS:
         done = subprocess.run(
             [sys.executable, "-c", MEMORY_CODE, m], capture_output=True, text=True, check=True
         )
@@ -235,7 +235,7 @@ def to_u8(x: np.ndarray, scale: float) -> np.ndarray:
 def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]:
     """Every demosaicer, ours and the peers', as ``f(uint8 RGGB mosaic, name) -> uint8 RGB``."""
     methods: dict[str, Callable[[np.ndarray, str], np.ndarray]] = {}
-    for m in ig.DEMOSAIC_METHODS:
+    for m in ig.BAYER_DEMOSAIC_METHODS:
         methods[f"ours {m}"] = lambda raw, name, m=m: ig.demosaic(raw, "RGGB", m)
     if cv2 is not None:
         for label, code in [("bilinear", ""), ("VNG", "_VNG"), ("EA", "_EA")]:

@@ -99,7 +99,7 @@ def run(path: Path, who: str, npy: Path) -> dict:
 
 
 def main() -> None:
-    methods = ig.DEMOSAIC_METHODS
+    methods = ig.BAYER_DEMOSAIC_METHODS
     best = "best" if "best" in methods else "hamilton_adams"
     contenders = [f"ours:{best}", "ours:bilinear", "libraw:AHD", "libraw:LINEAR"]
     with tempfile.TemporaryDirectory() as d:

@@ -26,7 +26,12 @@ from .cfa import (
     simulate_sensor,
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
-from .demosaic import DEMOSAIC_METHODS, demosaic
+from .demosaic import (
+    BAYER_DEMOSAIC_METHODS,
+    DEMOSAIC_METHODS,
+    XTRANS_DEMOSAIC_METHODS,
+    demosaic,
+)
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
 from .optics import (
@@ -51,8 +56,10 @@ from .remap import (
 )
 
 __all__ = [
+    "BAYER_DEMOSAIC_METHODS",
     "DEMOSAIC_METHODS",
     "TONES",
+    "XTRANS_DEMOSAIC_METHODS",
     "Alignment",
     "Camera",
     "RawError",
