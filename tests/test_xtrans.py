@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-from conftest import output_with_threads
 from hypothesis import given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
+from conftest import output_with_threads
 from imgform_rs.dng import write_dng
 
 TILE = ig.pattern_cells("XTRANS")
