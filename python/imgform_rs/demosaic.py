@@ -51,7 +51,13 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   difference, red and blue from colour differences to each direction's green, and
   per pixel the mean of the directions whose YPbPr neighbourhood is the most
   homogeneous (AHD-style counts summed over 5x5). Outputs are clamped to the range of
-  the input mosaic. XTRANS_FIGURES
+  the input mosaic. Mean CPSNR 38.63 dB on the benchmark's seven
+  scikit-image images mosaiced with X-Trans (8-bit protocol, 10 px crop), against
+  X-Trans ``"bilinear"`` 32.77 and LibRaw's Markesteijn (through rawpy) 38.42 with 3
+  passes, 38.34 with 1. Per image: astronaut 36.06, coffee 35.15, chelsea 39.70,
+  rocket 33.51, immunohistochemistry 39.40, retina 51.66, motorcycle_left 34.91.
+  Speed on a 24 MP uint16 mosaic, 2 loaded cores: 2.7 MP/s (LibRaw 3-pass 0.5 MP/s
+  in the same run as a 2.3 MP/s run of ours).
 
 Patterns:
 

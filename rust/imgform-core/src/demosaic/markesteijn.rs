@@ -7,16 +7,17 @@
 //!
 //! 1. Green along each direction: at a red or blue site, the two nearest
 //!    greens on the line through the site, interpolated linearly, plus the
-//!    site's own colour's second difference along the same line scaled so
-//!    that a quadratic ramp common to all colours is reproduced exactly
-//!    (the Hamilton-Adams correction, generalised to X-Trans's uneven
-//!    spacing). The result is clamped to the range of the greens in the
+//!    site's own colour's second difference along the same line (the
+//!    Hamilton-Adams correction, generalised to X-Trans's uneven spacing;
+//!    see [`Finder::green`]). The result is clamped to the range of the greens in the
 //!    3x3 neighbourhood, as Markesteijn does, so a wrong direction cannot
 //!    overshoot.
 //! 2. Red and blue by colour differences to that direction's green: from
 //!    the nearest samples on the line when both sides have one within two
-//!    pixels, else from the colour's samples in the 3x3 neighbourhood
-//!    (X-Trans puts every colour in every 3x3 window).
+//!    pixels, else from the samples in the 3x3 neighbourhood (X-Trans puts
+//!    every colour in every 3x3 window). Red and blue sites come first, from
+//!    the other colour's samples; green sites then use every red or blue
+//!    site, as Markesteijn orders it.
 //! 3. Homogeneity as in AHD: each direction's image is taken to YPbPr and
 //!    its second difference along that direction measured; a direction
 //!    scores, at each pixel of the 3x3 window, when that measure is within
@@ -43,16 +44,22 @@ const ROWS: usize = 96;
 /// Output columns per tile: the ~25 planes of a tile (~4 MB) stay in cache.
 const COLS: usize = 384;
 /// Mirrored rows and columns around a tile: the reach of every stage added
-/// up (green 6, chroma 2, derivative 1, homogeneity 1, 5x5 sum 2).
-const HALO: usize = 12;
+/// up (green 6, chroma 2 + 2, derivative 1, homogeneity 1, 5x5 sum 2),
+/// rounded up to the period.
+const HALO: usize = 18;
 const _: () = assert!(ROWS % 6 == 0 && COLS % 6 == 0 && HALO % 6 == 0);
 
 /// How far each stage reaches beyond the pixel it computes, cumulated: the
 /// margin of the tile it leaves uncomputed.
 const GREEN_MARGIN: usize = 6;
-const CHROMA_MARGIN: usize = GREEN_MARGIN + 2;
+const CHROMA_MARGIN: usize = GREEN_MARGIN + 4;
 const DRV_MARGIN: usize = CHROMA_MARGIN + 1;
 const HOMO_MARGIN: usize = DRV_MARGIN + 1;
+
+/// Colour masks for [`Finder::nearest`] and [`Finder::window`].
+const RED: u8 = 1;
+const GREEN: u8 = 2;
+const BLUE: u8 = 4;
 
 /// The four interpolation directions as (row, column) steps.
 const DIRS: [(isize, isize); 4] = [(0, 1), (1, 0), (1, 1), (1, -1)];
@@ -173,17 +180,23 @@ impl Finder<'_> {
         dy * self.stride + dx
     }
 
-    /// Steps `k` (1 ..= `max`) to the nearest sample of colour `c` along
-    /// `(dy, dx)`.
-    fn nearest(&self, (dy, dx): (isize, isize), c: usize, max: isize) -> Option<isize> {
-        (1..=max).find(|&k| self.colour(k * dy, k * dx) == c)
+    /// Whether the sample at `(dy, dx)` has one of the colours of `mask`
+    /// (bit `c` for colour `c`).
+    fn is(&self, dy: isize, dx: isize, mask: u8) -> bool {
+        mask & (1 << self.colour(dy, dx)) != 0
+    }
+
+    /// Steps `k` (1 ..= `max`) to the nearest sample of a colour of `mask`
+    /// along `(dy, dx)`.
+    fn nearest(&self, (dy, dx): (isize, isize), mask: u8, max: isize) -> Option<isize> {
+        (1..=max).find(|&k| self.is(k * dy, k * dx, mask))
     }
 
     fn site(&self) -> Site {
         let colour = self.colour(0, 0);
         let mut s = Site {
             colour,
-            greens_around: self.window(1),
+            greens_around: self.window(GREEN),
             ..Site::default()
         };
         for (d, &dir) in DIRS.iter().enumerate() {
@@ -191,21 +204,24 @@ impl Finder<'_> {
                 s.green[d] = self.green(dir);
             }
             for c in [0, 2] {
-                if c != colour {
-                    s.chroma[d][c / 2] = self.chroma(dir, c);
+                if colour == 1 {
+                    s.chroma[d][c / 2] = self.chroma(dir, RED | BLUE);
+                } else if c != colour {
+                    s.chroma[d][c / 2] = self.chroma(dir, 1 << c);
                 }
             }
         }
         s
     }
 
-    /// The samples of colour `c` in the 3x3 window but the centre, with
-    /// bilinear weights (2 on the sides, 1 on the corners) summing to 1.
-    fn window(&self, c: usize) -> Taps {
+    /// The samples of the colours of `mask` in the 3x3 window but the
+    /// centre, with bilinear weights (2 on the sides, 1 on the corners)
+    /// summing to 1.
+    fn window(&self, mask: u8) -> Taps {
         let mut t = Taps::default();
         let mut total = 0.0;
         for (dy, dx) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dy, dx))) {
-            if (dy, dx) != (0, 0) && self.colour(dy, dx) == c {
+            if (dy, dx) != (0, 0) && self.is(dy, dx, mask) {
                 let w = if dy == 0 || dx == 0 { 2.0 } else { 1.0 };
                 t.push(self.off(dy, dx), w);
                 total += w;
@@ -216,27 +232,31 @@ impl Finder<'_> {
     }
 
     /// Green along `dir` at a red or blue site (see the module doc): greens
-    /// at `-a` and `+b` interpolated linearly, plus `ab / (ce)` times the
+    /// at `-a` and `+b` interpolated linearly, plus `2ab / (ce)` times the
     /// own colour's deviation from its line through its samples at `-c`
-    /// and `+e`. Falls back to the 3x3 mean when a side has no green.
+    /// and `+e`. Half that factor reproduces quadratics exactly; twice it,
+    /// like Hamilton-Adams's Bayer weights, keeps more of the own colour's
+    /// detail (+0.2 dB mean CPSNR on the benchmark images, and better than
+    /// three times). A cubic through two greens each side instead was
+    /// 0.9 dB worse. Falls back to the 3x3 mean when a side has no green.
     fn green(&self, (dy, dx): (isize, isize)) -> Taps {
         let own = self.colour(0, 0);
         let (Some(a), Some(b)) = (
-            self.nearest((-dy, -dx), 1, SEARCH),
-            self.nearest((dy, dx), 1, SEARCH),
+            self.nearest((-dy, -dx), GREEN, SEARCH),
+            self.nearest((dy, dx), GREEN, SEARCH),
         ) else {
-            return self.window(1);
+            return self.window(GREEN);
         };
         let mut t = Taps::default();
         let (af, bf) = (a as f32, b as f32);
         t.push(self.off(-a * dy, -a * dx), bf / (af + bf));
         t.push(self.off(b * dy, b * dx), af / (af + bf));
         if let (Some(c), Some(e)) = (
-            self.nearest((-dy, -dx), own, SEARCH),
-            self.nearest((dy, dx), own, SEARCH),
+            self.nearest((-dy, -dx), 1 << own, SEARCH),
+            self.nearest((dy, dx), 1 << own, SEARCH),
         ) {
             let (cf, ef) = (c as f32, e as f32);
-            let q = af * bf / (cf * ef);
+            let q = 2.0 * af * bf / (cf * ef);
             t.push(0, q);
             t.push(self.off(-c * dy, -c * dx), -q * ef / (cf + ef));
             t.push(self.off(e * dy, e * dx), -q * cf / (cf + ef));
@@ -244,13 +264,15 @@ impl Finder<'_> {
         t
     }
 
-    /// Colour `c`'s difference to green along `dir`: the nearest samples on
-    /// both sides within 2 steps, interpolated linearly, else the 3x3
-    /// window's.
-    fn chroma(&self, (dy, dx): (isize, isize), c: usize) -> Taps {
-        let (Some(a), Some(b)) = (self.nearest((-dy, -dx), c, 2), self.nearest((dy, dx), c, 2))
-        else {
-            return self.window(c);
+    /// A colour's difference to green along `dir`, from the samples of
+    /// `mask`: the nearest on both sides within 2 steps, interpolated
+    /// linearly, else the 3x3 window's.
+    fn chroma(&self, (dy, dx): (isize, isize), mask: u8) -> Taps {
+        let (Some(a), Some(b)) = (
+            self.nearest((-dy, -dx), mask, 2),
+            self.nearest((dy, dx), mask, 2),
+        ) else {
+            return self.window(mask);
         };
         let mut t = Taps::default();
         let (af, bf) = (a as f32, b as f32);
@@ -406,16 +428,26 @@ fn green(t: &Tile, layout: &Layout, d: usize, raw: &[f32], g: &mut [f32]) {
     });
 }
 
-/// Red and blue along direction `d` from colour differences to its green.
+/// Red and blue along direction `d` from colour differences to its green:
+/// first at red and blue sites from the samples of the other colour, then
+/// at green sites from every red or blue site, now complete (denser, so
+/// the line through the site finds them closer, as in Markesteijn's order).
 fn chroma(t: &Tile, layout: &Layout, d: usize, raw: &[f32], rgb: &mut Rgb) {
     let [r, g, b] = rgb;
-    t.each(layout, CHROMA_MARGIN, |_, site, i| {
+    t.each(layout, CHROMA_MARGIN - 2, |_, site, i| {
         for (c, plane) in [(0, &mut *r), (2, &mut *b)] {
-            plane[i] = if site.colour == c {
-                raw[i]
-            } else {
-                g[i] + site.chroma[d][c / 2].apply_diff(raw, g, i)
-            };
+            if site.colour == c {
+                plane[i] = raw[i];
+            } else if site.colour != 1 {
+                plane[i] = g[i] + site.chroma[d][c / 2].apply_diff(raw, g, i);
+            }
+        }
+    });
+    t.each(layout, CHROMA_MARGIN, |_, site, i| {
+        if site.colour == 1 {
+            for (c, plane) in [(0, &mut *r), (2, &mut *b)] {
+                plane[i] = g[i] + site.chroma[d][c / 2].apply_diff(plane, g, i);
+            }
         }
     });
 }
