@@ -239,27 +239,18 @@ impl Finder<'_> {
     /// detail (+0.2 dB mean CPSNR on the benchmark images, and better than
     /// three times). A cubic through two greens each side instead was
     /// 0.9 dB worse. Falls back to the 3x3 mean when a side has no green.
-    fn green(&self, (dy, dx): (isize, isize)) -> Taps {
-        let own = self.colour(0, 0);
-        let (Some(a), Some(b)) = (
-            self.nearest((-dy, -dx), GREEN, SEARCH),
-            self.nearest((dy, dx), GREEN, SEARCH),
-        ) else {
+    fn green(&self, dir: (isize, isize)) -> Taps {
+        let mut t = Taps::default();
+        let Some((a, b)) = self.line(dir, GREEN, SEARCH, &mut t) else {
             return self.window(GREEN);
         };
-        let mut t = Taps::default();
-        let (af, bf) = (a as f32, b as f32);
-        t.push(self.off(-a * dy, -a * dx), bf / (af + bf));
-        t.push(self.off(b * dy, b * dx), af / (af + bf));
-        if let (Some(c), Some(e)) = (
-            self.nearest((-dy, -dx), 1 << own, SEARCH),
-            self.nearest((dy, dx), 1 << own, SEARCH),
-        ) {
-            let (cf, ef) = (c as f32, e as f32);
-            let q = 2.0 * af * bf / (cf * ef);
+        let mut own = Taps::default();
+        if let Some((c, e)) = self.line(dir, 1 << self.colour(0, 0), SEARCH, &mut own) {
+            let q = 2.0 * (a * b) as f32 / (c * e) as f32;
             t.push(0, q);
-            t.push(self.off(-c * dy, -c * dx), -q * ef / (cf + ef));
-            t.push(self.off(e * dy, e * dx), -q * cf / (cf + ef));
+            for k in 0..own.n {
+                t.push(own.off[k], -q * own.w[k]);
+            }
         }
         t
     }
@@ -267,18 +258,31 @@ impl Finder<'_> {
     /// A colour's difference to green along `dir`, from the samples of
     /// `mask`: the nearest on both sides within 2 steps, interpolated
     /// linearly, else the 3x3 window's.
-    fn chroma(&self, (dy, dx): (isize, isize), mask: u8) -> Taps {
-        let (Some(a), Some(b)) = (
-            self.nearest((-dy, -dx), mask, 2),
-            self.nearest((dy, dx), mask, 2),
-        ) else {
-            return self.window(mask);
-        };
+    fn chroma(&self, dir: (isize, isize), mask: u8) -> Taps {
         let mut t = Taps::default();
+        match self.line(dir, mask, 2, &mut t) {
+            Some(_) => t,
+            None => self.window(mask),
+        }
+    }
+
+    /// Adds to `t` the linear interpolation at the site between the nearest
+    /// samples of `mask` at `-a` and `+b` along `(dy, dx)` (within `max`
+    /// steps), and returns `(a, b)`; `None`, adding nothing, when a side
+    /// has none.
+    fn line(
+        &self,
+        (dy, dx): (isize, isize),
+        mask: u8,
+        max: isize,
+        t: &mut Taps,
+    ) -> Option<(isize, isize)> {
+        let a = self.nearest((-dy, -dx), mask, max)?;
+        let b = self.nearest((dy, dx), mask, max)?;
         let (af, bf) = (a as f32, b as f32);
         t.push(self.off(-a * dy, -a * dx), bf / (af + bf));
         t.push(self.off(b * dy, b * dx), af / (af + bf));
-        t
+        Some((a, b))
     }
 }
 
