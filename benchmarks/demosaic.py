@@ -98,7 +98,7 @@ def libraw_develop(path: str, algorithm: str):
     return raw, develop
 
 
-def speed_mosaic() -> np.ndarray:
+def speed_mosaic(pattern: str = "RGGB") -> np.ndarray:
     from skimage import data
 
     scene = data.astronaut().astype(np.float32) / 255.0
@@ -107,7 +107,7 @@ def speed_mosaic() -> np.ndarray:
     else:
         scene = np.kron(scene, np.ones((8, 12, 1), np.float32))[:H, :W]
     linear = scene**2.2
-    return ig.simulate_sensor(linear, "RGGB", full_well=20000, bit_depth=14, black_level=0)
+    return ig.simulate_sensor(linear, pattern, full_well=20000, bit_depth=14, black_level=0)
 
 
 def speed(tmp: Path) -> None:
@@ -122,7 +122,7 @@ def speed(tmp: Path) -> None:
         rows.append([name, *ms, f"{mp / t.best:.0f}", note])
         return t
 
-    for m in ig.DEMOSAIC_METHODS:
+    for m in ig.BAYER_DEMOSAIC_METHODS:
         add(f"ours {m}", lambda m=m: ig.demosaic(raw, "RGGB", m), MP, 7)
     if cv2 is not None:
         add("OpenCV bilinear", lambda: cv2.cvtColor(raw, cv2.COLOR_BayerBG2RGB), MP, 7)
@@ -159,7 +159,7 @@ def speed(tmp: Path) -> None:
     print("best of N; MP/s at the best time\n")
     print(table(["method", "best ms", "median ms", "MP/s", "note"], rows))
     ratios = []
-    for ours in ig.DEMOSAIC_METHODS:
+    for ours in ig.BAYER_DEMOSAIC_METHODS:
         for peer in ["OpenCV bilinear", "OpenCV EA", "LibRaw LINEAR", "LibRaw AHD"]:
             if peer in results:
                 ratio = results[peer] / results[f"ours {ours}"]
@@ -194,7 +194,7 @@ def memory() -> None:
         print("\n(extra memory: needs Linux's /proc, skipped)")
         return
     rows = []
-    for m in ig.DEMOSAIC_METHODS:
+    for m in ig.BAYER_DEMOSAIC_METHODS:
         done = subprocess.run(
             [sys.executable, "-c", MEMORY_CODE, m], capture_output=True, text=True, check=True
         )
@@ -235,7 +235,7 @@ def to_u8(x: np.ndarray, scale: float) -> np.ndarray:
 def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]:
     """Every demosaicer, ours and the peers', as ``f(uint8 RGGB mosaic, name) -> uint8 RGB``."""
     methods: dict[str, Callable[[np.ndarray, str], np.ndarray]] = {}
-    for m in ig.DEMOSAIC_METHODS:
+    for m in ig.BAYER_DEMOSAIC_METHODS:
         methods[f"ours {m}"] = lambda raw, name, m=m: ig.demosaic(raw, "RGGB", m)
     if cv2 is not None:
         for label, code in [("bilinear", ""), ("VNG", "_VNG"), ("EA", "_EA")]:
@@ -341,6 +341,63 @@ def artefacts(methods: dict[str, Callable[[np.ndarray, str], np.ndarray]]) -> No
     print(table(head, rows))
 
 
+# LibRaw runs Markesteijn on X-Trans for every algorithm but LINEAR: 1 pass
+# for VNG and PPG, 3 passes from AHD up (dcraw's quality > 2).
+XTRANS_LIBRAW = ["LINEAR", "PPG", "AHD"]
+
+
+def xtrans(tmp: Path) -> None:
+    """X-Trans: CPSNR on the images mosaiced with Fujifilm's tile, and speed at
+    24 MP, ours against LibRaw's Markesteijn (same protocol as above). LibRaw
+    refuses X-Trans images under 512 pixels a side, so for it smaller images are
+    mirror-padded at the bottom and right (which keeps the tile's phase) and its
+    output cropped back."""
+    tile = ig.pattern_cells("XTRANS")
+    methods: dict[str, Callable[[np.ndarray, str], np.ndarray]] = {}
+    for m in ig.XTRANS_DEMOSAIC_METHODS[:-1]:
+        methods[f"ours {m}"] = lambda rgb, name, m=m: ig.demosaic(ig.mosaic(rgb, tile), tile, m)
+    for algo in XTRANS_LIBRAW if rawpy is not None else []:
+
+        def libraw(rgb, name, algo=algo):
+            path = str(tmp / f"xtrans-{name}.dng")
+            if not os.path.exists(path):
+                h, w = rgb.shape[:2]
+                padded = np.pad(
+                    rgb, ((0, max(0, 512 - h)), (0, max(0, 512 - w)), (0, 0)), "reflect"
+                )
+                raw = ig.mosaic(np.ascontiguousarray(padded), tile)
+                write_dng(path, raw.astype(np.uint16) * 257, tile, white_level=65535)
+            handle, develop = libraw_develop(path, algo)
+            with handle:
+                return to_u8(develop(), 1 / 257)[: rgb.shape[0], : rgb.shape[1]]
+
+        methods[f"LibRaw {algo}"] = libraw
+    images = load_images()
+    rows = []
+    for m, fn in methods.items():
+        vals = [cpsnr(fn(rgb, name), rgb) for name, rgb in images.items()]
+        rows.append([m, *(f"{v:.2f}" for v in vals), f"{np.mean(vals):.2f}"])
+    print("\n## X-Trans CPSNR (dB), 8-bit protocol, 10 px border cropped\n")
+    print(table(["method", *images, "mean"], rows))
+
+    raw = speed_mosaic("XTRANS")
+    rows = []
+    for m in ig.XTRANS_DEMOSAIC_METHODS[:-1]:
+        t = measure(m, lambda m=m: ig.demosaic(raw, "XTRANS", m), repeat=3)
+        rows.append([f"ours {m}", f"{t.best * 1e3:.0f}", f"{MP / t.best:.1f}"])
+    if rawpy is not None:
+        path = str(tmp / "xtrans-speed.dng")
+        write_dng(path, raw, tile, white_level=2**14 - 1)
+        handle, develop = libraw_develop(path, "AHD")
+        t = measure("LibRaw AHD", develop, repeat=2)
+        rows.append(
+            ["LibRaw AHD (3-pass Markesteijn)", f"{t.best * 1e3:.0f}", f"{MP / t.best:.1f}"]
+        )
+        handle.close()
+    print(f"\n## X-Trans speed: {W}x{H} uint16, {os.cpu_count()} cores, best of 3 (LibRaw 2)\n")
+    print(table(["method", "best ms", "MP/s"], rows))
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as d:
         speed(Path(d))
@@ -348,6 +405,7 @@ def main() -> None:
         methods = all_methods(Path(d))
         quality(Path(d), methods)
         artefacts(methods)
+        xtrans(Path(d))
 
 
 if __name__ == "__main__":

@@ -109,7 +109,7 @@ def run(path: Path, who: str, npy: Path, repeat: int) -> dict:
 
 def main() -> None:
     repeat = int(sys.argv[1]) if len(sys.argv) > 1 else REPEAT
-    methods = ig.DEMOSAIC_METHODS
+    methods = ig.BAYER_DEMOSAIC_METHODS
     best = "best" if "best" in methods else "hamilton_adams"
     contenders = [f"ours:{best}", "ours:bilinear", "libraw:AHD", "libraw:LINEAR"]
     with tempfile.TemporaryDirectory() as d:

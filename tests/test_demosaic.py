@@ -9,7 +9,7 @@ import imgform_rs as ig
 from conftest import output_with_threads
 
 BAYER = ["RGGB", "BGGR", "GRBG", "GBRG"]
-METHODS = list(ig.DEMOSAIC_METHODS)
+METHODS = list(ig.BAYER_DEMOSAIC_METHODS)
 DTYPES = [np.uint8, np.uint16, np.float32]
 
 
@@ -54,6 +54,7 @@ def test_methods_are_exactly_the_documented_ones():
         "rcd_menon",
         "ahd",
         "leung2011",
+        "markesteijn",
         "best",
     )
 
@@ -190,10 +191,12 @@ def test_results_do_not_depend_on_the_thread_count():
         rng = np.random.default_rng(11)
         raw16 = rng.integers(0, 65536, (301, 803), dtype=np.uint16)
         rawf = rng.random((150, 97), dtype=np.float32)
-        for m in ig.DEMOSAIC_METHODS:
+        for m in ig.BAYER_DEMOSAIC_METHODS:
             sys.stdout.buffer.write(ig.demosaic(raw16, "GBRG", m).tobytes())
             sys.stdout.buffer.write(ig.demosaic(rawf, "BGGR", m).tobytes())
-        sys.stdout.buffer.write(ig.demosaic(raw16, "XTRANS", "bilinear").tobytes())
+        for m in ig.XTRANS_DEMOSAIC_METHODS:
+            sys.stdout.buffer.write(ig.demosaic(raw16, "XTRANS", m).tobytes())
+            sys.stdout.buffer.write(ig.demosaic(rawf, "XTRANS", m).tobytes())
     """
     one = output_with_threads(code, 1)
     assert len(one) > 0

@@ -34,7 +34,13 @@ from .cfa import (
     simulate_sensor,
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
-from .demosaic import DEMOSAIC_METHODS, demosaic, demosaic_halo
+from .demosaic import (
+    BAYER_DEMOSAIC_METHODS,
+    DEMOSAIC_METHODS,
+    XTRANS_DEMOSAIC_METHODS,
+    demosaic,
+    demosaic_halo,
+)
 from .develop import TONES, develop, write_image
 from .distortion import distort_points, undistort_points
 from .lightfield import focal_stack, refocus, render_light_field, view_disparity
@@ -67,16 +73,18 @@ from .remap import (
 )
 
 __all__ = [
-    "DEMOSAIC_METHODS",
-    "TONES",
     "Alignment",
+    "BAYER_DEMOSAIC_METHODS",
     "Camera",
+    "DEMOSAIC_METHODS",
     "RawError",
     "RawImage",
     "RemapMap",
     "SpotDiagram",
+    "TONES",
     "VanishingPoint",
     "VanishingPointFit",
+    "XTRANS_DEMOSAIC_METHODS",
     "add_lateral_ca",
     "align",
     "apply_shift",

@@ -153,6 +153,8 @@ def simulate_sensor(
 
 # --- demosaic ---
 DEMOSAIC_METHODS: tuple[str, ...]
+BAYER_DEMOSAIC_METHODS: tuple[str, ...]
+XTRANS_DEMOSAIC_METHODS: tuple[str, ...]
 
 def demosaic(
     raw: npt.NDArray[Any], pattern: str | npt.NDArray[np.int64], method: str = "bilinear"

@@ -38,7 +38,7 @@ from .align import colorize_plate
 from .camera import Camera, vanishing_line, vanishing_point
 from .cfa import mosaic, simulate_sensor
 from .chromatic import add_lateral_ca, correct_lateral_ca
-from .demosaic import DEMOSAIC_METHODS, demosaic
+from .demosaic import BAYER_DEMOSAIC_METHODS, demosaic
 from .develop import develop
 from .dng import write_dng
 from .lightfield import focal_stack, refocus, render_light_field, view_disparity
@@ -155,7 +155,7 @@ def _demosaic_strip(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray
     # The far checkerboard near the horizon: fine detail where methods differ most.
     y, x, h, w = 200, 440, 90, 120
     tiles = []
-    for method in DEMOSAIC_METHODS:
+    for method in BAYER_DEMOSAIC_METHODS:
         start = time.perf_counter()
         rgb = demosaic(raw, "RGGB", method)
         ms = 1e3 * (time.perf_counter() - start)
@@ -197,7 +197,7 @@ def _raw_round_trip(out: Path, image: np.ndarray, log: Callable[[str], None]) ->
     dng = out / "scene.dng"
     write_dng(dng, raw, "RGGB", white_level=4095, black_level=64)
     written = [dng]
-    for method in DEMOSAIC_METHODS:
+    for method in BAYER_DEMOSAIC_METHODS:
         start = time.perf_counter()
         rgb = develop(dng, demosaic=method)
         ms = 1e3 * (time.perf_counter() - start)

@@ -43,8 +43,8 @@ fn demosaic<'py>(
     pattern: &Bound<'py, PyAny>,
     method: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let method = Method::from_name(method).map_err(to_pyerr)?;
     let p = pattern_arg(pattern)?;
+    let method = Method::from_name_for(method, &p).map_err(to_pyerr)?;
     let img = AnyImage::extract(raw, "raw")?;
     dispatch_image!(img, demosaic_typed(py, &p, method))
 }
@@ -60,5 +60,9 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(demosaic, m)?)?;
     m.add_function(wrap_pyfunction!(demosaic_halo, m)?)?;
     m.add("DEMOSAIC_METHODS", PyTuple::new(m.py(), Method::names())?)?;
+    let xtrans = PyTuple::new(m.py(), Method::names_for(true))?;
+    m.add("XTRANS_DEMOSAIC_METHODS", xtrans)?;
+    let bayer = PyTuple::new(m.py(), Method::names_for(false))?;
+    m.add("BAYER_DEMOSAIC_METHODS", bayer)?;
     Ok(())
 }

@@ -85,7 +85,7 @@ fn develop<'py>(
         scale: f32s(fixed(scale, &tile, "scale")?),
         matrix: [m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]],
         tone: Tone::from_name(tone).map_err(to_pyerr)?,
-        method: Method::from_name(method).map_err(to_pyerr)?,
+        method: Method::from_name_for(method, &pattern).map_err(to_pyerr)?,
     };
     let src = contiguous(&arr);
     let (p, pat) = (&params, &pattern);

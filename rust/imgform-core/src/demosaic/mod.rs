@@ -26,6 +26,7 @@ mod ensemble;
 mod hamilton_adams;
 mod leung2011;
 mod malvar2004;
+mod markesteijn;
 mod menon2007;
 mod nearest;
 mod rcd;
@@ -86,10 +87,17 @@ pub enum Method {
     /// with least-squares-designed filters (Leung, Jeon and Dubois, IEEE TIP
     /// 2011), separable here. Outputs are clamped to the input's range.
     Leung2011,
+    /// Markesteijn's X-Trans method as in dcraw's `xtrans_interpolate`
+    /// (one pass): green, then red and blue by colour differences, along
+    /// four directions; per pixel the mean of the directions with the most
+    /// homogeneous YPbPr neighbourhood. X-Trans only. Outputs are clamped
+    /// to the input's range.
+    Markesteijn,
 }
 
 impl Method {
-    /// Every method, in the order the documentation lists them.
+    /// Every method for Bayer mosaics, in the order the documentation lists
+    /// them.
     pub const ALL: [Method; 9] = [
         Method::Nearest,
         Method::Bilinear,
@@ -114,6 +122,7 @@ impl Method {
             Method::RcdMenon => "rcd_menon",
             Method::Ahd => "ahd",
             Method::Leung2011 => "leung2011",
+            Method::Markesteijn => "markesteijn",
         }
     }
 
@@ -127,6 +136,7 @@ impl Method {
     /// "best".
     pub fn names() -> Vec<&'static str> {
         let mut names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
+        names.push(Method::Markesteijn.name());
         names.push("best");
         names
     }
@@ -156,7 +166,52 @@ impl Method {
             Method::RcdMenon => <ensemble::Ensemble as TileKernel>::HALO,
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
+            Method::Markesteijn => markesteijn::HALO,
         }
+    }
+
+    /// Every method for X-Trans mosaics.
+    pub const XTRANS: [Method; 2] = [Method::Bilinear, Method::Markesteijn];
+
+    /// The best X-Trans method, which "best" selects for X-Trans patterns:
+    /// 38.63 dB mean CPSNR on the benchmark's seven images mosaiced with
+    /// X-Trans, against bilinear's 32.77 and LibRaw's Markesteijn 38.42
+    /// (3-pass) and 38.34 (1-pass).
+    pub const BEST_XTRANS: Method = Method::Markesteijn;
+
+    /// Whether the method demosaics mosaics of `pattern`.
+    pub fn supports(self, pattern: &CfaPattern) -> bool {
+        self.supports_kind(!pattern.is_bayer())
+    }
+
+    /// The names of the methods for Bayer (`xtrans == false`) or X-Trans
+    /// mosaics, then "best".
+    pub fn names_for(xtrans: bool) -> Vec<&'static str> {
+        Self::names()
+            .into_iter()
+            .filter(|&n| n == "best" || Self::from_name(n).is_ok_and(|m| m.supports_kind(xtrans)))
+            .collect()
+    }
+
+    fn supports_kind(self, xtrans: bool) -> bool {
+        if xtrans {
+            Self::XTRANS.contains(&self)
+        } else {
+            self != Method::Markesteijn
+        }
+    }
+
+    /// Parses a method name for mosaics of `pattern`: "best" gives
+    /// [`Method::BEST`] for Bayer patterns and [`Method::BEST_XTRANS`] for
+    /// X-Trans ones.
+    ///
+    /// # Errors
+    /// As [`Method::from_name`].
+    pub fn from_name_for(name: &str, pattern: &CfaPattern) -> Result<Self> {
+        if name == "best" && !pattern.is_bayer() {
+            return Ok(Self::BEST_XTRANS);
+        }
+        Self::from_name(name)
     }
 
     /// Parses a method name ("best" gives [`Method::BEST`]).
@@ -169,6 +224,7 @@ impl Method {
         }
         Self::ALL
             .into_iter()
+            .chain([Method::Markesteijn])
             .find(|m| m.name() == name)
             .ok_or_else(|| {
                 let names = Self::names();
@@ -185,8 +241,8 @@ impl Method {
 /// # Errors
 /// [`CoreError::Shape`] for a multi-channel `raw`, an image smaller than
 /// 2x2 (6x6 for X-Trans) or a wrong output length;
-/// [`CoreError::InvalidArgument`] for an X-Trans pattern with a method other
-/// than [`Method::Bilinear`].
+/// [`CoreError::InvalidArgument`] for a method that does not support the
+/// pattern (see [`Method::supports`]).
 pub fn demosaic<T: Sample>(
     raw: ImageView<'_, T>,
     pattern: &CfaPattern,
@@ -206,24 +262,43 @@ pub fn demosaic<T: Sample>(
         )));
     }
     check_out_len(out.len(), 3 * w * h, "demosaic")?;
+    if !method.supports(pattern) {
+        return Err(unsupported(method, pattern));
+    }
     let Some((ry, rx)) = pattern.bayer_red() else {
-        if method != Method::Bilinear {
-            return Err(invalid!(
-                "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern; X-Trans is supported by \"bilinear\"",
-                method.name()
-            ));
-        }
         if w < 6 || h < 6 {
             return Err(CoreError::Shape(format!(
                 "demosaic needs an X-Trans mosaic of at least 6x6 pixels (one full CFA tile), got ({h}, {w})"
             )));
         }
-        xtrans::run(&raw, pattern, out);
+        match method {
+            Method::Markesteijn => markesteijn::run(&raw, pattern, out),
+            _ => xtrans::run(&raw, pattern, out),
+        }
         return Ok(());
     };
     let phase = Phase { ry, rx };
     run_method(&raw, phase, method, Isa::detect(), out);
     Ok(())
+}
+
+/// The error for a method given a pattern it does not support, naming the
+/// methods that do.
+fn unsupported(method: Method, pattern: &CfaPattern) -> CoreError {
+    let xtrans = Method::names_for(true);
+    if pattern.is_bayer() {
+        invalid!(
+            "method {:?} supports X-Trans patterns only, got a 2x2 Bayer pattern; Bayer mosaics are supported by {:?}",
+            method.name(),
+            Method::names_for(false)
+        )
+    } else {
+        invalid!(
+            "method {:?} supports the Bayer patterns RGGB, BGGR, GRBG and GBRG, got a 6x6 X-Trans pattern; X-Trans is supported by \"{}\"",
+            method.name(),
+            xtrans.join("\", \"")
+        )
+    }
 }
 
 /// The instruction sets the kernels are compiled for.
@@ -271,6 +346,7 @@ fn run_method<T: Sample>(
             let k = leung2011::Leung2011 { phase };
             tiled::run_tiled(raw, phase, &k, isa, out);
         }
+        Method::Markesteijn => unreachable!("demosaic rejects X-Trans-only methods for Bayer"),
         Method::RcdMenon => {
             let k = ensemble::Ensemble {
                 rcd: Rcd::new(phase, T::FULL_SCALE),
