@@ -22,10 +22,12 @@
 
 mod ahd;
 mod bilinear;
+mod boxsum;
 mod ensemble;
 mod hamilton_adams;
 mod malvar2004;
 mod menon2007;
+mod mlri;
 mod nearest;
 mod rcd;
 mod tiled;
@@ -77,11 +79,18 @@ pub enum Method {
     /// more homogeneous in CIELab chosen per pixel. Outputs are clamped to
     /// the input's range.
     Ahd,
+    /// Kiku, Monno, Tanaka and Okutomi, "Minimized-Laplacian residual
+    /// interpolation for color image demosaicking", Proc. SPIE 9023, 2014:
+    /// directional guided filters fitted on Laplacians give tentative
+    /// values whose residuals are interpolated instead of colour
+    /// differences; red and blue follow from the full green the same way.
+    /// Outputs are clamped to the input's range.
+    Mlri,
 }
 
 impl Method {
     /// Every method, in the order the documentation lists them.
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 9] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
@@ -90,6 +99,7 @@ impl Method {
         Method::Menon2007,
         Method::RcdMenon,
         Method::Ahd,
+        Method::Mlri,
     ];
 
     /// The name users pass.
@@ -103,6 +113,7 @@ impl Method {
             Method::Menon2007 => "menon2007",
             Method::RcdMenon => "rcd_menon",
             Method::Ahd => "ahd",
+            Method::Mlri => "mlri",
         }
     }
 
@@ -226,6 +237,10 @@ fn run_method<T: Sample>(
                 phase,
                 full_scale: T::FULL_SCALE,
             };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
+        Method::Mlri => {
+            let k = mlri::Mlri::new(phase, T::FULL_SCALE);
             tiled::run_tiled(raw, phase, &k, isa, out);
         }
         Method::RcdMenon => {
