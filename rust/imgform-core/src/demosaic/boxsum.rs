@@ -53,6 +53,7 @@ impl Parity {
 /// Filled on tile rows `rows` and, within them, the columns at least
 /// `cols` from the tile's sides; `src` must be valid `radius` steps
 /// further along `dir`.
+#[inline(always)]
 pub(super) fn line_sum(
     t: &Tile,
     src: &[f32],
@@ -83,6 +84,7 @@ pub(super) fn line_sum(
 /// keeping `parity` along the columns and `along_rows` along the rows
 /// (vertical pass into `tmp`, then horizontal). Filled `reach` from the
 /// tile's sides; `src` must be valid `reach - radius` from them.
+#[inline(always)]
 pub(super) fn square_sum(
     t: &Tile,
     src: &[f32],

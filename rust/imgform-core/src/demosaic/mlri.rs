@@ -141,6 +141,7 @@ fn arm(sp: Span, p: &[f32], (dy, dx): (isize, isize)) -> [&[f32]; 5] {
 }
 
 impl Mlri {
+    #[inline(always)]
     fn mask<'a>(
         &self,
         chroma: &'a [Vec<u32>; 2],
@@ -153,6 +154,7 @@ impl Mlri {
     }
 
     /// Step 1 along `d`: the colour difference `G - C` into `st.dif[which]`.
+    #[inline(always)]
     fn directional(&self, st: &mut State, t: &Tile, c: &[f32], d: (isize, isize), which: usize) {
         let (dy, dx) = d;
         // The guide: the line's other class, interpolated linearly.
@@ -199,8 +201,9 @@ impl Mlri {
             let [ac, bc, ag, bg] = &mut st.coef;
             let (ac, bc, ag, bg) = (sp.out(ac), sp.out(bc), sp.out(ag), sp.out(bg));
             for i in 0..sp.n {
-                let (a_s, b_s) = coefficients(same.map(|q| q[i]), n_same, self.flat);
-                let (a_o, b_o) = coefficients(other.map(|q| q[i]), n_other, self.flat);
+                let at = |q: &[&[f32]; STATS]| [q[0][i], q[1][i], q[2][i], q[3][i]];
+                let (a_s, b_s) = coefficients(at(&same), n_same, self.flat);
+                let (a_o, b_o) = coefficients(at(&other), n_other, self.flat);
                 ac[i] = select(m[i], a_s, a_o);
                 bc[i] = select(m[i], b_s, b_o);
                 ag[i] = select(m[i], a_o, a_s);
@@ -247,6 +250,7 @@ impl Mlri {
 
 impl Mlri {
     /// Step 2: green from the two directional colour differences.
+    #[inline(always)]
     fn combine(&self, st: &mut State, t: &Tile, c: &[f32]) {
         let r = R_DIF + 1;
         for ty in r..t.rows - r {
@@ -302,73 +306,76 @@ impl Mlri {
     }
 
     /// Step 3: red and blue guided by the full green.
+    #[inline(always)]
     fn chroma(&self, st: &mut State, t: &Tile, c: &[f32]) {
         let r = R_RB_LAPLACE;
         for ty in r..t.rows - r {
             let sp = t.span(ty, r);
             // Laplacians over same-class samples: two steps each way.
-            let lap = |p: &[f32], i: usize| {
-                let (n, s) = (sp.at(p, -2, 0)[i], sp.at(p, 2, 0)[i]);
-                let (w, e) = (sp.at(p, 0, -2)[i], sp.at(p, 0, 2)[i]);
-                4.0 * sp.at(p, 0, 0)[i] - ((n + s) + (w + e))
-            };
+            let (g, v) = (cross(sp, &st.green, 2), cross(sp, c, 2));
             let [ip, ii] = &mut st.prod;
             let (ip, ii) = (sp.out(ip), sp.out(ii));
             for i in 0..sp.n {
-                let (lg, lc) = (lap(&st.green, i), lap(c, i));
+                let lg = 4.0 * g[0][i] - ((g[1][i] + g[2][i]) + (g[3][i] + g[4][i]));
+                let lc = 4.0 * v[0][i] - ((v[1][i] + v[2][i]) + (v[3][i] + v[4][i]));
                 ip[i] = lg * lc;
                 ii[i] = lg * lg;
             }
         }
+        // Class sums: vertical parity (same, other) by horizontal parity.
         let [ip, ii] = &st.prod;
         let sources: [&[f32]; STATS] = [&st.green, c, ip, ii];
-        let combos = [
-            (Parity::Same, Parity::Same),
-            (Parity::Same, Parity::Other),
-            (Parity::Other, Parity::Same),
-            (Parity::Other, Parity::Other),
-        ];
+        let inner = (R_RB_COEF..t.rows - R_RB_COEF, R_RB_LAPLACE);
+        let outer = (R_RB_COEF..t.rows - R_RB_COEF, R_RB_COEF);
+        let parities = [Parity::Same, Parity::Other];
         for (src, sums) in sources.iter().zip(st.sums.iter_mut()) {
-            for (dst, combo) in sums.iter_mut().zip(combos) {
-                square_sum(t, src, &mut st.tmp, dst, SQUARE_RADIUS, combo, R_RB_COEF);
+            for (pair, vertical) in sums.chunks_exact_mut(2).zip(parities) {
+                line_sum(
+                    t,
+                    src,
+                    &mut st.tmp,
+                    (1, 0),
+                    SQUARE_RADIUS,
+                    vertical,
+                    inner.clone(),
+                );
+                for (dst, along) in pair.iter_mut().zip(parities) {
+                    line_sum(t, &st.tmp, dst, (0, 1), SQUARE_RADIUS, along, outer.clone());
+                }
             }
         }
-        let count = combos.map(|(v, h)| (v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS)) as f32);
-        for ty in R_RB_COEF..t.rows - R_RB_COEF {
+        let count = |v: Parity, h: Parity| (v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS)) as f32;
+        let (same, other) = (Parity::Same, Parity::Other);
+        for ty in outer.0.clone() {
             let sp = t.span(ty, R_RB_COEF);
             let m = self.mask(&st.chroma, t, ty, R_RB_COEF, sp.n);
             let s = st
                 .sums
                 .each_ref()
                 .map(|q| q.each_ref().map(|p| sp.at(p, 0, 0)));
-            let stats = |combo: usize, i: usize| s.map(|q| q[combo][i]);
             let [ar, br, ab, bb] = &mut st.coef;
-            // The row's own chroma class, then the other one.
+            // The row's own chroma class (vertical parity same), then the
+            // other one; each row's chroma sites share the own class's
+            // column parity.
             let (ao, bo, ax, bx) = if t.kind(self.phase, ty).blue {
                 (sp.out(ab), sp.out(bb), sp.out(ar), sp.out(br))
             } else {
                 (sp.out(ar), sp.out(br), sp.out(ab), sp.out(bb))
             };
             for i in 0..sp.n {
-                let (own_combo, other_combo) = if m[i] != 0 { (0, 3) } else { (1, 2) };
-                let (a, b) = coefficients(stats(own_combo, i), count[own_combo], self.flat);
-                ao[i] = a;
-                bo[i] = b;
-                let (a, b) = coefficients(stats(other_combo, i), count[other_combo], self.flat);
-                ax[i] = a;
-                bx[i] = b;
+                let pick = |a: usize, b: usize| {
+                    let one = |q: &[&[f32]; 4]| select(m[i], q[a][i], q[b][i]);
+                    [one(&s[0]), one(&s[1]), one(&s[2]), one(&s[3])]
+                };
+                let own_n = select(m[i], count(same, same), count(same, other));
+                let other_n = select(m[i], count(other, other), count(other, same));
+                (ao[i], bo[i]) = coefficients(pick(0, 1), own_n, self.flat);
+                (ax[i], bx[i]) = coefficients(pick(3, 2), other_n, self.flat);
             }
         }
         for (src, dst) in st.coef.iter().zip(st.mean.iter_mut()) {
-            square_sum(
-                t,
-                src,
-                &mut st.tmp,
-                dst,
-                SQUARE_RADIUS,
-                (Parity::All, Parity::All),
-                R_RB_MEAN,
-            );
+            let all = (Parity::All, Parity::All);
+            square_sum(t, src, &mut st.tmp, dst, SQUARE_RADIUS, all, R_RB_MEAN);
         }
         let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
         for ty in R_RB_MEAN..t.rows - R_RB_MEAN {
@@ -383,10 +390,11 @@ impl Mlri {
                 let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
                 let (a, b) = (mean[2 * k], mean[2 * k + 1]);
                 let (res, part) = (sp.out(res), sp.out(part));
-                for i in 0..sp.n {
-                    let tent = scale * a[i] * g0[i] + scale * b[i];
-                    part[i] = tent;
-                    res[i] = select(m[i] & sampled, c0[i] - tent, 0.0);
+                let inputs = a.iter().zip(b).zip(g0.iter().zip(c0)).zip(m);
+                for ((res, part), (((a, b), (g, c)), m)) in res.iter_mut().zip(part).zip(inputs) {
+                    let tent = scale * a * g + scale * b;
+                    *part = tent;
+                    *res = select(m & sampled, c - tent, 0.0);
                 }
             }
         }
@@ -399,21 +407,43 @@ impl Mlri {
                 (0, 1)
             };
             let c0 = sp.at(c, 0, 0);
-            let (own, other) = (sp.out(&mut st.own), sp.out(&mut st.other));
-            let near = |p: &[f32], i: usize| {
-                let edge = (sp.at(p, -1, 0)[i] + sp.at(p, 1, 0)[i])
-                    + (sp.at(p, 0, -1)[i] + sp.at(p, 0, 1)[i]);
-                let corner = (sp.at(p, -1, -1)[i] + sp.at(p, -1, 1)[i])
-                    + (sp.at(p, 1, -1)[i] + sp.at(p, 1, 1)[i]);
-                (sp.at(p, 0, 0)[i] + 0.5 * edge) + 0.25 * corner
-            };
-            for i in 0..sp.n {
-                let est = |k: usize| sp.at(&st.part[k], 0, 0)[i] + near(&st.res[k], i);
-                own[i] = select(m[i], c0[i], est(own_k));
-                other[i] = est(other_k);
+            // Each class's tentative value plus its residuals interpolated
+            // bilinearly (they are zero away from the class's samples).
+            let est =
+                |k: usize, o: &mut [f32]| interpolate_residual(sp, &st.part[k], &st.res[k], o);
+            est(own_k, sp.out(&mut st.own));
+            est(other_k, sp.out(&mut st.other));
+            for (o, (m, c0)) in sp.out(&mut st.own).iter_mut().zip(m.iter().zip(c0)) {
+                *o = select(*m, *c0, *o);
             }
         }
     }
+}
+
+/// `part` plus the bilinear interpolation of the sparse residual `res`,
+/// over the span, into `out`.
+#[inline(always)]
+fn interpolate_residual(sp: Span, part: &[f32], res: &[f32], out: &mut [f32]) {
+    let (part, e) = (sp.at(part, 0, 0), cross(sp, res, 1));
+    let d = [(-1, -1), (-1, 1), (1, -1), (1, 1)].map(|(dy, dx)| sp.at(res, dy, dx));
+    for i in 0..sp.n {
+        let edge = (e[1][i] + e[2][i]) + (e[3][i] + e[4][i]);
+        let corner = (d[0][i] + d[1][i]) + (d[2][i] + d[3][i]);
+        out[i] = part[i] + ((e[0][i] + 0.5 * edge) + 0.25 * corner);
+    }
+}
+
+/// Plane `p` at the span and at its four neighbours `step` away: centre,
+/// north, south, west, east.
+#[inline(always)]
+fn cross(sp: Span, p: &[f32], step: isize) -> [&[f32]; 5] {
+    [
+        sp.at(p, 0, 0),
+        sp.at(p, -step, 0),
+        sp.at(p, step, 0),
+        sp.at(p, 0, -step),
+        sp.at(p, 0, step),
+    ]
 }
 
 impl TileKernel for Mlri {
