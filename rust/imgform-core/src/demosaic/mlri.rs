@@ -43,7 +43,7 @@
 use super::boxsum::{line_sum, square_sum, Parity};
 use super::select;
 use super::tiled::{Span, Tile, TileKernel};
-use super::Phase;
+use super::{chroma_masks, Phase};
 
 /// Radius of the directional guided filters of the green stage.
 const LINE_RADIUS: usize = 5;
@@ -452,11 +452,6 @@ impl TileKernel for Mlri {
 
     fn state(&self, stride: usize, len: usize) -> State {
         let plane = || vec![0.0f32; len];
-        let mask = |parity: usize| {
-            (0..stride)
-                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
-                .collect()
-        };
         State {
             guide: plane(),
             prod: [plane(), plane()],
@@ -472,7 +467,7 @@ impl TileKernel for Mlri {
             green: plane(),
             own: plane(),
             other: plane(),
-            chroma: [mask(0), mask(1)],
+            chroma: chroma_masks(stride),
         }
     }
 

@@ -458,6 +458,18 @@ impl RowPlanes {
     }
 }
 
+/// Chroma-site masks of `len` columns for column parity 0 and 1: all ones
+/// at the columns of that parity, zero elsewhere (for [`select`]). Tile
+/// kernels index them with a tile column, which has its image column's
+/// parity because halos are even.
+pub(crate) fn chroma_masks(len: usize) -> [Vec<u32>; 2] {
+    [0, 1].map(|parity| {
+        (0..len)
+            .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
+            .collect()
+    })
+}
+
 /// `a` where `mask` is all ones, `b` where it is zero. A bitwise blend
 /// rather than `if`: LLVM turned the `if` form into a branch per pixel, and
 /// an arithmetic blend would turn infinities into NaN.
