@@ -22,12 +22,14 @@
 
 mod ahd;
 mod bilinear;
+mod boxsum;
 mod ensemble;
 mod hamilton_adams;
 mod leung2011;
 mod malvar2004;
 mod markesteijn;
 mod menon2007;
+mod mlri;
 mod nearest;
 mod rcd;
 mod tiled;
@@ -87,6 +89,13 @@ pub enum Method {
     /// with least-squares-designed filters (Leung, Jeon and Dubois, IEEE TIP
     /// 2011), separable here. Outputs are clamped to the input's range.
     Leung2011,
+    /// Kiku, Monno, Tanaka and Okutomi, "Minimized-Laplacian residual
+    /// interpolation for color image demosaicking", Proc. SPIE 9023, 2014:
+    /// directional guided filters fitted on Laplacians give tentative
+    /// values whose residuals are interpolated instead of colour
+    /// differences; red and blue follow from the full green the same way.
+    /// Outputs are clamped to the input's range.
+    Mlri,
     /// Markesteijn's X-Trans method as in dcraw's `xtrans_interpolate`
     /// (one pass): green, then red and blue by colour differences, along
     /// four directions; per pixel the mean of the directions with the most
@@ -98,7 +107,7 @@ pub enum Method {
 impl Method {
     /// Every method for Bayer mosaics, in the order the documentation lists
     /// them.
-    pub const ALL: [Method; 9] = [
+    pub const ALL: [Method; 10] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
@@ -108,6 +117,7 @@ impl Method {
         Method::RcdMenon,
         Method::Ahd,
         Method::Leung2011,
+        Method::Mlri,
     ];
 
     /// The name users pass.
@@ -122,6 +132,7 @@ impl Method {
             Method::RcdMenon => "rcd_menon",
             Method::Ahd => "ahd",
             Method::Leung2011 => "leung2011",
+            Method::Mlri => "mlri",
             Method::Markesteijn => "markesteijn",
         }
     }
@@ -166,6 +177,7 @@ impl Method {
             Method::RcdMenon => <ensemble::Ensemble as TileKernel>::HALO,
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
+            Method::Mlri => <mlri::Mlri as TileKernel>::HALO,
             Method::Markesteijn => markesteijn::HALO,
         }
     }
@@ -340,6 +352,10 @@ fn run_method<T: Sample>(
                 phase,
                 full_scale: T::FULL_SCALE,
             };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
+        Method::Mlri => {
+            let k = mlri::Mlri::new(phase, T::FULL_SCALE);
             tiled::run_tiled(raw, phase, &k, isa, out);
         }
         Method::Leung2011 => {
@@ -560,6 +576,18 @@ impl RowPlanes {
             chroma: [mask(0), mask(1)],
         }
     }
+}
+
+/// Chroma-site masks of `len` columns for column parity 0 and 1: all ones
+/// at the columns of that parity, zero elsewhere (for [`select`]). Tile
+/// kernels index them with a tile column, which has its image column's
+/// parity because halos are even.
+pub(crate) fn chroma_masks(len: usize) -> [Vec<u32>; 2] {
+    [0, 1].map(|parity| {
+        (0..len)
+            .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
+            .collect()
+    })
 }
 
 /// `a` where `mask` is all ones, `b` where it is zero. A bitwise blend
