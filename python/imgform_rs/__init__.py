@@ -73,18 +73,18 @@ from .remap import (
 )
 
 __all__ = [
-    "Alignment",
     "BAYER_DEMOSAIC_METHODS",
-    "Camera",
     "DEMOSAIC_METHODS",
+    "TONES",
+    "XTRANS_DEMOSAIC_METHODS",
+    "Alignment",
+    "Camera",
     "RawError",
     "RawImage",
     "RemapMap",
     "SpotDiagram",
-    "TONES",
     "VanishingPoint",
     "VanishingPointFit",
-    "XTRANS_DEMOSAIC_METHODS",
     "add_lateral_ca",
     "align",
     "apply_shift",
