@@ -13,9 +13,9 @@
 //! The samples are treated as linear sRGB scaled to the type's full scale
 //! for the CIELab conversion, which only serves to compare distances.
 
-use super::select;
 use super::tiled::{Span, Tile, TileKernel};
 use super::Phase;
+use super::{chroma_masks, select};
 
 pub(super) struct Ahd {
     pub(super) phase: Phase,
@@ -210,15 +210,10 @@ impl TileKernel for Ahd {
             lab: [plane(), plane(), plane()],
             hom: plane(),
         };
-        let mask = |parity: usize| {
-            (0..stride)
-                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
-                .collect()
-        };
         State {
             dirs: [dir(), dir()],
             out: [plane(), plane(), plane()],
-            chroma: [mask(0), mask(1)],
+            chroma: chroma_masks(stride),
         }
     }
 

@@ -29,7 +29,7 @@
 //!   mosaic itself and only flips signs per site.
 
 use super::tiled::{Tile, TileKernel};
-use super::{select, Phase};
+use super::{chroma_masks, select, Phase};
 use filters::{C1_H, C1_V, C2_H, C2_V};
 
 mod filters {
@@ -102,11 +102,6 @@ impl TileKernel for Leung2011 {
 
     fn state(&self, stride: usize, len: usize) -> State {
         let plane = || vec![0.0f32; len];
-        let mask = |parity: usize| {
-            (0..stride)
-                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
-                .collect()
-        };
         State {
             pre: [plane(), plane(), plane()],
             down: [plane(), plane(), plane()],
@@ -128,7 +123,7 @@ impl TileKernel for Leung2011 {
                     }
                 })
                 .collect(),
-            chroma: [mask(0), mask(1)],
+            chroma: chroma_masks(stride),
         }
     }
 

@@ -15,9 +15,9 @@
 //! [`RowKind`](super::RowKind)); the row above or below has the other
 //! kind, so a vertical neighbour's "own" is this row's "other".
 
-use super::select;
 use super::tiled::{Tile, TileKernel};
 use super::Phase;
+use super::{chroma_masks, select};
 
 pub(super) struct Menon2007 {
     pub(super) phase: Phase,
@@ -52,11 +52,6 @@ impl TileKernel for Menon2007 {
 
     fn state(&self, stride: usize, len: usize) -> State {
         let plane = || vec![0.0f32; len];
-        let mask = |parity: usize| {
-            (0..stride)
-                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
-                .collect()
-        };
         State {
             gh: plane(),
             gv: plane(),
@@ -70,7 +65,7 @@ impl TileKernel for Menon2007 {
             own2: plane(),
             other2: plane(),
             other3: plane(),
-            chroma: [mask(0), mask(1)],
+            chroma: chroma_masks(stride),
         }
     }
 

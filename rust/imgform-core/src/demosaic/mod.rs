@@ -564,16 +564,11 @@ pub(crate) struct RowPlanes {
 impl RowPlanes {
     pub(crate) fn new(width: usize) -> Self {
         let len = width + 2 * PAD;
-        let mask = |parity: usize| {
-            (0..len)
-                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
-                .collect()
-        };
         Self {
             own: vec![0.0; len],
             green: vec![0.0; len],
             other: vec![0.0; len],
-            chroma: [mask(0), mask(1)],
+            chroma: chroma_masks(len),
         }
     }
 }

@@ -13,7 +13,7 @@
 //! bit-identical results, which keeps the four Bayer phases consistent.
 
 use super::tiled::{Span, Tile, TileKernel};
-use super::{select, Phase};
+use super::{chroma_masks, select, Phase};
 
 /// RCD's tolerance on data scaled to `[0, 1]`; scaled by the sample type's
 /// full scale.
@@ -186,11 +186,6 @@ impl TileKernel for Rcd {
 
     fn state(&self, stride: usize, len: usize) -> State {
         let plane = || vec![0.0f32; len];
-        let mask = |parity: usize| {
-            (0..stride)
-                .map(|x| if x & 1 == parity { u32::MAX } else { 0 })
-                .collect()
-        };
         State {
             sq: [plane(), plane()],
             vh: plane(),
@@ -202,7 +197,7 @@ impl TileKernel for Rcd {
             x: plane(),
             own: plane(),
             other: plane(),
-            chroma: [mask(0), mask(1)],
+            chroma: chroma_masks(stride),
         }
     }
 
