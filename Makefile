@@ -52,6 +52,16 @@ test-slow: $(BUILT) ## the slow tests too
 bench: $(BUILT) ## side-by-side benchmarks against the peers
 	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
+RAISR_WEIGHTS := rust/imgform-core/src/demosaic/raisr_weights.bin
+# include_bytes! makes the weights part of the extension.
+$(BUILT): $(RAISR_WEIGHTS)
+
+.PHONY: weights
+weights: $(BUILT) ## retrain the "raisr" demosaicer and check the shipped weights bit for bit
+	mkdir -p out
+	$(PY) -m imgform_rs.training.demosaic --out out/raisr_weights.bin
+	cmp out/raisr_weights.bin $(RAISR_WEIGHTS) && echo "raisr weights reproduced bit for bit"
+
 .PHONY: lint
 lint: $(VENV)/.deps ## cargo fmt, clippy -D warnings, ruff, stubtest
 	cargo fmt --all -- --check

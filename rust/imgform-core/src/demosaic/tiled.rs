@@ -95,7 +95,7 @@ pub(crate) trait TileKernel: Sync {
 }
 
 /// The smallest and largest sample of `raw`, to clamp outputs into.
-fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
+pub(crate) fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
     (0..raw.height())
         .into_par_iter()
         .map(|y| {
