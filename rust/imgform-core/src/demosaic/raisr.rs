@@ -258,6 +258,9 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
         }
     }
 
+    /// Inlined, as every kernel is, into the tile loop compiled for AVX2:
+    /// a call boundary here ran the base and the filters in baseline SSE2.
+    #[inline(always)]
     fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3] {
         let State {
             base,
