@@ -56,6 +56,16 @@ bench: $(BUILT) ## side-by-side benchmarks against the peers
 filters: $(BUILT) ## rebuild the leung2011 demosaicer's least-squares filters
 	$(PY) -m imgform_rs.training.leung2011
 
+RAISR_WEIGHTS := rust/imgform-core/src/demosaic/raisr_weights.bin
+# include_bytes! makes the weights part of the extension.
+$(BUILT): $(RAISR_WEIGHTS)
+
+.PHONY: weights
+weights: $(BUILT) ## retrain the "raisr" demosaicer and check the shipped weights bit for bit
+	mkdir -p out
+	$(PY) -m imgform_rs.training.demosaic --out out/raisr_weights.bin
+	cmp out/raisr_weights.bin $(RAISR_WEIGHTS) && echo "raisr weights reproduced bit for bit"
+
 .PHONY: lint
 lint: $(VENV)/.deps ## cargo fmt, clippy -D warnings, ruff, stubtest
 	cargo fmt --all -- --check

@@ -70,6 +70,35 @@ def optional(name: str):
 cv2 = optional("cv2")
 rawpy = optional("rawpy")
 cd = optional("colour_demosaicing")
+demosaicnet = optional("demosaicnet")  # the bench-learned extra
+
+
+def demosaicnet_rggb(net, raw: np.ndarray) -> np.ndarray:
+    """Gharbi et al.'s network on our uint8 RGGB mosaic (protocol of ``quality``).
+
+    The network takes a GRBG mosaic as three masked channels in [0, 1], whose
+    sides are even: our RGGB seen from column 1 on is GRBG, so the mosaic is cut to
+    even sides from column 1, mirrored by 48 pixels (the unpadded network shrinks
+    its input) and the output's middle put back; the pixels left out are within
+    the 10 cropped pixels.
+    """
+    import torch
+
+    h, w = raw.shape
+    masks = ig.channel_masks(raw.shape, "RGGB")
+    planes = raw[..., None] * masks / np.float32(255)
+    sub = planes[: h // 2 * 2, 1 : 1 + (w - 1) // 2 * 2].astype(np.float32)
+    pad = 48
+    padded = np.pad(sub, ((pad, pad), (pad, pad), (0, 0)), mode="reflect")
+    with torch.no_grad():
+        out = net(torch.from_numpy(padded.transpose(2, 0, 1).copy())[None])[0].numpy()
+    out = out.transpose(1, 2, 0)
+    dy, dx = ((o - s) // 2 for o, s in zip(out.shape[:2], sub.shape[:2], strict=True))
+    rgb = np.zeros((h, w, 3), np.uint8)
+    rgb[: sub.shape[0], 1 : 1 + sub.shape[1]] = to_u8(
+        out[dy : dy + sub.shape[0], dx : dx + sub.shape[1]], 255.0
+    )
+    return rgb
 
 
 def libraw_develop(path: str, algorithm: str):
@@ -262,6 +291,9 @@ def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]
                     return to_u8(develop(), 1 / 257)
 
             methods[f"LibRaw {algo}"] = libraw
+    if demosaicnet is not None:
+        net = demosaicnet.BayerDemosaick(pretrained=True, pad=False).eval()
+        methods["demosaicnet (Gharbi 2016)"] = lambda raw, name: demosaicnet_rggb(net, raw)
     return methods
 
 

@@ -55,6 +55,7 @@ def test_methods_are_exactly_the_documented_ones():
         "ahd",
         "leung2011",
         "mlri",
+        "raisr",
         "markesteijn",
         "best",
     )
@@ -132,10 +133,15 @@ def test_bilinear_reproduces_a_linear_ramp_in_the_interior(a, b, h, w, p, dtype)
     np.testing.assert_array_equal(out[1:-1, 1:-1], want[1:-1, 1:-1])
 
 
+# "raisr"'s learned filters are not mirror-symmetric, so flips change its output
+# slightly; tests/test_raisr.py checks its tile seams by a shift instead.
+FLIP_SYMMETRIC = [m for m in METHODS if m != "raisr"]
+
+
 @given(
     raw=mosaics(),
     p=st.sampled_from(BAYER),
-    method=st.sampled_from(METHODS),
+    method=st.sampled_from(FLIP_SYMMETRIC),
     vertical=st.booleans(),
     horizontal=st.booleans(),
 )

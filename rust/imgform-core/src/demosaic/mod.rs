@@ -31,6 +31,7 @@ mod markesteijn;
 mod menon2007;
 mod mlri;
 mod nearest;
+mod raisr;
 mod rcd;
 mod tiled;
 mod xtrans;
@@ -96,6 +97,13 @@ pub enum Method {
     /// differences; red and blue follow from the full green the same way.
     /// Outputs are clamped to the input's range.
     Mlri,
+    /// A learned refinement of [`Method::RcdMenon`] in the manner of
+    /// Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
+    /// Resolution", IEEE TCI 2017: per CFA position and structure-tensor
+    /// class, a least-squares linear filter predicts the residual of the
+    /// missing colours. Not flip-symmetric (the filters are learned).
+    /// Outputs are clamped to the input's range.
+    Raisr,
     /// Markesteijn's X-Trans method as in dcraw's `xtrans_interpolate`
     /// (one pass): green, then red and blue by colour differences, along
     /// four directions; per pixel the mean of the directions with the most
@@ -107,7 +115,7 @@ pub enum Method {
 impl Method {
     /// Every method for Bayer mosaics, in the order the documentation lists
     /// them.
-    pub const ALL: [Method; 10] = [
+    pub const ALL: [Method; 11] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
@@ -118,6 +126,7 @@ impl Method {
         Method::Ahd,
         Method::Leung2011,
         Method::Mlri,
+        Method::Raisr,
     ];
 
     /// The name users pass.
@@ -133,6 +142,7 @@ impl Method {
             Method::Ahd => "ahd",
             Method::Leung2011 => "leung2011",
             Method::Mlri => "mlri",
+            Method::Raisr => "raisr",
             Method::Markesteijn => "markesteijn",
         }
     }
@@ -178,6 +188,7 @@ impl Method {
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
             Method::Mlri => <mlri::Mlri as TileKernel>::HALO,
+            Method::Raisr => <raisr::Raisr<ensemble::Ensemble> as TileKernel>::HALO,
             Method::Markesteijn => markesteijn::HALO,
         }
     }
@@ -367,6 +378,19 @@ fn run_method<T: Sample>(
             let k = ensemble::Ensemble {
                 rcd: Rcd::new(phase, T::FULL_SCALE),
                 menon: Menon2007 { phase },
+            };
+            tiled::run_tiled(raw, phase, &k, isa, out);
+        }
+        Method::Raisr => {
+            let k = raisr::Raisr {
+                base: ensemble::Ensemble {
+                    rcd: Rcd::new(phase, T::FULL_SCALE),
+                    menon: Menon2007 { phase },
+                },
+                phase,
+                inv_scale: 1.0 / T::FULL_SCALE,
+                bounds: tiled::range(raw),
+                weights: raisr::Weights::shipped(),
             };
             tiled::run_tiled(raw, phase, &k, isa, out);
         }

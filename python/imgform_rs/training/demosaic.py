@@ -1,0 +1,282 @@
+"""Training of the ``"raisr"`` demosaicer's filter bank (rebuilds ``raisr_weights.bin``).
+
+RAISR (Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
+Resolution", IEEE Transactions on Computational Imaging 3(1), 2017) learns, per
+class of local structure, a least-squares linear filter from a cheap estimate to the
+truth. Here the cheap estimate is ``demosaic(..., "rcd_menon")`` and each filter
+maps 26 features of it around a pixel to the residual (truth - estimate) of the
+pixel's two missing colours. The classes, the features and the hash are those of
+``rust/imgform-core/src/demosaic/raisr.rs``, reproduced here operation for
+operation in float32 so that a pixel falls in the same class in both.
+
+Training images (never the benchmark's seven: astronaut, coffee, chelsea, rocket,
+immunohistochemistry, retina and motorcycle_left/right are held out):
+
+- scikit-image sample images shipped in its wheel: ``brick``, ``grass``, ``gravel``
+  (CC0), ``camera`` (CC0), ``coins``, ``text``, ``clock``, ``moon``,
+  ``microaneurysms`` (public domain or CC0) and the colour ``hubble_deep_field``
+  (public domain, NASA). Grey images are coloured by multiplying with a smooth
+  random colour field.
+
+Procedural textures (dead leaves, coloured zone plates, sinusoidal "fabrics") were
+tried and left out: their near-Nyquist aliasing dominates the squared error and the
+filters they gave were worse on natural images than none.
+
+Every image is quantised to 8 bits, also used rotated by 90 degrees, mosaicked
+RGGB (the four CFA positions all occur) and demosaicked in float32. The normal
+equations are accumulated in float64, solved with a small ridge term, and the
+filters rounded to float32: two runs give identical bytes.
+
+Run ``python -m imgform_rs.training.demosaic [--out PATH] [--small]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import struct
+from pathlib import Path
+
+import numpy as np
+
+import imgform_rs as ig
+
+SEED = 20170101
+FEATURES = 26
+ANGLES, STRENGTHS, COHERENCES = 8, 3, 3
+POSITIONS = 4
+CLASSES = POSITIONS * ANGLES * STRENGTHS * COHERENCES
+STRENGTH_QUANTILES = (0.5, 0.85)
+COHERENCE_THRESHOLDS = (0.3, 0.6)
+#: Pixels at the border left out of training (the kernel's reach is 12).
+BORDER = 12
+#: Classes seen fewer times than this keep a zero filter (no correction).
+MIN_SAMPLES = 500
+RIDGE = 1e-3
+SKIMAGE_GREY = [
+    "brick",
+    "grass",
+    "gravel",
+    "camera",
+    "coins",
+    "text",
+    "clock",
+    "moon",
+    "microaneurysms",
+]
+SKIMAGE_RGB = ["hubble_deep_field"]
+HELD_OUT = {
+    "astronaut",
+    "coffee",
+    "chelsea",
+    "rocket",
+    "immunohistochemistry",
+    "retina",
+    "motorcycle_left",
+    "motorcycle_right",
+}
+DEFAULT_OUT = (
+    Path(__file__).resolve().parents[3] / "rust/imgform-core/src/demosaic/raisr_weights.bin"
+)
+
+
+def smooth_field(rng: np.random.Generator, shape: tuple[int, int], sigma: float) -> np.ndarray:
+    """Gaussian-smoothed noise rescaled to [0, 1]."""
+    from scipy import ndimage
+
+    f = ndimage.gaussian_filter(rng.random(shape), sigma)
+    return (f - f.min()) / max(f.max() - f.min(), 1e-12)
+
+
+def colourise(grey: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """A grey image times a smooth random colour field (gains in [0.45, 1])."""
+    gains = [0.45 + 0.55 * smooth_field(rng, grey.shape, 40.0) for _ in range(3)]
+    return grey[..., None] * np.stack(gains, -1)
+
+
+def training_images(small: bool) -> list[np.ndarray]:
+    """The training set as float images in [0, 1], from the fixed seed."""
+    import skimage.data
+
+    assert not HELD_OUT & set(SKIMAGE_GREY + SKIMAGE_RGB)
+    rng = np.random.default_rng(SEED)
+    images = []
+    grey = SKIMAGE_GREY[:2] if small else SKIMAGE_GREY
+    for name in grey:
+        images.append(colourise(getattr(skimage.data, name)() / 255.0, rng))
+    if not small:
+        images += [getattr(skimage.data, name)() / 255.0 for name in SKIMAGE_RGB]
+    return images
+
+
+def quantise(rgb: np.ndarray) -> np.ndarray:
+    """8-bit values as float32 in [0, 1], as the benchmark's images are."""
+    return (np.round(np.clip(rgb, 0, 1) * 255) / 255).astype(np.float32)
+
+
+def box3(p: np.ndarray) -> np.ndarray:
+    """3x3 sums in the kernel's order (each row left to right, then the rows)."""
+    rows = (p[:, :-2] + p[:, 1:-1]) + p[:, 2:]
+    return (rows[:-2] + rows[1:-1]) + rows[2:]
+
+
+def eigen(sxx: np.ndarray, sxy: np.ndarray, syy: np.ndarray):
+    """Largest eigenvalue and coherence, as ``eigen`` in raisr.rs."""
+    half = np.float32(0.5)
+    half_trace = half * (sxx + syy)
+    half_diff = half * (sxx - syy)
+    d = np.sqrt(half_diff * half_diff + sxy * sxy)
+    l1 = half_trace + d
+    l2 = np.maximum(half_trace - d, np.float32(0))
+    r1, r2 = np.sqrt(l1), np.sqrt(l2)
+    total = r1 + r2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        coherence = np.where(total > 0, (r1 - r2) / total, np.float32(0))
+    return l1, coherence.astype(np.float32)
+
+
+def angle_bin(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Octant of the doubled orientation, as ``angle_bin`` in raisr.rs."""
+    cos, sin = np.float32(0.9238795), np.float32(0.38268343)
+    u, v = a * cos - b * sin, a * sin + b * cos
+    top, right = v >= 0, u >= 0
+    return np.select(
+        [top & right, top & ~right, ~top & ~right],
+        [(v > u) * 1, 2 + (v < -u), 4 + (-v > -u)],
+        6 + (-v < u),
+    )
+
+
+def tensor(green: np.ndarray):
+    """Structure-tensor sums over 3x3 of the green's central differences,
+    for the pixels 2 away from the border."""
+    k = np.float32(0.5)
+    gx = (green[1:-1, 2:] - green[1:-1, :-2]) * k
+    gy = (green[2:, 1:-1] - green[:-2, 1:-1]) * k
+    return box3(gx * gx), box3(gx * gy), box3(gy * gy)
+
+
+def features(base: np.ndarray, blue_rows: np.ndarray) -> np.ndarray:
+    """The 26 features of every pixel 1 away from the border, (H-2, W-2, 26)."""
+    red_frame = base
+    blue_frame = base[..., ::-1]
+    h, w = base.shape[:2]
+    out = []
+    for frame in (red_frame, blue_frame):
+        centre = frame[1:-1, 1:-1]
+        f = [
+            frame[1 + dy : h - 1 + dy, 1 + dx : w - 1 + dx] - centre
+            for dy in (-1, 0, 1)
+            for dx in (-1, 0, 1)
+            if (dy, dx) != (0, 0)
+        ]
+        f = np.concatenate(f, -1)
+        own, green, other = centre[..., 0], centre[..., 1], centre[..., 2]
+        out.append(np.concatenate([f, (own - green)[..., None], (other - green)[..., None]], -1))
+    return np.where(blue_rows[1:-1, None, None], out[1], out[0])
+
+
+def prepare(rgb: np.ndarray):
+    """The 8-bit truth, its RGGB mosaic demosaicked by the base, and the CFA
+    positions (``2 * blue_row + chroma_site``) of every pixel."""
+    truth = quantise(rgb)
+    h, w = truth.shape[:2]
+    masks = ig.channel_masks((h, w), "RGGB")
+    mosaic = np.ascontiguousarray((truth * masks).sum(-1), dtype=np.float32)
+    base = ig.demosaic(mosaic, "RGGB", "rcd_menon")
+    yy, xx = np.mgrid[:h, :w]
+    blue = yy % 2 == 1
+    chroma = (xx % 2 == 0) ^ blue
+    return truth, base, 2 * blue + chroma
+
+
+def interior(a: np.ndarray, reach: int) -> np.ndarray:
+    """The pixels ``BORDER`` away from the border of an array that starts
+    ``reach`` pixels into the image, flattened."""
+    h, w = a.shape[:2]
+    b = BORDER - reach
+    return a[b : h - b, b : w - b].reshape(-1, *a.shape[2:])
+
+
+def hash_inputs(base: np.ndarray, position: np.ndarray):
+    """Structure-tensor sums and positions of the interior pixels."""
+    return [interior(s, 2) for s in tensor(base[..., 1])], interior(position, 0)
+
+
+def samples(truth: np.ndarray, base: np.ndarray, position: np.ndarray):
+    """Features and targets (residuals of the two missing colours in the
+    centre row's frame) of the interior pixels."""
+    blue = position >= 2
+    feats = interior(features(base, blue[:, 0]), 1)
+    residual = truth - base
+    frame = np.where(blue[..., None], residual[..., ::-1], residual)
+    chroma = (position % 2 == 1)[..., None]
+    target = np.where(chroma, frame[..., 1:], frame[..., [0, 2]])
+    return feats, interior(target, 0)
+
+
+def classes(sums, position, strength: np.ndarray) -> np.ndarray:
+    """Class index of each sample, as ``Weights::filter`` in raisr.rs."""
+    sxx, sxy, syy = sums
+    l1, coherence = eigen(sxx, sxy, syy)
+    s = (l1[:, None] >= strength).sum(1)
+    c = (coherence[:, None] >= np.float32(COHERENCE_THRESHOLDS)).sum(1)
+    a = angle_bin(sxx - syy, np.float32(2) * sxy)
+    return ((position * ANGLES + a) * STRENGTHS + s) * COHERENCES + c
+
+
+def strength_thresholds(prepared) -> np.ndarray:
+    """The strength bin bounds: quantiles of the largest eigenvalue, as float32."""
+    l1 = [eigen(*hash_inputs(base, pos)[0])[0] for _, base, pos in prepared]
+    return np.quantile(np.concatenate(l1).astype(np.float64), STRENGTH_QUANTILES).astype(np.float32)
+
+
+def solve(prepared, strength: np.ndarray) -> np.ndarray:
+    """Least-squares filters per class, (CLASSES, 2, FEATURES) float32."""
+    xtx = np.zeros((CLASSES, FEATURES, FEATURES))
+    xty = np.zeros((CLASSES, FEATURES, 2))
+    count = np.zeros(CLASSES, dtype=np.int64)
+    for truth, base, position in prepared:
+        cls = classes(*hash_inputs(base, position), strength)
+        feats, target = samples(truth, base, position)
+        order = np.argsort(cls, kind="stable")
+        bounds = np.searchsorted(cls[order], np.arange(CLASSES + 1))
+        for k in range(CLASSES):
+            idx = order[bounds[k] : bounds[k + 1]]
+            x, y = feats[idx].astype(np.float64), target[idx].astype(np.float64)
+            xtx[k] += x.T @ x
+            xty[k] += x.T @ y
+            count[k] += idx.size
+    filters = np.zeros((CLASSES, 2, FEATURES), dtype=np.float32)
+    for k in np.flatnonzero(count >= MIN_SAMPLES):
+        ridge = RIDGE * np.trace(xtx[k]) / FEATURES + 1e-12
+        w = np.linalg.solve(xtx[k] + ridge * np.eye(FEATURES), xty[k])
+        filters[k] = w.T.astype(np.float32)
+    return filters
+
+
+def encode(strength: np.ndarray, filters: np.ndarray) -> bytes:
+    """The weights file (layout documented at ``Weights::parse`` in raisr.rs)."""
+    header = b"IGRAISR1" + struct.pack("<4I", ANGLES, STRENGTHS, COHERENCES, FEATURES)
+    thresholds = np.concatenate([strength, np.float32(COHERENCE_THRESHOLDS)])
+    return header + thresholds.astype("<f4").tobytes() + filters.astype("<f4").tobytes()
+
+
+def train(small: bool = False) -> bytes:
+    """The weights file trained from the fixed seed (``small``: a quick subset)."""
+    images = training_images(small)
+    prepared = [prepare(im) for rgb in images for im in (rgb, np.rot90(rgb))]
+    strength = strength_thresholds(prepared)
+    return encode(strength, solve(prepared, strength))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="where to write")
+    parser.add_argument("--small", action="store_true", help="a quick subset (for tests)")
+    args = parser.parse_args()
+    args.out.write_bytes(train(args.small))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()

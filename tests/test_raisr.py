@@ -1,0 +1,77 @@
+"""The learned "raisr" demosaicer: properties the shared demosaic tests don't cover
+(it is not flip-symmetric), agreement with its training script, reproducible training."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from test_demosaic import BAYER, mosaics, random_raw
+
+import imgform_rs as ig
+
+WEIGHTS = Path(__file__).parents[1] / "rust/imgform-core/src/demosaic/raisr_weights.bin"
+
+
+@given(raw=mosaics(), p=st.sampled_from(BAYER))
+def test_outputs_stay_within_the_input_range(raw, p):
+    out = ig.demosaic(raw, p, "raisr")
+    assert raw.min() <= out.min() and out.max() <= raw.max()
+
+
+@pytest.mark.parametrize("dtype", [np.uint16, np.float32])
+def test_tile_seams_do_not_show(dtype):
+    # Tiles are 384 columns counted from the left: dropping an even number of
+    # columns keeps the phase and moves every seam, so the interiors agree.
+    raw = random_raw(5, 40, 1001, dtype)
+    shift, reach = 50, 40
+    whole = ig.demosaic(raw, "GBRG", "raisr")
+    cut = ig.demosaic(np.ascontiguousarray(raw[:, shift:]), "GBRG", "raisr")
+    np.testing.assert_array_equal(cut[:, reach:-reach], whole[:, shift + reach : -reach])
+
+
+def test_the_kernel_applies_the_filters_the_training_script_fitted():
+    # The training script reimplements the kernel's features and hash in
+    # NumPy; the shipped filters applied there must give the kernel's output.
+    data = pytest.importorskip("skimage.data")
+    from imgform_rs.training import demosaic as tr
+
+    truth, base, position = tr.prepare(data.coffee()[100:180, 200:290] / 255.0)
+    mosaic = np.ascontiguousarray((truth * ig.channel_masks(truth.shape[:2], "RGGB")).sum(-1))
+    out = ig.demosaic(mosaic.astype(np.float32), "RGGB", "raisr")
+    blob = WEIGHTS.read_bytes()
+    strength = np.frombuffer(blob, "<f4", tr.STRENGTHS - 1, 24)
+    filters = np.frombuffer(blob, "<f4", offset=40).reshape(-1, 2, tr.FEATURES)
+    cls = tr.classes(*tr.hash_inputs(base, position), strength)
+    feats, _ = tr.samples(truth, base, position)
+    want = np.einsum("nf,nkf->nk", feats, filters[cls])
+    blue, chroma = tr.interior(position >= 2, 0), tr.interior(position % 2 == 1, 0)
+
+    def missing(rgb):
+        """The two missing colours of each interior pixel, in the kernel's order."""
+        frame = np.where(blue[:, None], rgb[:, ::-1], rgb)
+        return np.where(chroma[:, None], frame[:, 1:], frame[:, [0, 2]])
+
+    got = missing(tr.interior(out - base, 0))
+    # Outputs are clamped to the mosaic's range: compare where they are not.
+    inside = missing(tr.interior((out > mosaic.min()) & (out < mosaic.max()), 0))
+    assert np.abs(want).max() > 1e-3 and inside.mean() > 0.9
+    np.testing.assert_allclose(got[inside], want[inside], rtol=0, atol=1e-6)
+
+
+def test_a_small_training_gives_identical_bytes_twice():
+    pytest.importorskip("skimage.data")
+    from imgform_rs.training.demosaic import train
+
+    first = train(small=True)
+    assert first.startswith(b"IGRAISR1") and len(first) > 50_000
+    assert train(small=True) == first
+
+
+@pytest.mark.slow
+def test_the_shipped_weights_are_what_training_gives():
+    pytest.importorskip("skimage.data")
+    from imgform_rs.training.demosaic import train
+
+    assert train() == WEIGHTS.read_bytes()
