@@ -5,7 +5,7 @@
 //! Sums are grouped as (left + right) + (up + down), so the result is
 //! bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_rows, select, shifted, write_row, Isa, Packed, Phase, RowKind, RowPlanes};
+use super::{run_stencil, select, shifted, Isa, Phase, RowKind, RowPlanes};
 use crate::image::{ImageView, Sample};
 
 /// Fills `p` for raw rows `up`, `row`, `down` of a row of kind `kind`.
@@ -40,17 +40,12 @@ fn planes(up: &[f32], row: &[f32], down: &[f32], kind: RowKind, p: &mut RowPlane
 }
 
 pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
-    let w = raw.width();
-    run_rows(
+    run_stencil(
         raw,
-        out,
-        1,
+        phase,
         isa,
-        |_| (RowPlanes::new(w), Packed::new(w)),
-        |(p, packed), ring, y, o| {
-            let kind = phase.row(y);
-            planes(ring.row(y - 1), ring.row(y), ring.row(y + 1), kind, p);
-            write_row(p, packed, kind, o);
-        },
+        1,
+        |ring, y, kind, p| planes(ring.row(y - 1), ring.row(y), ring.row(y + 1), kind, p),
+        out,
     );
 }

@@ -14,7 +14,7 @@
 //! Symmetric taps are summed in pairs (left + right, up + down), so results
 //! are bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_rows, select, shifted, write_row, Isa, Packed, Phase, RowKind, RowPlanes};
+use super::{run_stencil, select, shifted, Isa, Phase, Ring, RowKind, RowPlanes};
 use crate::image::{ImageView, Sample};
 
 /// Fills `p` from raw rows `r` = y-2 ..= y+2 for a row of kind `kind`.
@@ -61,18 +61,8 @@ fn planes(r: [&[f32]; 5], kind: RowKind, p: &mut RowPlanes) {
 }
 
 pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
-    let w = raw.width();
-    run_rows(
-        raw,
-        out,
-        2,
-        isa,
-        |_| (RowPlanes::new(w), Packed::new(w)),
-        |(p, packed), ring, y, o| {
-            let kind = phase.row(y);
-            let rows = [-2, -1, 0, 1, 2].map(|d| ring.row(y + d));
-            planes(rows, kind, p);
-            write_row(p, packed, kind, o);
-        },
-    );
+    let planes_at = |ring: &Ring, y: isize, kind, p: &mut RowPlanes| {
+        planes([-2, -1, 0, 1, 2].map(|d| ring.row(y + d)), kind, p);
+    };
+    run_stencil(raw, phase, isa, 2, planes_at, out);
 }

@@ -488,6 +488,35 @@ impl Ring {
     }
 }
 
+/// Runs a single-stage stencil kernel: `planes(ring, y, kind, planes)`
+/// fills one output row's planes from the ring (rows `y - radius ..=
+/// y + radius` loaded), which are then written as R, G, B.
+pub(crate) fn run_stencil<T, F>(
+    raw: &ImageView<'_, T>,
+    phase: Phase,
+    isa: Isa,
+    radius: usize,
+    planes: F,
+    out: &mut [T],
+) where
+    T: Sample,
+    F: Fn(&Ring, isize, RowKind, &mut RowPlanes) + Sync,
+{
+    let w = raw.width();
+    run_rows(
+        raw,
+        out,
+        radius,
+        isa,
+        |_| (RowPlanes::new(w), Packed::new(w)),
+        |(p, packed), ring, y, o| {
+            let kind = phase.row(y);
+            planes(ring, y, kind, p);
+            write_row(p, packed, kind, o);
+        },
+    );
+}
+
 /// Runs a row kernel over every output row in parallel bands.
 ///
 /// `radius` raw rows above and below each output row are in the ring when
