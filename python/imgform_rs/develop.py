@@ -1,8 +1,10 @@
 """Raw development: a raw file (or :class:`RawImage`) to an RGB picture.
 
 LibRaw decodes; black subtraction, scaling, white balance, demosaicing, the
-colour matrix and the tone curve run in one Rust pipeline (two fused passes
-around the demosaic). The colour science follows LibRaw's ``dcraw_process``,
+colour matrix and the tone curve run in one Rust pipeline (one pass: the
+demosaic loads prepared photosites and finishes each tile as it stores it;
+nearest and the X-Trans methods demosaic a prepared mosaic instead). The
+colour science follows LibRaw's ``dcraw_process``,
 so ``develop(path, demosaic="bilinear", tone="linear", bps=16,
 orientation="none")`` matches ``rawpy``'s ``postprocess(demosaic_algorithm=LINEAR,
 use_camera_wb=True, gamma=(1, 1), no_auto_bright=True, output_bps=16,

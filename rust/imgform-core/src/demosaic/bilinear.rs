@@ -5,8 +5,7 @@
 //! Sums are grouped as (left + right) + (up + down), so the result is
 //! bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_stencil, select, shifted, Isa, Phase, RowKind, RowPlanes};
-use crate::image::{ImageView, Sample};
+use super::{run_stencil, Mosaic, RgbSink, select, shifted, Isa, Phase, RowKind, RowPlanes};
 
 /// Fills `p` for raw rows `up`, `row`, `down` of a row of kind `kind`.
 #[inline(always)]
@@ -39,13 +38,18 @@ fn planes(up: &[f32], row: &[f32], down: &[f32], kind: RowKind, p: &mut RowPlane
     }
 }
 
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
+pub(super) fn run<M, O, K>(raw: &M, phase: Phase, isa: Isa, sink: &K, out: &mut [O])
+where
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
+{
     run_stencil(
         raw,
-        phase,
-        isa,
+        (phase, isa),
         1,
         |ring, y, kind, p| planes(ring.row(y - 1), ring.row(y), ring.row(y + 1), kind, p),
+        sink,
         out,
     );
 }

@@ -14,9 +14,9 @@
 //! per row of the band (plus two halo rows per band).
 
 use super::{
-    run_rows, select, shifted, write_row, Isa, Packed, Phase, Ring, RowKind, RowPlanes, PAD,
+    run_rows, select, shifted, write_row, Isa, Mosaic, Phase, RgbSink, Ring, RowKind, RowPlanes,
+    PAD,
 };
-use crate::image::{ImageView, Sample};
 
 /// The estimate along the better of two directions, or their mean on a tie
 /// (so that flipping the image flips the choice exactly).
@@ -102,20 +102,25 @@ fn colour_planes(r: [&[f32]; 3], gr: [&[f32]; 3], kind: RowKind, p: &mut RowPlan
     }
 }
 
-/// Per-band state: the output planes (as `f32` and converted), the green ring and the next green
-/// row to compute.
-struct State<T> {
+/// Per-band state: the output planes (as `f32`, and the sink's buffers), the green ring and the
+/// next green row to compute.
+struct State<S> {
     planes: RowPlanes,
-    packed: Packed<T>,
+    scratch: S,
     greens: Ring,
     next: isize,
 }
 
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
+pub(super) fn run<M, O, K>(raw: &M, phase: Phase, isa: Isa, sink: &K, out: &mut [O])
+where
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
+{
     let w = raw.width();
     let init = |y0: usize| State {
         planes: RowPlanes::new(w),
-        packed: Packed::new(w),
+        scratch: sink.scratch(w),
         greens: Ring::new(w, 3),
         next: y0 as isize - 1,
     };
@@ -131,7 +136,7 @@ pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out
         let raws = [ring.row(y - 1), ring.row(y), ring.row(y + 1)];
         let greens = [st.greens.row(y - 1), st.greens.row(y), st.greens.row(y + 1)];
         colour_planes(raws, greens, kind, &mut st.planes);
-        write_row(&st.planes, &mut st.packed, kind, o);
+        write_row(&st.planes, sink, &mut st.scratch, kind, o);
     });
 }
 

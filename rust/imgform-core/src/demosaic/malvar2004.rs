@@ -14,8 +14,7 @@
 //! Symmetric taps are summed in pairs (left + right, up + down), so results
 //! are bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_stencil, select, shifted, Isa, Phase, Ring, RowKind, RowPlanes};
-use crate::image::{ImageView, Sample};
+use super::{run_stencil, Mosaic, RgbSink, select, shifted, Isa, Phase, Ring, RowKind, RowPlanes};
 
 /// Fills `p` from raw rows `r` = y-2 ..= y+2 for a row of kind `kind`.
 #[inline(always)]
@@ -60,9 +59,14 @@ fn planes(r: [&[f32]; 5], kind: RowKind, p: &mut RowPlanes) {
     }
 }
 
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, phase: Phase, isa: Isa, out: &mut [T]) {
+pub(super) fn run<M, O, K>(raw: &M, phase: Phase, isa: Isa, sink: &K, out: &mut [O])
+where
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
+{
     let planes_at = |ring: &Ring, y: isize, kind, p: &mut RowPlanes| {
         planes([-2, -1, 0, 1, 2].map(|d| ring.row(y + d)), kind, p);
     };
-    run_stencil(raw, phase, isa, 2, planes_at, out);
+    run_stencil(raw, (phase, isa), 2, planes_at, sink, out);
 }

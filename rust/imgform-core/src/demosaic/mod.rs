@@ -278,31 +278,146 @@ pub fn demosaic<T: Sample>(
             raw.channels()
         )));
     }
-    let (w, h) = (raw.width(), raw.height());
-    if w < 2 || h < 2 {
-        return Err(CoreError::Shape(format!(
-            "demosaic needs a mosaic of at least 2x2 pixels (one full CFA tile), got ({h}, {w})"
-        )));
-    }
-    check_out_len(out.len(), 3 * w * h, "demosaic")?;
-    if !method.supports(pattern) {
-        return Err(unsupported(method, pattern));
-    }
-    let Some((ry, rx)) = pattern.bayer_red() else {
-        if w < 6 || h < 6 {
-            return Err(CoreError::Shape(format!(
-                "demosaic needs an X-Trans mosaic of at least 6x6 pixels (one full CFA tile), got ({h}, {w})"
-            )));
-        }
+    let Some(phase) = checked_phase(raw.width(), raw.height(), pattern, method, out.len())?
+    else {
         match method {
             Method::Markesteijn => markesteijn::run(&raw, pattern, out),
             _ => xtrans::run(&raw, pattern, out),
         }
         return Ok(());
     };
-    let phase = Phase { ry, rx };
-    run_method(&raw, phase, method, Isa::detect(), out);
+    match method {
+        Method::Nearest => nearest::run(&raw, phase, out),
+        _ => run_method::<T, _, _, _>(&raw, phase, method, Isa::detect(), &Convert, out),
+    }
     Ok(())
+}
+
+/// [`demosaic`] of any [`Mosaic`] through any [`RgbSink`], with `T` the
+/// sample type whose scale the kernels assume. Only the methods that read
+/// the mosaic through [`Mosaic::load`] alone can run so: every Bayer method
+/// but nearest (which copies samples). For the others nothing is done and
+/// `Ok(false)` returned, so that the caller can demosaic an image instead.
+///
+/// # Errors
+/// As [`demosaic`].
+pub(crate) fn demosaic_through<T, M, O, K>(
+    raw: &M,
+    pattern: &CfaPattern,
+    method: Method,
+    sink: &K,
+    out: &mut [O],
+) -> Result<bool>
+where
+    T: Sample,
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
+{
+    match checked_phase(raw.width(), raw.height(), pattern, method, out.len())? {
+        Some(phase) if method != Method::Nearest => {
+            run_method::<T, _, _, _>(raw, phase, method, Isa::detect(), sink, out);
+            Ok(true)
+        }
+        _ => Ok(false),
+    }
+}
+
+/// Checks the size, the output length and the method against the pattern;
+/// the Bayer phase, or `None` for X-Trans.
+fn checked_phase(
+    w: usize,
+    h: usize,
+    pattern: &CfaPattern,
+    method: Method,
+    out_len: usize,
+) -> Result<Option<Phase>> {
+    if w < 2 || h < 2 {
+        return Err(CoreError::Shape(format!(
+            "demosaic needs a mosaic of at least 2x2 pixels (one full CFA tile), got ({h}, {w})"
+        )));
+    }
+    check_out_len(out_len, 3 * w * h, "demosaic")?;
+    if !method.supports(pattern) {
+        return Err(unsupported(method, pattern));
+    }
+    match pattern.bayer_red() {
+        Some((ry, rx)) => Ok(Some(Phase { ry, rx })),
+        None if w < 6 || h < 6 => Err(CoreError::Shape(format!(
+            "demosaic needs an X-Trans mosaic of at least 6x6 pixels (one full CFA tile), got ({h}, {w})"
+        ))),
+        None => Ok(None),
+    }
+}
+
+/// The mosaic a demosaic reads, row piece by row piece as `f32`: an image
+/// of samples, or, for development, raw sensor numbers prepared as they are
+/// loaded, so that no full-size prepared copy is ever made.
+pub(crate) trait Mosaic: Sync {
+    fn width(&self) -> usize;
+    fn height(&self) -> usize;
+    /// Writes row `y`, columns `x0 .. x0 + dst.len()`, into `dst`. Pure per
+    /// sample, so a value loaded twice (halos, mirrors) is the same value.
+    fn load(&self, y: usize, x0: usize, dst: &mut [f32]);
+    /// The smallest and largest value of the whole mosaic, which the
+    /// clamping methods clamp to (exact whatever the thread count).
+    fn range(&self) -> (f32, f32);
+}
+
+impl<T: Sample> Mosaic for ImageView<'_, T> {
+    fn width(&self) -> usize {
+        ImageView::width(self)
+    }
+
+    fn height(&self) -> usize {
+        ImageView::height(self)
+    }
+
+    #[inline(always)]
+    fn load(&self, y: usize, x0: usize, dst: &mut [f32]) {
+        for (d, s) in dst.iter_mut().zip(&self.row(y)[x0..]) {
+            *d = s.to_f32();
+        }
+    }
+
+    fn range(&self) -> (f32, f32) {
+        tiled::range(self)
+    }
+}
+
+/// Where a demosaic puts its result: planes of red, green and blue in the
+/// mosaic's units, written as interleaved pixels of `O`. Plain demosaicing
+/// converts them ([`Convert`]); development finishes them into display
+/// colours while they are still in cache.
+pub(crate) trait RgbSink<O>: Sync {
+    /// Per-task buffers, made once per band or tile run, never per row.
+    type Scratch;
+    /// Buffers for rows of up to `width` pixels.
+    fn scratch(&self, width: usize) -> Self::Scratch;
+    /// Writes pixel `i` of the planes `rgb` (equal lengths) to
+    /// `out[3 i .. 3 i + 3]`.
+    fn store(&self, scratch: &mut Self::Scratch, rgb: [&[f32]; 3], out: &mut [O]);
+}
+
+/// The sink of [`demosaic`]: each plane converted to the sample type (see
+/// [`write_row`] for why planes first), then interleaved.
+pub(crate) struct Convert;
+
+impl<T: Sample> RgbSink<T> for Convert {
+    type Scratch = Packed<T>;
+
+    fn scratch(&self, width: usize) -> Packed<T> {
+        Packed::new(width)
+    }
+
+    #[inline(always)]
+    fn store(&self, packed: &mut Packed<T>, rgb: [&[f32]; 3], out: &mut [T]) {
+        let n = out.len() / 3;
+        for (dst, src) in packed.0.iter_mut().zip(rgb) {
+            T::from_f32_row(&mut dst[..n], &src[..n]);
+        }
+        interleave(packed, out);
+    }
 }
 
 /// The error for a method given a pattern it does not support, naming the
@@ -344,42 +459,46 @@ impl Isa {
     }
 }
 
-fn run_method<T: Sample>(
-    raw: &ImageView<'_, T>,
-    phase: Phase,
-    method: Method,
-    isa: Isa,
-    out: &mut [T],
-) {
+fn run_method<T, M, O, K>(raw: &M, phase: Phase, method: Method, isa: Isa, sink: &K, out: &mut [O])
+where
+    T: Sample,
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
+{
     match method {
-        Method::Nearest => nearest::run(raw, phase, out),
-        Method::Bilinear => bilinear::run(raw, phase, isa, out),
-        Method::Malvar2004 => malvar2004::run(raw, phase, isa, out),
-        Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, out),
-        Method::Menon2007 => tiled::run_tiled(raw, phase, &Menon2007 { phase }, isa, out),
-        Method::Rcd => tiled::run_tiled(raw, phase, &Rcd::new(phase, T::FULL_SCALE), isa, out),
+        Method::Bilinear => bilinear::run(raw, phase, isa, sink, out),
+        Method::Malvar2004 => malvar2004::run(raw, phase, isa, sink, out),
+        Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, sink, out),
+        Method::Menon2007 => tiled::run_tiled(raw, phase, &Menon2007 { phase }, isa, sink, out),
+        Method::Rcd => {
+            let k = Rcd::new(phase, T::FULL_SCALE);
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+        }
         Method::Ahd => {
             let k = ahd::Ahd {
                 phase,
                 full_scale: T::FULL_SCALE,
             };
-            tiled::run_tiled(raw, phase, &k, isa, out);
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Mlri => {
             let k = mlri::Mlri::new(phase, T::FULL_SCALE);
-            tiled::run_tiled(raw, phase, &k, isa, out);
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Leung2011 => {
             let k = leung2011::Leung2011 { phase };
-            tiled::run_tiled(raw, phase, &k, isa, out);
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
-        Method::Markesteijn => unreachable!("demosaic rejects X-Trans-only methods for Bayer"),
+        Method::Nearest | Method::Markesteijn => {
+            unreachable!("callers route nearest and X-Trans-only methods elsewhere")
+        }
         Method::RcdMenon => {
             let k = ensemble::Ensemble {
                 rcd: Rcd::new(phase, T::FULL_SCALE),
                 menon: Menon2007 { phase },
             };
-            tiled::run_tiled(raw, phase, &k, isa, out);
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
             let k = raisr::Raisr {
@@ -389,10 +508,10 @@ fn run_method<T: Sample>(
                 },
                 phase,
                 inv_scale: 1.0 / T::FULL_SCALE,
-                bounds: tiled::range(raw),
+                bounds: raw.range(),
                 weights: raisr::Weights::shipped(),
             };
-            tiled::run_tiled(raw, phase, &k, isa, out);
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
     }
 }
@@ -474,13 +593,11 @@ impl Ring {
 
     /// Converts raw row `mirror(y)` into slot `y` and mirrors its ends.
     #[inline(always)]
-    pub(crate) fn load<T: Sample>(&mut self, raw: &ImageView<'_, T>, y: isize) {
+    pub(crate) fn load<M: Mosaic>(&mut self, raw: &M, y: isize) {
         let w = raw.width();
-        let src = raw.row(mirror(y, raw.height()));
+        let src = mirror(y, raw.height());
         let row = self.row_mut(y);
-        for (d, s) in row[PAD..PAD + w].iter_mut().zip(src) {
-            *d = s.to_f32();
-        }
+        raw.load(src, 0, &mut row[PAD..PAD + w]);
         for j in 1..=PAD {
             row[PAD - j] = row[PAD + mirror(-(j as isize), w)];
             row[PAD + w - 1 + j] = row[PAD + mirror((w - 1 + j) as isize, w)];
@@ -490,16 +607,18 @@ impl Ring {
 
 /// Runs a single-stage stencil kernel: `planes(ring, y, kind, planes)`
 /// fills one output row's planes from the ring (rows `y - radius ..=
-/// y + radius` loaded), which are then written as R, G, B.
-pub(crate) fn run_stencil<T, F>(
-    raw: &ImageView<'_, T>,
-    phase: Phase,
-    isa: Isa,
+/// y + radius` loaded), which are then written as R, G, B through `sink`.
+pub(crate) fn run_stencil<M, O, K, F>(
+    raw: &M,
+    (phase, isa): (Phase, Isa),
     radius: usize,
     planes: F,
-    out: &mut [T],
+    sink: &K,
+    out: &mut [O],
 ) where
-    T: Sample,
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
     F: Fn(&Ring, isize, RowKind, &mut RowPlanes) + Sync,
 {
     let w = raw.width();
@@ -508,11 +627,11 @@ pub(crate) fn run_stencil<T, F>(
         out,
         radius,
         isa,
-        |_| (RowPlanes::new(w), Packed::new(w)),
-        |(p, packed), ring, y, o| {
+        |_| (RowPlanes::new(w), sink.scratch(w)),
+        |(p, scratch), ring, y, o| {
             let kind = phase.row(y);
             planes(ring, y, kind, p);
-            write_row(p, packed, kind, o);
+            write_row(p, sink, scratch, kind, o);
         },
     );
 }
@@ -527,17 +646,18 @@ pub(crate) fn run_stencil<T, F>(
 /// AVX2 (8 lanes instead of SSE2's 4; measured ~1.5x faster at 24 MP).
 /// Both copies do the same IEEE operations in the same order (no fused
 /// multiply-add), so the output is identical on every CPU.
-pub(crate) fn run_rows<T, S, I, F>(
-    raw: &ImageView<'_, T>,
-    out: &mut [T],
+pub(crate) fn run_rows<M, O, S, I, F>(
+    raw: &M,
+    out: &mut [O],
     radius: usize,
     isa: Isa,
     init: I,
     row: F,
 ) where
-    T: Sample,
+    M: Mosaic,
+    O: Send,
     I: Fn(usize) -> S + Sync,
-    F: Fn(&mut S, &Ring, isize, &mut [T]) + Sync,
+    F: Fn(&mut S, &Ring, isize, &mut [O]) + Sync,
 {
     for_each_band(out, 3 * raw.width(), ROWS_PER_BAND, |y0, rows| match isa {
         Isa::Baseline => band(raw, rows, y0, radius, &init, &row),
@@ -551,34 +671,34 @@ pub(crate) fn run_rows<T, S, I, F>(
 /// [`band`] compiled for AVX2; the kernels inline into it.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn band_avx2<T, S, I, F>(
-    raw: &ImageView<'_, T>,
-    rows: &mut [T],
+fn band_avx2<M, O, S, I, F>(
+    raw: &M,
+    rows: &mut [O],
     y0: usize,
     radius: usize,
     init: &I,
     row: &F,
 ) where
-    T: Sample,
+    M: Mosaic,
     I: Fn(usize) -> S,
-    F: Fn(&mut S, &Ring, isize, &mut [T]),
+    F: Fn(&mut S, &Ring, isize, &mut [O]),
 {
     band(raw, rows, y0, radius, init, row);
 }
 
 /// One band of output rows starting at row `y0`.
 #[inline(always)]
-fn band<T, S, I, F>(
-    raw: &ImageView<'_, T>,
-    rows: &mut [T],
+fn band<M, O, S, I, F>(
+    raw: &M,
+    rows: &mut [O],
     y0: usize,
     radius: usize,
     init: &I,
     row: &F,
 ) where
-    T: Sample,
+    M: Mosaic,
     I: Fn(usize) -> S,
-    F: Fn(&mut S, &Ring, isize, &mut [T]),
+    F: Fn(&mut S, &Ring, isize, &mut [O]),
 {
     let w = raw.width();
     let r = radius as isize;
@@ -655,18 +775,19 @@ pub(crate) fn shifted(row: &[f32], reach: usize, dx: isize, n: usize) -> &[f32] 
     &row[start..start + n]
 }
 
-/// Converts the planes of one row and writes them as R, G, B.
+/// Writes the planes of one row through `sink` as R, G, B.
 ///
-/// Two passes: the conversions (rounding, clamping) run over each plane on
-/// its own, where they vectorise; the interleaving then only moves samples.
-/// Converting while interleaving measured about twice as slow, the compiler
-/// turning it into shuffles around scalar conversions.
+/// For [`Convert`], two passes: the conversions (rounding, clamping) run
+/// over each plane on its own, where they vectorise; the interleaving then
+/// only moves samples. Converting while interleaving measured about twice
+/// as slow, the compiler turning it into shuffles around scalar conversions.
 #[inline(always)]
-pub(crate) fn write_row<T: Sample>(
+pub(crate) fn write_row<O, K: RgbSink<O>>(
     planes: &RowPlanes,
-    packed: &mut Packed<T>,
+    sink: &K,
+    scratch: &mut K::Scratch,
     kind: RowKind,
-    out: &mut [T],
+    out: &mut [O],
 ) {
     let w = out.len() / 3;
     let (red, blue) = if kind.blue {
@@ -674,10 +795,8 @@ pub(crate) fn write_row<T: Sample>(
     } else {
         (&planes.own, &planes.other)
     };
-    for (dst, src) in packed.0.iter_mut().zip([red, &planes.green, blue]) {
-        T::from_f32_row(&mut dst[..w], &src[PAD..PAD + w]);
-    }
-    interleave(packed, out);
+    let rgb = [red, &planes.green, blue].map(|p| &p[PAD..PAD + w]);
+    sink.store(scratch, rgb, out);
 }
 
 /// Writes three converted planes as R, G, B pixels.

@@ -245,11 +245,12 @@ fn every_instruction_set_gives_the_same_bits() {
     let raw: Vec<u16> = texture(w, h).iter().map(|&v| v as u16 * 65).collect();
     let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
     let phase = Phase { ry: 1, rx: 0 };
-    for method in Method::ALL {
+    // Nearest only copies samples: one instruction set is all it has.
+    for method in Method::ALL.into_iter().filter(|&m| m != Method::Nearest) {
         let mut base = vec![0u16; 3 * w * h];
-        run_method(&view, phase, method, Isa::Baseline, &mut base);
+        run_method::<u16, _, _, _>(&view, phase, method, Isa::Baseline, &Convert, &mut base);
         let mut fast = vec![0u16; 3 * w * h];
-        run_method(&view, phase, method, Isa::detect(), &mut fast);
+        run_method::<u16, _, _, _>(&view, phase, method, Isa::detect(), &Convert, &mut fast);
         assert_eq!(base, fast, "{method:?}");
     }
 }

@@ -11,7 +11,7 @@
 //! coordinate it stands for; mirroring without repeating the edge keeps the
 //! mosaic plausible across the border, as in the row kernels.
 
-use super::{interleave, Isa, Packed, Phase, RowKind};
+use super::{Isa, Mosaic, Phase, RgbSink, RowKind};
 use crate::image::{mirror, ImageView, Sample};
 use rayon::prelude::*;
 
@@ -112,16 +112,17 @@ pub(super) fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
         )
 }
 
-/// Runs `k` over every tile of rows and writes the result, clamped to the
-/// range of `raw` (min and max are exact whatever the thread count).
-pub(crate) fn run_tiled<T: Sample, K: TileKernel>(
-    raw: &ImageView<'_, T>,
-    phase: Phase,
-    k: &K,
-    isa: Isa,
-    out: &mut [T],
-) {
-    let bounds = range(raw);
+/// Runs `k` over every tile of rows and writes the result through `sink`,
+/// clamped to the range of `raw` (min and max are exact whatever the
+/// thread count).
+pub(crate) fn run_tiled<M, O, S, K>(raw: &M, phase: Phase, k: &K, isa: Isa, sink: &S, out: &mut [O])
+where
+    M: Mosaic,
+    O: Send,
+    S: RgbSink<O>,
+    K: TileKernel,
+{
+    let bounds = raw.range();
     let w = raw.width();
     // One set of planes per rayon worker split, reused from tile to tile:
     // fresh multi-megabyte planes per tile spent a third of the time in
@@ -134,9 +135,16 @@ pub(crate) fn run_tiled<T: Sample, K: TileKernel>(
         plane: vec![0.0f32; len],
         state: k.state(stride, len),
         clamped: [0, 1, 2].map(|_| vec![0.0f32; COLS_PER_TILE]),
-        packed: Packed::new(COLS_PER_TILE),
+        sink: sink.scratch(COLS_PER_TILE),
     };
     let bands = raw.height().div_ceil(ROWS_PER_TILE);
+    let ctx = Ctx {
+        raw,
+        phase,
+        k,
+        sink,
+        bounds,
+    };
     out.par_chunks_mut(3 * w * ROWS_PER_TILE)
         // Bands cost the same: a run of them per thread makes rayon call
         // `init` about once per thread instead of once per split.
@@ -146,53 +154,55 @@ pub(crate) fn run_tiled<T: Sample, K: TileKernel>(
             let y0 = i * ROWS_PER_TILE;
             for x0 in (0..w).step_by(COLS_PER_TILE) {
                 match isa {
-                    Isa::Baseline => tile(raw, phase, k, bounds, (x0, y0), scratch, rows),
+                    Isa::Baseline => tile(&ctx, (x0, y0), scratch, rows),
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
-                    Isa::Avx2 => unsafe {
-                        tile_avx2(raw, phase, k, bounds, (x0, y0), scratch, rows)
-                    },
+                    Isa::Avx2 => unsafe { tile_avx2(&ctx, (x0, y0), scratch, rows) },
                 }
             }
         });
 }
 
+/// What every tile of one [`run_tiled`] call shares.
+struct Ctx<'a, M, K, S> {
+    raw: &'a M,
+    phase: Phase,
+    k: &'a K,
+    sink: &'a S,
+    bounds: (f32, f32),
+}
+
 /// Per-thread buffers of [`run_tiled`].
-struct Scratch<S, T> {
+struct Scratch<S, Q> {
     plane: Vec<f32>,
     state: S,
     clamped: [Vec<f32>; 3],
-    packed: Packed<T>,
+    sink: Q,
 }
 
 /// [`tile`] compiled for AVX2; the kernels inline into it.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn tile_avx2<T: Sample, K: TileKernel>(
-    raw: &ImageView<'_, T>,
-    phase: Phase,
-    k: &K,
-    bounds: (f32, f32),
+fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
+    ctx: &Ctx<'_, M, K, S>,
     origin: (usize, usize),
-    scratch: &mut Scratch<K::State, T>,
-    rows: &mut [T],
+    scratch: &mut Scratch<K::State, S::Scratch>,
+    rows: &mut [O],
 ) {
-    tile(raw, phase, k, bounds, origin, scratch, rows);
+    tile(ctx, origin, scratch, rows);
 }
 
 /// The tile of output columns `x0 .. x0 + COLS_PER_TILE` of the band
 /// `rows` starting at row `y0`.
 #[inline(always)]
-fn tile<T: Sample, K: TileKernel>(
-    raw: &ImageView<'_, T>,
-    phase: Phase,
-    k: &K,
-    (lo, hi): (f32, f32),
+fn tile<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
+    ctx: &Ctx<'_, M, K, S>,
     (x0, y0): (usize, usize),
-    scratch: &mut Scratch<K::State, T>,
-    rows: &mut [T],
+    scratch: &mut Scratch<K::State, S::Scratch>,
+    rows: &mut [O],
 ) {
-    let (w, h, halo) = (raw.width(), raw.height(), K::HALO);
+    let (raw, halo) = (ctx.raw, K::HALO);
+    let w = raw.width();
     let n = rows.len() / (3 * w);
     let tw = COLS_PER_TILE.min(w - x0);
     let t = Tile {
@@ -200,45 +210,51 @@ fn tile<T: Sample, K: TileKernel>(
         rows: n + 2 * halo,
         y0: y0 as isize - halo as isize,
     };
-    // Image columns `x0 - halo ..` go to tile columns `0 ..`; those inside
-    // the image are converted as one run, the rest mirrored one by one.
-    let left = x0 as isize - halo as isize;
-    let (in_lo, in_hi) = (left.max(0) as usize, (x0 + tw + halo).min(w));
     let plane = &mut scratch.plane[..t.stride * t.rows];
-    for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
-        let src = raw.row(mirror(t.y0 + ty as isize, h));
-        let run = (in_lo as isize - left) as usize;
-        for (d, s) in dst[run..run + in_hi - in_lo]
-            .iter_mut()
-            .zip(&src[in_lo..in_hi])
-        {
-            *d = s.to_f32();
-        }
-        let outside = (0..run).chain(run + in_hi - in_lo..t.stride);
-        for tx in outside {
-            dst[tx] = src[mirror(left + tx as isize, w)].to_f32();
-        }
-    }
-    let planes = k.run(&mut scratch.state, &t, plane);
-    let Scratch {
-        clamped, packed, ..
-    } = scratch;
+    load(raw, &t, x0 as isize - halo as isize, plane);
+    let planes = ctx.k.run(&mut scratch.state, &t, plane);
+    let Scratch { clamped, sink, .. } = scratch;
+    let (lo, hi) = ctx.bounds;
     for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
         let ty = halo + i;
-        let kind = t.kind(phase, ty);
         let [own, green, other] = planes;
-        let rgb = if kind.blue {
+        let rgb = if t.kind(ctx.phase, ty).blue {
             [other, green, own]
         } else {
             [own, green, other]
         };
         let start = ty * t.stride + halo;
-        for ((c, src), dst) in clamped.iter_mut().zip(rgb).zip(packed.0.iter_mut()) {
+        for (c, src) in clamped.iter_mut().zip(rgb) {
             for (d, s) in c[..tw].iter_mut().zip(&src[start..start + tw]) {
                 *d = s.max(lo).min(hi);
             }
-            T::from_f32_row(&mut dst[..tw], &c[..tw]);
         }
-        interleave(packed, &mut o[3 * x0..3 * (x0 + tw)]);
+        let rgb = [0, 1, 2].map(|c| &clamped[c][..tw]);
+        ctx.sink.store(sink, rgb, &mut o[3 * x0..3 * (x0 + tw)]);
+    }
+}
+
+/// Loads the tile's raw plane: image columns `left ..` go to tile columns
+/// `0 ..`; those inside the image are loaded as one run, the rest are
+/// mirrored, copied from the run where it holds them (it always does but
+/// in images narrower than the halo).
+#[inline(always)]
+fn load<M: Mosaic>(raw: &M, t: &Tile, left: isize, plane: &mut [f32]) {
+    let (w, h) = (raw.width(), raw.height());
+    let (in_lo, in_hi) = (left.max(0) as usize, (left + t.stride as isize).min(w as isize) as usize);
+    let run = (in_lo as isize - left) as usize;
+    for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
+        let y = mirror(t.y0 + ty as isize, h);
+        raw.load(y, in_lo, &mut dst[run..run + in_hi - in_lo]);
+        for tx in (0..run).chain(run + in_hi - in_lo..t.stride) {
+            let x = mirror(left + tx as isize, w);
+            dst[tx] = if (in_lo..in_hi).contains(&x) {
+                dst[run + x - in_lo]
+            } else {
+                let mut v = [0.0];
+                raw.load(y, x, &mut v);
+                v[0]
+            };
+        }
     }
 }
