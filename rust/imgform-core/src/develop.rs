@@ -262,7 +262,12 @@ impl<'a, T: Sample> Prepared<'a, T> {
         let (rows, cols) = p.tile;
         let repeat = |v: &[f32], y: usize, f: f32| -> Vec<f32> {
             let cells = &v[y * cols..(y + 1) * cols];
-            cells.iter().cycle().take(cols + RUN).map(|&c| c * f).collect()
+            cells
+                .iter()
+                .cycle()
+                .take(cols + RUN)
+                .map(|&c| c * f)
+                .collect()
         };
         Self {
             raw,
@@ -294,7 +299,7 @@ impl<T: Sample> Mosaic for Prepared<'_, T> {
             let c = (x0 + i * RUN) % cols;
             let (b, f) = (&black[c..c + d.len()], &scale[c..c + d.len()]);
             for (((d, &v), b), f) in d.iter_mut().zip(s).zip(b).zip(f) {
-                *d = T::from_f32(((f32::from(v) - b) * f).clamp(0.0, T::FULL_SCALE)).to_f32();
+                *d = T::quantize(((f32::from(v) - b) * f).clamp(0.0, T::FULL_SCALE));
             }
         }
     }
@@ -355,7 +360,10 @@ impl<T: Sample, U: Sample> RgbSink<U> for Finish<T, U> {
     type Scratch = FinishScratch;
 
     fn scratch(&self, width: usize) -> FinishScratch {
-        ([0, 1, 2].map(|_| vec![0.0; width]), [0, 1, 2].map(|_| vec![0; width]))
+        (
+            [0, 1, 2].map(|_| vec![0.0; width]),
+            [0, 1, 2].map(|_| vec![0; width]),
+        )
     }
 
     /// The matrix runs over planes, where it vectorises 8 pixels wide; the
@@ -368,7 +376,7 @@ impl<T: Sample, U: Sample> RgbSink<U> for Finish<T, U> {
         let [l0, l1, l2] = lin;
         let (l0, l1, l2) = (&mut l0[..n], &mut l1[..n], &mut l2[..n]);
         for i in 0..n {
-            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::from_f32(v).to_f32() * inv);
+            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::quantize(v) * inv);
             l0[i] = (m[0] * r + m[1] * g + m[2] * b).clamp(0.0, 1.0) * span;
             l1[i] = (m[3] * r + m[4] * g + m[5] * b).clamp(0.0, 1.0) * span;
             l2[i] = (m[6] * r + m[7] * g + m[8] * b).clamp(0.0, 1.0) * span;
@@ -424,12 +432,10 @@ impl<U: Sample> Curve<U> {
                 }
             }
             Curve::Table(t) => {
-                // Positions are in [0, 65535]: rounding half up lands in
-                // the table, and the conversion vectorises on its own.
+                // Positions are in [0, 65535]: rounded half up, they land
+                // in the table; the row conversion vectorises.
                 for (i, v) in idx.iter_mut().zip(v) {
-                    for (i, &v) in i.iter_mut().zip(v) {
-                        *i = (v + 0.5) as u16;
-                    }
+                    u16::from_f32_row(&mut i[..v.len()], v);
                 }
                 let px = idx[0].iter().zip(&idx[1]).zip(&idx[2]);
                 for (o, ((&r, &g), &b)) in out.chunks_exact_mut(3).zip(px) {
@@ -591,7 +597,10 @@ mod tests {
         demosaic_prepared(raw, pat, p, &mut rgb).unwrap();
         let mut out = vec![U::default(); rgb.len()];
         let finish = Finish::<T, U>::new(p);
-        for (src, dst) in rgb.chunks(3 * raw.width()).zip(out.chunks_mut(3 * raw.width())) {
+        for (src, dst) in rgb
+            .chunks(3 * raw.width())
+            .zip(out.chunks_mut(3 * raw.width()))
+        {
             finish.pixels(src, dst);
         }
         out

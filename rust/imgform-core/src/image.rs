@@ -23,6 +23,14 @@ pub trait Sample: Copy + Send + Sync + Default + PartialEq + std::fmt::Debug + '
             *d = Self::from_f32(*s);
         }
     }
+
+    /// `from_f32(v).to_f32()`: `v` rounded to a value of the type but kept
+    /// in `f32`, for pipelines that must match a round trip through the
+    /// type. Types override it where that form does not vectorise.
+    #[inline(always)]
+    fn quantize(v: f32) -> f32 {
+        Self::from_f32(v).to_f32()
+    }
 }
 
 impl Sample for u8 {
@@ -44,6 +52,11 @@ impl Sample for u8 {
             *d = round_clamped(*s, 255.0) as u8;
         }
     }
+
+    #[inline(always)]
+    fn quantize(v: f32) -> f32 {
+        round_clamped(v, 255.0) as f32
+    }
 }
 
 impl Sample for u16 {
@@ -62,6 +75,11 @@ impl Sample for u16 {
         for (d, s) in dst.iter_mut().zip(src) {
             *d = round_clamped(*s, 65535.0) as u16;
         }
+    }
+
+    #[inline(always)]
+    fn quantize(v: f32) -> f32 {
+        round_clamped(v, 65535.0) as f32
     }
 }
 

@@ -5,7 +5,7 @@
 //! Sums are grouped as (left + right) + (up + down), so the result is
 //! bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_stencil, Mosaic, RgbSink, select, shifted, Isa, Phase, RowKind, RowPlanes};
+use super::{run_stencil, select, shifted, Isa, Mosaic, Phase, RgbSink, RowKind, RowPlanes};
 
 /// Fills `p` for raw rows `up`, `row`, `down` of a row of kind `kind`.
 #[inline(always)]

@@ -14,7 +14,7 @@
 //! Symmetric taps are summed in pairs (left + right, up + down), so results
 //! are bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_stencil, Mosaic, RgbSink, select, shifted, Isa, Phase, Ring, RowKind, RowPlanes};
+use super::{run_stencil, select, shifted, Isa, Mosaic, Phase, RgbSink, Ring, RowKind, RowPlanes};
 
 /// Fills `p` from raw rows `r` = y-2 ..= y+2 for a row of kind `kind`.
 #[inline(always)]

@@ -278,8 +278,7 @@ pub fn demosaic<T: Sample>(
             raw.channels()
         )));
     }
-    let Some(phase) = checked_phase(raw.width(), raw.height(), pattern, method, out.len())?
-    else {
+    let Some(phase) = checked_phase(raw.width(), raw.height(), pattern, method, out.len())? else {
         match method {
             Method::Markesteijn => markesteijn::run(&raw, pattern, out),
             _ => xtrans::run(&raw, pattern, out),
@@ -671,14 +670,8 @@ pub(crate) fn run_rows<M, O, S, I, F>(
 /// [`band`] compiled for AVX2; the kernels inline into it.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn band_avx2<M, O, S, I, F>(
-    raw: &M,
-    rows: &mut [O],
-    y0: usize,
-    radius: usize,
-    init: &I,
-    row: &F,
-) where
+fn band_avx2<M, O, S, I, F>(raw: &M, rows: &mut [O], y0: usize, radius: usize, init: &I, row: &F)
+where
     M: Mosaic,
     I: Fn(usize) -> S,
     F: Fn(&mut S, &Ring, isize, &mut [O]),
@@ -688,14 +681,8 @@ fn band_avx2<M, O, S, I, F>(
 
 /// One band of output rows starting at row `y0`.
 #[inline(always)]
-fn band<M, O, S, I, F>(
-    raw: &M,
-    rows: &mut [O],
-    y0: usize,
-    radius: usize,
-    init: &I,
-    row: &F,
-) where
+fn band<M, O, S, I, F>(raw: &M, rows: &mut [O], y0: usize, radius: usize, init: &I, row: &F)
+where
     M: Mosaic,
     I: Fn(usize) -> S,
     F: Fn(&mut S, &Ring, isize, &mut [O]),

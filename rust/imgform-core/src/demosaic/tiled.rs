@@ -241,7 +241,10 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
 #[inline(always)]
 fn load<M: Mosaic>(raw: &M, t: &Tile, left: isize, plane: &mut [f32]) {
     let (w, h) = (raw.width(), raw.height());
-    let (in_lo, in_hi) = (left.max(0) as usize, (left + t.stride as isize).min(w as isize) as usize);
+    let (in_lo, in_hi) = (
+        left.max(0) as usize,
+        (left + t.stride as isize).min(w as isize) as usize,
+    );
     let run = (in_lo as isize - left) as usize;
     for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
         let y = mirror(t.y0 + ty as isize, h);
