@@ -177,7 +177,10 @@ pub fn develop_in_place<T: Sample>(
     demosaic_prepared(raw, pattern, params, out)?;
     let finish = Finish::<T, T>::new(params);
     for_each_row(out, 3 * raw.width(), |_, row| {
-        finish.pixels(&row.to_vec(), row);
+        // The finish reads all of a pixel before writing it, but takes
+        // its input apart from its output: one row's copy per call.
+        let src = row.to_vec();
+        finish.pixels(&src, row);
     });
     Ok(())
 }
