@@ -391,6 +391,7 @@ fn run_method<T: Sample>(
                 inv_scale: 1.0 / T::FULL_SCALE,
                 bounds: tiled::range(raw),
                 weights: raisr::Weights::shipped(),
+                isa,
             };
             tiled::run_tiled(raw, phase, &k, isa, out);
         }
