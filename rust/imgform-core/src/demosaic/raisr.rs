@@ -244,20 +244,23 @@ const NEIGHBOURS: [(isize, isize); 8] = [
 ];
 
 /// The two corrections of the pixel at column `x` whose windows' rows are
-/// `rows` (see [`Taps`]). Eight independent lanes, each a product then a
-/// sum (no fused multiply-add), then the pairwise sum of each half: the
-/// order [`apply_avx2`] computes in, so both give the same bits.
+/// `rows` (see [`Taps`]). Eight independent lanes, one partial sum per
+/// window row (three short dependency chains instead of one of nine
+/// additions), each a product then a sum (no fused multiply-add), then the
+/// pairwise sum of each half: the order [`apply_avx2`] computes in, so both
+/// give the same bits.
 #[inline(always)]
 fn apply(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
-    let mut acc = [0.0f32; 8];
-    for (t, row) in taps.iter().zip(rows) {
+    let mut acc = [[0.0f32; 8]; 3];
+    for (k, (t, row)) in taps.iter().zip(rows).enumerate() {
         let v = &row[x - 1..x + 3];
-        for (l, a) in acc.iter_mut().enumerate() {
+        for (l, a) in acc[k / 3].iter_mut().enumerate() {
             *a += t[l] * v[l & 3];
         }
     }
-    let half = |a: &[f32]| (a[0] + a[1]) + (a[2] + a[3]);
-    (half(&acc[..4]), half(&acc[4..]))
+    let lane = |l: usize| (acc[0][l] + acc[1][l]) + acc[2][l];
+    let half = |o: usize| (lane(o) + lane(o + 1)) + (lane(o + 2) + lane(o + 3));
+    (half(0), half(4))
 }
 
 /// [`apply`] in AVX: each window is one 4-wide load broadcast to both
@@ -269,14 +272,15 @@ fn apply(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
 #[inline]
 fn apply_avx2(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
     use std::arch::x86_64::*;
-    let mut acc = _mm256_setzero_ps();
-    for (t, row) in taps.iter().zip(rows) {
+    let mut acc = [_mm256_setzero_ps(); 3];
+    for (k, (t, row)) in taps.iter().zip(rows).enumerate() {
         let v = &row[x - 1..x + 3];
         // SAFETY: `v` and `t` hold 4 and 8 floats (slice and array
         // lengths); the loads are unaligned ones.
         let (v, t) = unsafe { (_mm_loadu_ps(v.as_ptr()), _mm256_loadu_ps(t.as_ptr())) };
-        acc = _mm256_add_ps(acc, _mm256_mul_ps(t, _mm256_set_m128(v, v)));
+        acc[k / 3] = _mm256_add_ps(acc[k / 3], _mm256_mul_ps(t, _mm256_set_m128(v, v)));
     }
+    let acc = _mm256_add_ps(_mm256_add_ps(acc[0], acc[1]), acc[2]);
     let h = _mm_hadd_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
     let h = _mm_hadd_ps(h, h);
     (_mm_cvtss_f32(h), _mm_cvtss_f32(_mm_movehdup_ps(h)))
@@ -396,8 +400,7 @@ impl<B: TileKernel> Raisr<B> {
         }
     }
 
-    /// Copies the base's row `ty` and adds the filters' corrections to the
-    /// missing colours of every output column.
+    /// Copies the base's row `ty` and adds the filters' corrections.
     #[inline(always)]
     fn refine_row(
         &self,
@@ -407,11 +410,9 @@ impl<B: TileKernel> Raisr<B> {
         class: &[u32],
         out: &mut [Vec<f32>; 3],
     ) {
-        let halo = Self::HALO;
         let stride = t.stride;
         let row = |p: usize, r: usize| &base[p][r * stride..(r + 1) * stride];
         let rows: [&[f32]; 9] = std::array::from_fn(|k| row(k % 3, ty + k / 3 - 1));
-        let kind = t.kind(self.phase, ty);
         let r = ty * stride..(ty + 1) * stride;
         let [o_own, o_green, o_other] = out;
         let [own, green, other] = [
@@ -422,17 +423,35 @@ impl<B: TileKernel> Raisr<B> {
         own.copy_from_slice(rows[3]);
         green.copy_from_slice(rows[4]);
         other.copy_from_slice(rows[5]);
-        for x in halo..stride - halo {
+        self.correct(t, ty, class, [own, green, other], &rows);
+    }
+
+    /// Adds the corrections of the filters (of the class of each column)
+    /// to the missing colours of the output columns of row `ty`: the first
+    /// is green at a chroma site, the own chroma at a green site.
+    #[inline(always)]
+    fn correct(
+        &self,
+        t: &Tile,
+        ty: usize,
+        class: &[u32],
+        [own, green, other]: [&mut [f32]; 3],
+        rows: &[&[f32]; 9],
+    ) {
+        let halo = Self::HALO;
+        let chroma_parity = t.kind(self.phase, ty).chroma_parity;
+        for x in halo..t.stride - halo {
             let taps = &self.weights.taps[class[x] as usize];
+            // A branch per pixel that always goes the same way: calling
+            // `apply_avx2` directly here lets it inline into the AVX2 tile
+            // loop, which a closure chosen per row prevented.
             let (d0, d1) = match self.isa {
-                Isa::Baseline => apply(taps, &rows, x),
+                Isa::Baseline => apply(taps, rows, x),
                 // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
                 #[cfg(target_arch = "x86_64")]
-                Isa::Avx2 => unsafe { apply_avx2(taps, &rows, x) },
+                Isa::Avx2 => unsafe { apply_avx2(taps, rows, x) },
             };
-            // The first missing colour is green at a chroma site, the own
-            // chroma at a green site.
-            if x & 1 == kind.chroma_parity {
+            if x & 1 == chroma_parity {
                 green[x] += d0;
             } else {
                 own[x] += d0;
