@@ -60,8 +60,26 @@ RAISR_WEIGHTS := rust/imgform-core/src/demosaic/raisr_weights.bin
 # include_bytes! makes the weights part of the extension.
 $(BUILT): $(RAISR_WEIGHTS)
 
+# The photographs the "raisr" demosaicer is trained on (licences in
+# python/imgform_rs/training/photos.py), at pinned versions: the training
+# checks each file's SHA-256.
+TRAINING_DATA := out/training-data
+$(TRAINING_DATA)/.fetched: | $(PY)
+	mkdir -p $(TRAINING_DATA)
+	cd $(TRAINING_DATA) && apt-get download plasma-workspace-wallpapers=4:5.27.5-2 \
+		lomiri-wallpapers-16.04=20.04.0-2 mate-backgrounds=1.26.0-1
+	dpkg -x $(TRAINING_DATA)/plasma-workspace-wallpapers_*.deb $(TRAINING_DATA)/plasma
+	dpkg -x $(TRAINING_DATA)/lomiri-wallpapers-16.04_*.deb $(TRAINING_DATA)/lomiri
+	dpkg -x $(TRAINING_DATA)/mate-backgrounds_*.deb $(TRAINING_DATA)/mate
+	$(PY) -m pip download --quiet --no-deps --only-binary=:all: --dest $(TRAINING_DATA) \
+		scikit-learn==1.9.1 matplotlib==3.11.2
+	touch $@
+
+.PHONY: training-data
+training-data: $(TRAINING_DATA)/.fetched ## fetch raisr's training photographs (Debian + PyPI)
+
 .PHONY: weights
-weights: $(BUILT) ## retrain the "raisr" demosaicer and check the shipped weights bit for bit
+weights: $(BUILT) $(TRAINING_DATA)/.fetched ## retrain the "raisr" demosaicer and check the shipped weights bit for bit
 	mkdir -p out
 	$(PY) -m imgform_rs.training.demosaic --out out/raisr_weights.bin
 	cmp out/raisr_weights.bin $(RAISR_WEIGHTS) && echo "raisr weights reproduced bit for bit"

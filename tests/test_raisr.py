@@ -73,5 +73,27 @@ def test_a_small_training_gives_identical_bytes_twice():
 def test_the_shipped_weights_are_what_training_gives():
     pytest.importorskip("skimage.data")
     from imgform_rs.training.demosaic import train
+    from imgform_rs.training.photos import DEFAULT_DATA
 
+    if not (DEFAULT_DATA / ".fetched").exists():
+        pytest.skip("the training photographs are not fetched (make training-data)")
     assert train() == WEIGHTS.read_bytes()
+
+
+def test_photos_are_downsampled_by_area_averages():
+    from imgform_rs.training.photos import area_downsample
+
+    rgb = np.arange(5 * 7 * 3, dtype=np.uint8).reshape(5, 7, 3)
+    out = area_downsample(rgb, 2)
+    assert out.shape == (2, 3, 3)
+    np.testing.assert_allclose(out[1, 2], rgb[2:4, 4:6].reshape(-1, 3).mean(0))
+
+
+def test_a_photo_with_other_bytes_is_refused(tmp_path):
+    from imgform_rs.training import photos
+
+    photo = photos.TRAINING[0]
+    (tmp_path / photo.path).parent.mkdir(parents=True)
+    (tmp_path / photo.path).write_bytes(b"not the wallpaper")
+    with pytest.raises(ValueError, match="SHA-256"):
+        photos.load(photo, tmp_path)

@@ -12,6 +12,11 @@ operation in float32 so that a pixel falls in the same class in both.
 Training images (never the benchmark's seven: astronaut, coffee, chelsea, rocket,
 immunohistochemistry, retina and motorcycle_left/right are held out):
 
+- openly licensed colour photographs from a Debian package and two PyPI wheels (KDE
+  Plasma wallpapers, scikit-learn's china and flower, matplotlib's grace_hopper),
+  area-downsampled by an integer factor; the list, the licences and the two held-out
+  photographs are in :mod:`imgform_rs.training.photos`, and ``make training-data``
+  fetches them;
 - scikit-image sample images shipped in its wheel: ``brick``, ``grass``, ``gravel``
   (CC0), ``camera`` (CC0), ``coins``, ``text``, ``clock``, ``moon``,
   ``microaneurysms`` (public domain or CC0) and the colour ``hubble_deep_field``
@@ -27,7 +32,8 @@ RGGB (the four CFA positions all occur) and demosaicked in float32. The normal
 equations are accumulated in float64, solved with a small ridge term, and the
 filters rounded to float32: two runs give identical bytes.
 
-Run ``python -m imgform_rs.training.demosaic [--out PATH] [--small]``.
+Run ``python -m imgform_rs.training.demosaic [--out PATH] [--data DIR] [--small]``
+(``--small``: two scikit-image images only, no download; for the tests).
 """
 
 from __future__ import annotations
@@ -39,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 import imgform_rs as ig
+from imgform_rs.training.photos import DEFAULT_DATA
 
 SEED = 20170101
 FEATURES = 26
@@ -93,9 +100,14 @@ def colourise(grey: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return grey[..., None] * np.stack(gains, -1)
 
 
-def training_images(small: bool) -> list[np.ndarray]:
-    """The training set as float images in [0, 1], from the fixed seed."""
+def training_images(small: bool, data: Path) -> list[np.ndarray]:
+    """The training set as float images in [0, 1], from the fixed seed: the
+    photographs of :mod:`imgform_rs.training.photos` (grey ones coloured) and the
+    scikit-image images; ``small`` takes two scikit-image images only, which need
+    no download."""
     import skimage.data
+
+    from imgform_rs.training import photos
 
     assert not HELD_OUT & set(SKIMAGE_GREY + SKIMAGE_RGB)
     rng = np.random.default_rng(SEED)
@@ -103,8 +115,12 @@ def training_images(small: bool) -> list[np.ndarray]:
     grey = SKIMAGE_GREY[:2] if small else SKIMAGE_GREY
     for name in grey:
         images.append(colourise(getattr(skimage.data, name)() / 255.0, rng))
-    if not small:
-        images += [getattr(skimage.data, name)() / 255.0 for name in SKIMAGE_RGB]
+    if small:
+        return images
+    images += [getattr(skimage.data, name)() / 255.0 for name in SKIMAGE_RGB]
+    for photo in photos.TRAINING:
+        rgb = photos.load(photo, data)
+        images.append(colourise(rgb[..., 0], rng) if rgb.shape[2] == 1 else rgb)
     return images
 
 
@@ -261,9 +277,9 @@ def encode(strength: np.ndarray, filters: np.ndarray) -> bytes:
     return header + thresholds.astype("<f4").tobytes() + filters.astype("<f4").tobytes()
 
 
-def train(small: bool = False) -> bytes:
+def train(small: bool = False, data: Path = DEFAULT_DATA) -> bytes:
     """The weights file trained from the fixed seed (``small``: a quick subset)."""
-    images = training_images(small)
+    images = training_images(small, data)
     prepared = [prepare(im) for rgb in images for im in (rgb, np.rot90(rgb))]
     strength = strength_thresholds(prepared)
     return encode(strength, solve(prepared, strength))
@@ -272,9 +288,10 @@ def train(small: bool = False) -> bytes:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="where to write")
+    parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="photographs folder")
     parser.add_argument("--small", action="store_true", help="a quick subset (for tests)")
     args = parser.parse_args()
-    args.out.write_bytes(train(args.small))
+    args.out.write_bytes(train(args.small, args.data))
     print(f"wrote {args.out}")
 
 

@@ -509,6 +509,7 @@ where
                 inv_scale: 1.0 / T::FULL_SCALE,
                 bounds: raw.range(),
                 weights: raisr::Weights::shipped(),
+                isa,
             };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }

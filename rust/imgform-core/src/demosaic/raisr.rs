@@ -24,29 +24,42 @@
 //! shipped in `raisr_weights.bin`, whose layout [`Weights::parse`] reads.
 
 use super::tiled::{Tile, TileKernel};
-use super::Phase;
+use super::{Isa, Phase};
 use std::sync::OnceLock;
 
 /// Features per pixel: 8 neighbours x 3 colours, plus 2 centre differences.
 pub(crate) const FEATURES: usize = 26;
 /// Angle bins of the structure tensor's orientation (fixed by [`angle_bin`]).
 const ANGLES: usize = 8;
+/// Strength and coherence bins: fixed, so the thresholds are arrays and the
+/// hash of a row compiles to straight-line vector code.
+const STRENGTHS: usize = 3;
+const COHERENCES: usize = 3;
 /// CFA positions: (blue row, chroma site) pairs.
 const POSITIONS: usize = 4;
 /// Header magic of the weights file.
 const MAGIC: &[u8; 8] = b"IGRAISR1";
 
-/// One filter: the corrections of the pixel's two missing colours.
+/// One trained filter: the corrections of the pixel's two missing colours
+/// as functions of the features.
 type Filter = [[f32; FEATURES]; 2];
 
-/// The trained filter bank and its hashing thresholds.
+/// A filter rewritten as taps on the tile's planes: window `3 * r + p` is
+/// plane `p` (own chroma, green, other chroma of *that* row) on row
+/// `y + r - 1`, columns `x - 1 ..= x + 2`; lanes 0..4 give the first missing
+/// colour, lanes 4..8 the second. The fourth column's tap is zero: it only
+/// makes a window one 4-wide load, which both halves of an 8-wide multiply
+/// share.
+type Taps = [[f32; 8]; 9];
+
+/// The trained filter bank, as taps, and its hashing thresholds.
 pub(crate) struct Weights {
     /// Upper bounds of the strength bins but the last, on the largest
     /// eigenvalue of the structure tensor of full-scale-normalised green.
-    strength: Vec<f32>,
+    strength: [f32; STRENGTHS - 1],
     /// Upper bounds of the coherence bins but the last.
-    coherence: Vec<f32>,
-    filters: Vec<Filter>,
+    coherence: [f32; COHERENCES - 1],
+    taps: Vec<Taps>,
 }
 
 impl Weights {
@@ -61,30 +74,31 @@ impl Weights {
         let body = bytes.strip_prefix(MAGIC)?;
         let mut words = body.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
         let mut count = || words.next().map(|w| u32::from_le_bytes(w) as usize);
-        let (na, ns, nc, nf) = (count()?, count()?, count()?, count()?);
-        if na != ANGLES || nf != FEATURES || ns == 0 || nc == 0 {
+        let counts = [count()?, count()?, count()?, count()?];
+        if counts != [ANGLES, STRENGTHS, COHERENCES, FEATURES] {
             return None;
         }
         let rest: Vec<f32> = words.map(f32::from_le_bytes).collect();
-        let nfilters = POSITIONS * na * ns * nc;
-        if body.len() % 4 != 0 || rest.len() != ns - 1 + nc - 1 + nfilters * 2 * nf {
+        let nfilters = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
+        let thresholds = STRENGTHS - 1 + COHERENCES - 1;
+        if body.len() % 4 != 0 || rest.len() != thresholds + nfilters * 2 * FEATURES {
             return None;
         }
-        let (strength, rest) = rest.split_at(ns - 1);
-        let (coherence, rest) = rest.split_at(nc - 1);
-        let filters = rest
+        let (strength, rest) = rest.split_at(STRENGTHS - 1);
+        let (coherence, rest) = rest.split_at(COHERENCES - 1);
+        let taps = rest
             .chunks_exact(2 * FEATURES)
             .map(|f| {
                 let mut filter = [[0.0; FEATURES]; 2];
                 filter[0].copy_from_slice(&f[..FEATURES]);
                 filter[1].copy_from_slice(&f[FEATURES..]);
-                filter
+                taps(&filter)
             })
             .collect();
         Some(Weights {
-            strength: strength.to_vec(),
-            coherence: coherence.to_vec(),
-            filters,
+            strength: strength.try_into().ok()?,
+            coherence: coherence.try_into().ok()?,
+            taps,
         })
     }
 
@@ -99,22 +113,57 @@ impl Weights {
         })
     }
 
-    /// The filter of a CFA position and structure-tensor sums.
+    /// The class (index into `taps`) of a CFA position and structure-tensor
+    /// sums. Branch-free, so a row of them vectorises.
     #[inline(always)]
-    fn filter(&self, position: usize, sxx: f32, sxy: f32, syy: f32) -> &Filter {
-        let (ns, nc) = (self.strength.len() + 1, self.coherence.len() + 1);
+    fn class(&self, position: usize, sxx: f32, sxy: f32, syy: f32) -> usize {
         let (l1, coh) = eigen(sxx, sxy, syy);
         let s = bin(&self.strength, l1);
         let c = bin(&self.coherence, coh);
         let a = angle_bin(sxx - syy, 2.0 * sxy);
-        &self.filters[((position * ANGLES + a) * ns + s) * nc + c]
+        ((position * ANGLES + a) * STRENGTHS + s) * COHERENCES + c
     }
+}
+
+/// The plane holding colour `j` of the centre row's frame (0 own chroma,
+/// 1 green, 2 other chroma) on a row `dy` away: rows above and below are of
+/// the other kind, so their own chroma is the centre's other.
+fn plane_of(j: usize, dy: isize) -> usize {
+    if dy == 0 {
+        j
+    } else {
+        2 - j
+    }
+}
+
+/// Rewrites a filter on the difference features as taps on the planes:
+/// feature `f[3k + j] = C_j(n_k) - C_j(centre)` puts `w` on the neighbour
+/// and `-w` on the centre, `f[24] = own - green`, `f[25] = other - green`.
+/// The sums are the same linear map, evaluated with fewer operations.
+fn taps(filter: &Filter) -> Taps {
+    let mut t = [[0.0f32; 8]; 9];
+    for (half, w) in filter.iter().enumerate() {
+        let mut add = |dy: isize, dx: isize, j: usize, v: f32| {
+            let window = 3 * (1 + dy) as usize + plane_of(j, dy);
+            t[window][4 * half + (1 + dx) as usize] += v;
+        };
+        for (k, &(dy, dx)) in NEIGHBOURS.iter().enumerate() {
+            for j in 0..3 {
+                add(dy, dx, j, w[3 * k + j]);
+                add(0, 0, j, -w[3 * k + j]);
+            }
+        }
+        add(0, 0, 0, w[24]);
+        add(0, 0, 2, w[25]);
+        add(0, 0, 1, -(w[24] + w[25]));
+    }
+    t
 }
 
 /// The number of thresholds `v` reaches.
 #[inline(always)]
-fn bin(thresholds: &[f32], v: f32) -> usize {
-    thresholds.iter().filter(|&&t| v >= t).count()
+fn bin<const N: usize>(thresholds: &[f32; N], v: f32) -> usize {
+    thresholds.iter().map(|&t| usize::from(v >= t)).sum()
 }
 
 /// The largest eigenvalue of the tensor `[[sxx, sxy], [sxy, syy]]` and the
@@ -135,18 +184,22 @@ fn eigen(sxx: f32, sxy: f32, syy: f32) -> (f32, f32) {
 /// The octant of the doubled orientation angle `atan2(b, a)` of the tensor
 /// (`a = sxx - syy`, `b = 2 sxy`), rotated by 22.5 degrees so that bins
 /// are centred on horizontal, diagonal and vertical gradients. Comparisons
-/// instead of `atan2`, so the training script reproduces it exactly.
+/// instead of `atan2`, so the training script reproduces it exactly; the
+/// quadrant comes from the signs, the octant within it from one comparison.
 #[inline(always)]
 fn angle_bin(a: f32, b: f32) -> usize {
     const COS: f32 = 0.923_879_5;
     const SIN: f32 = 0.382_683_43;
     let (u, v) = (a * COS - b * SIN, a * SIN + b * COS);
-    match (v >= 0.0, u >= 0.0) {
-        (true, true) => usize::from(v > u),
-        (true, false) => 2 + usize::from(v < -u),
-        (false, false) => 4 + usize::from(-v > -u),
-        (false, true) => 6 + usize::from(-v < u),
-    }
+    let (top, right) = (v >= 0.0, u >= 0.0);
+    let quadrant = 2 * usize::from(!top) + usize::from(top != right);
+    let upper = match (top, right) {
+        (true, true) => v > u,
+        (true, false) => v < -u,
+        (false, false) => -v > -u,
+        (false, true) => -v < u,
+    };
+    2 * quadrant + usize::from(upper)
 }
 
 /// The base kernel refined by the filter bank.
@@ -159,16 +212,21 @@ pub(super) struct Raisr<B> {
     /// them before the features are taken, as the training script sees it.
     pub(super) bounds: (f32, f32),
     pub(super) weights: &'static Weights,
+    /// Whether the filters run in AVX ([`apply_avx2`]) or scalar code.
+    pub(super) isa: Isa,
 }
 
 pub(super) struct State<S> {
     base: S,
     gx: Vec<f32>,
     gy: Vec<f32>,
-    /// Products of gradients, for the 3x3 sums of the structure tensor.
-    pxx: Vec<f32>,
-    pxy: Vec<f32>,
-    pyy: Vec<f32>,
+    /// Horizontal 3-sums of the gradient products; the 3x3 sums of the
+    /// structure tensor add three of them vertically.
+    hxx: Vec<f32>,
+    hxy: Vec<f32>,
+    hyy: Vec<f32>,
+    /// The class of each column of the current row.
+    class: Vec<u32>,
     clamped: [Vec<f32>; 3],
     out: [Vec<f32>; 3],
 }
@@ -185,57 +243,47 @@ const NEIGHBOURS: [(isize, isize); 8] = [
     (1, 1),
 ];
 
-/// Rows `ty - 1, ty, ty + 1` of the three colours in the centre row's frame.
-struct Window<'a> {
-    own: [&'a [f32]; 3],
-    green: [&'a [f32]; 3],
-    other: [&'a [f32]; 3],
-}
-
-impl Window<'_> {
-    /// The features of column `x` (see the module docs for their order).
-    #[inline(always)]
-    fn features(&self, x: usize) -> [f32; FEATURES] {
-        let mut f = [0.0; FEATURES];
-        let colours = [&self.own, &self.green, &self.other];
-        for (k, &(dy, dx)) in NEIGHBOURS.iter().enumerate() {
-            let (r, c) = ((1 + dy) as usize, (x as isize + dx) as usize);
-            for (j, rows) in colours.iter().enumerate() {
-                f[3 * k + j] = rows[r][c] - rows[1][x];
-            }
-        }
-        f[24] = self.own[1][x] - self.green[1][x];
-        f[25] = self.other[1][x] - self.green[1][x];
-        f
-    }
-}
-
-/// The sum of a plane over the 3x3 window centred at index `i`.
+/// The two corrections of the pixel at column `x` whose windows' rows are
+/// `rows` (see [`Taps`]). Eight independent lanes, one partial sum per
+/// window row (three short dependency chains instead of one of nine
+/// additions), each a product then a sum (no fused multiply-add), then the
+/// pairwise sum of each half: the order [`apply_avx2`] computes in, so both
+/// give the same bits.
 #[inline(always)]
-fn box3(p: &[f32], i: usize, stride: usize) -> f32 {
-    let row = |j: usize| p[j - 1] + p[j] + p[j + 1];
-    row(i - stride) + row(i) + row(i + stride)
-}
-
-/// `a · b`, in four interleaved partial sums: one running sum would chain
-/// 26 dependent additions per dot product (float addition is not
-/// reassociated by the compiler) and bound the whole kernel by their latency.
-#[inline(always)]
-fn dot(a: &[f32; FEATURES], b: &[f32; FEATURES]) -> f32 {
-    let mut acc = [0.0f32; 4];
-    let (a4, b4) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail: f32 = a4
-        .remainder()
-        .iter()
-        .zip(b4.remainder())
-        .map(|(a, b)| a * b)
-        .sum();
-    for (ca, cb) in a4.zip(b4) {
-        for ((s, a), b) in acc.iter_mut().zip(ca).zip(cb) {
-            *s += a * b;
+fn apply(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
+    let mut acc = [[0.0f32; 8]; 3];
+    for (k, (t, row)) in taps.iter().zip(rows).enumerate() {
+        let v = &row[x - 1..x + 3];
+        for (l, a) in acc[k / 3].iter_mut().enumerate() {
+            *a += t[l] * v[l & 3];
         }
     }
-    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + tail
+    let lane = |l: usize| (acc[0][l] + acc[1][l]) + acc[2][l];
+    let half = |o: usize| (lane(o) + lane(o + 1)) + (lane(o + 2) + lane(o + 3));
+    (half(0), half(4))
+}
+
+/// [`apply`] in AVX: each window is one 4-wide load broadcast to both
+/// halves of an 8-wide register, so a pixel costs 9 loads, multiplies and
+/// adds; two horizontal adds give `(a0 + a1) + (a2 + a3)` per half. The
+/// compiler does not find this itself: it kept [`apply`] in scalar code.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn apply_avx2(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
+    use std::arch::x86_64::*;
+    let mut acc = [_mm256_setzero_ps(); 3];
+    for (k, (t, row)) in taps.iter().zip(rows).enumerate() {
+        let v = &row[x - 1..x + 3];
+        // SAFETY: `v` and `t` hold 4 and 8 floats (slice and array
+        // lengths); the loads are unaligned ones.
+        let (v, t) = unsafe { (_mm_loadu_ps(v.as_ptr()), _mm256_loadu_ps(t.as_ptr())) };
+        acc[k / 3] = _mm256_add_ps(acc[k / 3], _mm256_mul_ps(t, _mm256_set_m128(v, v)));
+    }
+    let acc = _mm256_add_ps(_mm256_add_ps(acc[0], acc[1]), acc[2]);
+    let h = _mm_hadd_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
+    let h = _mm_hadd_ps(h, h);
+    (_mm_cvtss_f32(h), _mm_cvtss_f32(_mm_movehdup_ps(h)))
 }
 
 impl<B: TileKernel> TileKernel for Raisr<B> {
@@ -250,9 +298,10 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
             base: self.base.state(stride, len),
             gx: plane(),
             gy: plane(),
-            pxx: plane(),
-            pxy: plane(),
-            pyy: plane(),
+            hxx: plane(),
+            hxy: plane(),
+            hyy: plane(),
+            class: vec![0; stride],
             clamped: [plane(), plane(), plane()],
             out: [plane(), plane(), plane()],
         }
@@ -266,9 +315,10 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
             base,
             gx,
             gy,
-            pxx,
-            pxy,
-            pyy,
+            hxx,
+            hxy,
+            hyy,
+            class,
             clamped,
             out,
         } = st;
@@ -281,9 +331,10 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
         }
         let planes = [&clamped[0][..], &clamped[1][..], &clamped[2][..]];
         let halo = Self::HALO;
-        self.tensor(t, planes[1], [gx, gy], [pxx, pxy, pyy]);
+        self.tensor(t, planes[1], [gx, gy], [hxx, hxy, hyy]);
         for ty in halo..t.rows - halo {
-            self.refine_row(t, ty, planes, [pxx, pxy, pyy], out);
+            self.classes(t, ty, [&**hxx, &**hxy, &**hyy], class);
+            self.refine_row(t, ty, planes, class, out);
         }
         let [own, green, other] = out;
         [own, green, other]
@@ -291,14 +342,15 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
 }
 
 impl<B: TileKernel> Raisr<B> {
-    /// Gradients of green (central differences, scaled to [0, 1] data) and
-    /// their products, over the output plus one pixel.
+    /// Gradients of green (central differences, scaled to [0, 1] data) over
+    /// the output plus one pixel, and the horizontal 3-sums of their
+    /// products over the output columns (rows plus one).
     #[inline(always)]
-    fn tensor(&self, t: &Tile, g: &[f32], grad: [&mut Vec<f32>; 2], prod: [&mut Vec<f32>; 3]) {
+    fn tensor(&self, t: &Tile, g: &[f32], grad: [&mut Vec<f32>; 2], sums: [&mut Vec<f32>; 3]) {
         let s = Self::HALO - 1;
         let k = 0.5 * self.inv_scale;
         let [gx, gy] = grad;
-        let [pxx, pxy, pyy] = prod;
+        let [hxx, hxy, hyy] = sums;
         for ty in s..t.rows - s {
             let sp = t.span(ty, s);
             let (e, w, n, so) = (
@@ -313,67 +365,98 @@ impl<B: TileKernel> Raisr<B> {
             for ((d, n), so) in sp.out(gy).iter_mut().zip(n).zip(so) {
                 *d = (so - n) * k;
             }
-            let (x, y) = (sp.at(gx, 0, 0), sp.at(gy, 0, 0));
+            let sp = t.span(ty, s + 1);
+            let [x0, x1, x2] = [-1, 0, 1].map(|dx| sp.at(gx, 0, dx));
+            let [y0, y1, y2] = [-1, 0, 1].map(|dx| sp.at(gy, 0, dx));
             let r = sp.range();
-            for (((xx, xy), yy), (x, y)) in pxx[r.clone()]
+            for (i, ((xx, xy), yy)) in hxx[r.clone()]
                 .iter_mut()
-                .zip(&mut pxy[r.clone()])
-                .zip(&mut pyy[r])
-                .zip(x.iter().zip(y))
+                .zip(&mut hxy[r.clone()])
+                .zip(&mut hyy[r])
+                .enumerate()
             {
-                *xx = x * x;
-                *xy = x * y;
-                *yy = y * y;
+                *xx = (x0[i] * x0[i] + x1[i] * x1[i]) + x2[i] * x2[i];
+                *xy = (x0[i] * y0[i] + x1[i] * y1[i]) + x2[i] * y2[i];
+                *yy = (y0[i] * y0[i] + y1[i] * y1[i]) + y2[i] * y2[i];
             }
         }
     }
 
-    /// Copies the base's row `ty` and adds the filters' corrections to the
-    /// missing colours of every output column.
+    /// The class of every output column of row `ty`: the 3x3 sums of the
+    /// structure tensor (three horizontal sums added vertically), hashed.
+    #[inline(always)]
+    fn classes(&self, t: &Tile, ty: usize, sums: [&[f32]; 3], class: &mut [u32]) {
+        let halo = Self::HALO;
+        let kind = t.kind(self.phase, ty);
+        let blue = usize::from(kind.blue);
+        let sp = t.span(ty, halo);
+        let [xx, xy, yy] = sums.map(|h| [-1, 0, 1].map(|dy| sp.at(h, dy, 0)));
+        for (i, c) in class[halo..t.stride - halo].iter_mut().enumerate() {
+            let add3 = |p: &[&[f32]; 3]| (p[0][i] + p[1][i]) + p[2][i];
+            let chroma = usize::from((halo + i) & 1 == kind.chroma_parity);
+            *c = self
+                .weights
+                .class(2 * blue + chroma, add3(&xx), add3(&xy), add3(&yy)) as u32;
+        }
+    }
+
+    /// Copies the base's row `ty` and adds the filters' corrections.
     #[inline(always)]
     fn refine_row(
         &self,
         t: &Tile,
         ty: usize,
         base: [&[f32]; 3],
-        prod: [&mut Vec<f32>; 3],
+        class: &[u32],
         out: &mut [Vec<f32>; 3],
     ) {
-        let halo = Self::HALO;
         let stride = t.stride;
-        let [own, green, other] = base.map(|p| move |r: usize| &p[r * stride..(r + 1) * stride]);
-        // Rows above and below are of the other kind: their "own" chroma is
-        // this row's "other".
-        let win = Window {
-            own: [other(ty - 1), own(ty), other(ty + 1)],
-            green: [green(ty - 1), green(ty), green(ty + 1)],
-            other: [own(ty - 1), other(ty), own(ty + 1)],
-        };
-        let kind = t.kind(self.phase, ty);
-        let blue = usize::from(kind.blue);
-        let [pxx, pxy, pyy] = prod;
-        let [o_own, o_green, o_other] = out;
+        let row = |p: usize, r: usize| &base[p][r * stride..(r + 1) * stride];
+        let rows: [&[f32]; 9] = std::array::from_fn(|k| row(k % 3, ty + k / 3 - 1));
         let r = ty * stride..(ty + 1) * stride;
-        o_own[r.clone()].copy_from_slice(win.own[1]);
-        o_green[r.clone()].copy_from_slice(win.green[1]);
-        o_other[r].copy_from_slice(win.other[1]);
-        for x in halo..stride - halo {
-            let i = ty * stride + x;
-            let chroma = usize::from(x & 1 == kind.chroma_parity);
-            let (sxx, sxy, syy) = (
-                box3(pxx, i, stride),
-                box3(pxy, i, stride),
-                box3(pyy, i, stride),
-            );
-            let filter = self.weights.filter(2 * blue + chroma, sxx, sxy, syy);
-            let f = win.features(x);
-            let (d0, d1) = (dot(&filter[0], &f), dot(&filter[1], &f));
-            if chroma == 1 {
-                o_green[i] += d0;
+        let [o_own, o_green, o_other] = out;
+        let [own, green, other] = [
+            &mut o_own[r.clone()],
+            &mut o_green[r.clone()],
+            &mut o_other[r],
+        ];
+        own.copy_from_slice(rows[3]);
+        green.copy_from_slice(rows[4]);
+        other.copy_from_slice(rows[5]);
+        self.correct(t, ty, class, [own, green, other], &rows);
+    }
+
+    /// Adds the corrections of the filters (of the class of each column)
+    /// to the missing colours of the output columns of row `ty`: the first
+    /// is green at a chroma site, the own chroma at a green site.
+    #[inline(always)]
+    fn correct(
+        &self,
+        t: &Tile,
+        ty: usize,
+        class: &[u32],
+        [own, green, other]: [&mut [f32]; 3],
+        rows: &[&[f32]; 9],
+    ) {
+        let halo = Self::HALO;
+        let chroma_parity = t.kind(self.phase, ty).chroma_parity;
+        for x in halo..t.stride - halo {
+            let taps = &self.weights.taps[class[x] as usize];
+            // A branch per pixel that always goes the same way: calling
+            // `apply_avx2` directly here lets it inline into the AVX2 tile
+            // loop, which a closure chosen per row prevented.
+            let (d0, d1) = match self.isa {
+                Isa::Baseline => apply(taps, rows, x),
+                // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+                #[cfg(target_arch = "x86_64")]
+                Isa::Avx2 => unsafe { apply_avx2(taps, rows, x) },
+            };
+            if x & 1 == chroma_parity {
+                green[x] += d0;
             } else {
-                o_own[i] += d0;
+                own[x] += d0;
             }
-            o_other[i] += d1;
+            other[x] += d1;
         }
     }
 }
@@ -385,11 +468,8 @@ mod tests {
     #[test]
     fn the_shipped_weights_parse() {
         let w = Weights::shipped();
-        assert_eq!(
-            w.filters.len(),
-            POSITIONS * ANGLES * (w.strength.len() + 1) * (w.coherence.len() + 1)
-        );
-        assert!(w.filters.iter().flatten().flatten().all(|v| v.is_finite()));
+        assert_eq!(w.taps.len(), POSITIONS * ANGLES * STRENGTHS * COHERENCES);
+        assert!(w.taps.iter().flatten().flatten().all(|v| v.is_finite()));
     }
 
     #[test]
@@ -397,6 +477,61 @@ mod tests {
         let bytes = include_bytes!("raisr_weights.bin");
         assert!(Weights::parse(&bytes[..bytes.len() - 4]).is_none());
         assert!(Weights::parse(&bytes[1..]).is_none());
+    }
+
+    /// The taps give the filter's value on the difference features (module
+    /// docs) of a window, up to rounding.
+    #[test]
+    fn taps_are_the_filter_on_the_features() {
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let filter: Filter = [(); 2].map(|_| [(); FEATURES].map(|_| next() - 0.5));
+        // Planes of 3 rows x 4 columns; the centre is row 1, column 1.
+        let planes: Vec<Vec<f32>> = (0..3).map(|_| (0..12).map(|_| next()).collect()).collect();
+        let colour = |j: usize, dy: isize, dx: isize| {
+            planes[plane_of(j, dy)][4 * (1 + dy) as usize + (1 + dx) as usize]
+        };
+        let mut f = [0.0f32; FEATURES];
+        for (k, &(dy, dx)) in NEIGHBOURS.iter().enumerate() {
+            for j in 0..3 {
+                f[3 * k + j] = colour(j, dy, dx) - colour(j, 0, 0);
+            }
+        }
+        f[24] = colour(0, 0, 0) - colour(1, 0, 0);
+        f[25] = colour(2, 0, 0) - colour(1, 0, 0);
+        let rows: [&[f32]; 9] = std::array::from_fn(|k| &planes[k % 3][4 * (k / 3)..][..4]);
+        let (d0, d1) = apply(&taps(&filter), &rows, 1);
+        let dot = |w: &[f32; FEATURES]| w.iter().zip(&f).map(|(a, b)| a * b).sum::<f32>();
+        assert!((d0 - dot(&filter[0])).abs() < 1e-5, "{d0}");
+        assert!((d1 - dot(&filter[1])).abs() < 1e-5, "{d1}");
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_filters_give_the_scalar_bits() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let w = Weights::shipped();
+        let planes: Vec<Vec<f32>> = (0..9)
+            .map(|k| {
+                (0..16)
+                    .map(|i| ((i * 37 + k * 11) % 29) as f32 * 0.37)
+                    .collect()
+            })
+            .collect();
+        let rows: [&[f32]; 9] = std::array::from_fn(|k| &planes[k][..]);
+        for (c, taps) in w.taps.iter().enumerate() {
+            let x = 1 + c % 12;
+            // SAFETY: AVX2 was detected above.
+            let fast = unsafe { apply_avx2(taps, &rows, x) };
+            let slow = apply(taps, &rows, x);
+            assert_eq!(fast.0.to_bits(), slow.0.to_bits());
+            assert_eq!(fast.1.to_bits(), slow.1.to_bits());
+        }
     }
 
     #[test]
