@@ -37,13 +37,79 @@ impl Parity {
     }
 
     /// The distances kept, nearest first (the centre, 0, is not listed).
-    fn steps(self, radius: usize) -> impl Iterator<Item = isize> {
+    fn steps(self, radius: usize) -> impl Iterator<Item = usize> {
         let (first, step) = match self {
             Parity::All => (1, 1),
             Parity::Same => (2, 2),
             Parity::Other => (1, 2),
         };
-        (first..=radius as isize).step_by(step)
+        (first..=radius).step_by(step)
+    }
+}
+
+/// `out[i]` = the sum of `src` around index `at + i`, over the samples
+/// `k * step` away for the distances `k <= radius` that `parity` keeps
+/// (`step` 1 along a row, the row stride down a column).
+///
+/// The one loop behind every box of the method: it works on any flat
+/// buffer, so a stage can sum a whole tile plane or a single row it keeps
+/// in cache. `src` must hold `radius * step` values beyond both ends.
+/// The method's windows (radius 5, and the 3x3 box) get a loop whose taps
+/// are known at compile time, which keeps each sum in a register.
+#[inline(always)]
+pub(super) fn window_sum(
+    src: &[f32],
+    at: usize,
+    step: usize,
+    out: &mut [f32],
+    radius: usize,
+    parity: Parity,
+) {
+    match (parity, radius) {
+        (Parity::All, 1) => taps(src, at, step, out, true, [1]),
+        (Parity::All, 5) => taps(src, at, step, out, true, [1, 2, 3, 4, 5]),
+        (Parity::Same, 5) => taps(src, at, step, out, true, [2, 4]),
+        (Parity::Other, 5) => taps(src, at, step, out, false, [1, 3, 5]),
+        _ => {
+            let n = out.len();
+            if parity == Parity::Other {
+                out.fill(0.0);
+            } else {
+                out.copy_from_slice(&src[at..at + n]);
+            }
+            for k in parity.steps(radius) {
+                let d = k * step;
+                let (a, b) = (&src[at - d..at - d + n], &src[at + d..at + d + n]);
+                for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+                    *o += a + b;
+                }
+            }
+        }
+    }
+}
+
+/// [`window_sum`] over the mirrored pairs at `dist` (nearest first) and,
+/// if `centre`, the centre: the pairs are added in order, then the centre,
+/// so a mirrored line gives the same bits.
+#[inline(always)]
+fn taps<const K: usize>(
+    src: &[f32],
+    at: usize,
+    step: usize,
+    out: &mut [f32],
+    centre: bool,
+    dist: [usize; K],
+) {
+    let n = out.len();
+    let left = dist.map(|d| &src[at - d * step..][..n]);
+    let right = dist.map(|d| &src[at + d * step..][..n]);
+    let mid = &src[at..at + n];
+    for i in 0..n {
+        let mut s = left[0][i] + right[0][i];
+        for k in 1..K {
+            s += left[k][i] + right[k][i];
+        }
+        out[i] = if centre { mid[i] + s } else { s };
     }
 }
 
@@ -63,20 +129,10 @@ pub(super) fn line_sum(
     parity: Parity,
     (rows, cols): (std::ops::Range<usize>, usize),
 ) {
+    let step = dy as usize * t.stride + dx as usize;
     for ty in rows {
         let sp = t.span(ty, cols);
-        let o = sp.out(out);
-        if parity == Parity::Other {
-            o.fill(0.0);
-        } else {
-            o.copy_from_slice(sp.at(src, 0, 0));
-        }
-        for k in parity.steps(radius) {
-            let (a, b) = (sp.at(src, -k * dy, -k * dx), sp.at(src, k * dy, k * dx));
-            for ((o, a), b) in o.iter_mut().zip(a).zip(b) {
-                *o += a + b;
-            }
-        }
+        window_sum(src, sp.range().start, step, sp.out(out), radius, parity);
     }
 }
 
