@@ -113,6 +113,64 @@ fn taps<const K: usize>(
     }
 }
 
+/// The same-class and other-class sums of radius 5 along a line (step 1)
+/// around `at + i`, into `same[i]` and `other[i]`, through the pair sums
+/// `q(y) = src(y) + src(y + 2)` of neighbours of one class kept in `q`:
+/// `same(x) = src(x) + (q(x - 4) + q(x + 2))` and
+/// `other(x) = q(x - 1) + (q(x - 5) + q(x + 3))`, 5 additions for both
+/// where [`window_sum`] needs 9. Each inner sum adds a pair that a mirror
+/// swaps, so a mirrored line still gives the same bits.
+#[inline(always)]
+pub(super) fn class_sums(
+    src: &[f32],
+    at: usize,
+    same: &mut [f32],
+    other: &mut [f32],
+    q: &mut [f32],
+) {
+    let n = same.len();
+    // q[j] = q(at - 5 + j), for j in 0 .. n + 8.
+    let m = n + 8;
+    let (a, b) = (&src[at - 5..][..m], &src[at - 3..][..m]);
+    for ((q, a), b) in q[..m].iter_mut().zip(a).zip(b) {
+        *q = a + b;
+    }
+    let q = |d: usize| &q[d..d + n];
+    let (c, left, right) = (&src[at..at + n], q(1), q(7));
+    for (((o, c), l), r) in same.iter_mut().zip(c).zip(left).zip(right) {
+        *o = c + (l + r);
+    }
+    let (mid, left, right) = (q(4), q(0), q(8));
+    for (((o, c), l), r) in other[..n].iter_mut().zip(mid).zip(left).zip(right) {
+        *o = c + (l + r);
+    }
+}
+
+/// The 11-sample sums along a line (step 1) around `at + i` into
+/// `out[i]`, through the pair sums `d(y) = src(y) + src(y + 1)` and
+/// quadruple sums `f(y) = d(y) + d(y + 2)` kept in `f`:
+/// `out(x) = (src(x) + (src(x - 1) + src(x + 1))) + (f(x - 5) + f(x + 2))`,
+/// 6 additions where [`window_sum`] needs 10; a mirror swaps the members of
+/// every inner sum, so a mirrored line still gives the same bits.
+#[inline(always)]
+pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
+    let n = out.len();
+    // f[j] = d(at - 5 + j) for j < n + 9, then f(at - 5 + j) for j < n + 7.
+    let f = &mut f[..n + 9];
+    let (a, b) = (&src[at - 5..][..n + 9], &src[at - 4..][..n + 9]);
+    for ((f, a), b) in f.iter_mut().zip(a).zip(b) {
+        *f = a + b;
+    }
+    for j in 0..n + 7 {
+        f[j] += f[j + 2];
+    }
+    let (c, l, r) = (&src[at..][..n], &src[at - 1..][..n], &src[at + 1..][..n]);
+    let (fl, fr) = (&f[..n], &f[7..7 + n]);
+    for i in 0..n {
+        out[i] = (c[i] + (l[i] + r[i])) + (fl[i] + fr[i]);
+    }
+}
+
 /// `out` = the sum of `src` over a line window of `radius` along `dir`
 /// (`(0, 1)` along rows, `(1, 0)` along columns), keeping `parity`.
 ///
@@ -277,6 +335,29 @@ mod tests {
             2 * r,
         );
         assert_eq!(out[12 * w + 12], 30.0);
+    }
+
+    #[test]
+    fn class_sums_match_the_window_sums() {
+        let src = plane(64);
+        let (mut same, mut other, mut q) = (vec![0.0; 40], vec![0.0; 40], vec![0.0; 48]);
+        class_sums(&src, 8, &mut same, &mut other, &mut q);
+        let (mut want_same, mut want_other) = (vec![0.0; 40], vec![0.0; 40]);
+        window_sum(&src, 8, 1, &mut want_same, 5, Parity::Same);
+        window_sum(&src, 8, 1, &mut want_other, 5, Parity::Other);
+        // Small integers: every order of addition gives the same sums.
+        assert_eq!(same, want_same);
+        assert_eq!(other, want_other);
+    }
+
+    #[test]
+    fn all_sums_match_the_window_sum() {
+        let src = plane(64);
+        let (mut out, mut f) = (vec![0.0; 40], vec![0.0; 50]);
+        all_sums(&src, 8, &mut out, &mut f);
+        let mut want = vec![0.0; 40];
+        window_sum(&src, 8, 1, &mut want, 5, Parity::All);
+        assert_eq!(out, want);
     }
 
     #[test]

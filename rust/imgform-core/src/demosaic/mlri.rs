@@ -47,7 +47,7 @@
 //! planes that later stages read in 2-D (differences, green, products,
 //! coefficients, residuals) are ever written whole.
 
-use super::boxsum::{square_sum, window_sum, Parity};
+use super::boxsum::{all_sums, class_sums, square_sum, window_sum, Parity};
 use super::tiled::{Span, Tile, TileKernel};
 use super::{chroma_masks, select, shifted, Phase};
 
@@ -113,6 +113,8 @@ struct Line {
     /// Residuals of each site's own class, tentative values of the other.
     res: Vec<f32>,
     part: Vec<f32>,
+    /// Pair sums of [`class_sums`].
+    pairs: Vec<f32>,
 }
 
 /// Buffers of one tile row of the red / blue stage.
@@ -124,6 +126,8 @@ struct Row {
     sums: [[Vec<f32>; 4]; STATS],
     /// Box sums of the four coefficient planes.
     mean: [Vec<f32>; 4],
+    /// Pair sums of [`class_sums`].
+    pairs: Vec<f32>,
 }
 
 pub(super) struct State {
@@ -152,13 +156,27 @@ pub(super) struct State {
     chroma: [Vec<u32>; 2],
 }
 
-/// The guided filter's coefficients from window sums over `n` samples:
-/// the slope fitted on Laplacians, the offset on the samples.
+/// The guided filter's coefficients from window sums over `n` samples,
+/// given as `window(n, flat)`: the slope fitted on Laplacians, the offset
+/// on the samples.
 #[inline(always)]
-fn coefficients(s: [f32; STATS], n: f32, flat: f32) -> (f32, f32) {
+fn coefficients(s: [f32; STATS], (floor, inv_n): (f32, f32)) -> (f32, f32) {
     let [si, sp, sip, sii] = s;
-    let a = sip / sii.max(n * flat);
-    (a, (sp - a * si) / n)
+    let a = sip / sii.max(floor);
+    (a, (sp - a * si) * inv_n)
+}
+
+/// What [`coefficients`] needs of a window of `n` samples: the floor on its
+/// sum of squared Laplacians, and `1 / n` (a product per pixel where a
+/// quotient cost as much as the rest of the formula).
+fn window(n: usize, flat: f32) -> (f32, f32) {
+    (n as f32 * flat, 1.0 / n as f32)
+}
+
+/// [`select`] between two [`window`]s.
+#[inline(always)]
+fn select_window(m: u32, a: (f32, f32), b: (f32, f32)) -> (f32, f32) {
+    (select(m, a.0, b.0), select(m, a.1, b.1))
 }
 
 /// The statistics of sample `i` from one slice per statistic.
@@ -239,16 +257,13 @@ impl Mlri {
         }
         let [ip, ii] = &lb.prod;
         let sources: [&[f32]; STATS] = [&lb.guide, c, ip, ii];
-        for (src, sums) in sources.iter().zip(lb.sums.iter_mut()) {
-            for (dst, parity) in sums.iter_mut().zip([Parity::Same, Parity::Other]) {
-                let dst = inner(dst, R_COEF, len);
-                window_sum(src, R_COEF, 1, dst, LINE_RADIUS, parity);
-            }
+        for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
+            let (same, other) = (inner(same, R_COEF, len), inner(other, R_COEF, len));
+            class_sums(src, R_COEF, same, other, &mut lb.pairs);
         }
         self.line_coefficients(lb, &m[R_COEF..len - R_COEF]);
         for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
-            let dst = inner(dst, R_MEAN, len);
-            window_sum(src, R_MEAN, 1, dst, LINE_RADIUS, Parity::All);
+            all_sums(src, R_MEAN, inner(dst, R_MEAN, len), &mut lb.pairs);
         }
         line_residuals(lb, c, m, len);
         // The missing class: its tentative value plus the mean of the two
@@ -269,8 +284,8 @@ impl Mlri {
     fn line_coefficients(&self, lb: &mut Line, m: &[u32]) {
         let n = m.len();
         let (n_same, n_other) = (
-            Parity::Same.count(LINE_RADIUS) as f32,
-            Parity::Other.count(LINE_RADIUS) as f32,
+            window(Parity::Same.count(LINE_RADIUS), self.flat),
+            window(Parity::Other.count(LINE_RADIUS), self.flat),
         );
         let same = lb.sums.each_ref().map(|q| &q[0][R_COEF..R_COEF + n]);
         let other = lb.sums.each_ref().map(|q| &q[1][R_COEF..R_COEF + n]);
@@ -278,8 +293,8 @@ impl Mlri {
         let (ac, bc) = (&mut ac[R_COEF..R_COEF + n], &mut bc[R_COEF..R_COEF + n]);
         let (ag, bg) = (&mut ag[R_COEF..R_COEF + n], &mut bg[R_COEF..R_COEF + n]);
         for i in 0..n {
-            let (a_s, b_s) = coefficients(stats(&same, i), n_same, self.flat);
-            let (a_o, b_o) = coefficients(stats(&other, i), n_other, self.flat);
+            let (a_s, b_s) = coefficients(stats(&same, i), n_same);
+            let (a_o, b_o) = coefficients(stats(&other, i), n_other);
             ac[i] = select(m[i], a_s, a_o);
             bc[i] = select(m[i], b_s, b_o);
             ag[i] = select(m[i], a_o, a_s);
@@ -416,7 +431,7 @@ impl Mlri {
             }
         }
         for ty in R_RB_COEF..t.rows - R_RB_COEF {
-            self.class_sums(st, t, c, ty);
+            self.row_class_sums(st, t, c, ty);
             self.chroma_coefficients(st, t, ty);
         }
         for ty in R_RB_MEAN..t.rows - R_RB_MEAN {
@@ -450,13 +465,15 @@ impl Mlri {
     /// on: vertical parity (same, other) by horizontal parity, each
     /// vertical sum kept in one row buffer for its two horizontal ones.
     #[inline(always)]
-    fn class_sums(&self, st: &mut State, t: &Tile, c: &[f32], ty: usize) {
+    fn row_class_sums(&self, st: &mut State, t: &Tile, c: &[f32], ty: usize) {
         let [ip, ii] = &st.prod;
         let sources: [&[f32]; STATS] = [&st.green, c, ip, ii];
         let at = t.span(ty, R_RB_LAPLACE).range().start;
         let (wide, n) = (t.stride - 2 * R_RB_LAPLACE, t.stride - 2 * R_RB_COEF);
         let parities = [Parity::Same, Parity::Other];
-        let Row { vsum, sums, .. } = &mut st.row;
+        let Row {
+            vsum, sums, pairs, ..
+        } = &mut st.row;
         for (src, sums) in sources.iter().zip(sums.iter_mut()) {
             for (pair, vertical) in sums.chunks_exact_mut(2).zip(parities) {
                 window_sum(
@@ -467,10 +484,9 @@ impl Mlri {
                     SQUARE_RADIUS,
                     vertical,
                 );
-                for (dst, along) in pair.iter_mut().zip(parities) {
-                    let dst = &mut dst[..n];
-                    window_sum(vsum, SQUARE_RADIUS, 1, dst, SQUARE_RADIUS, along);
-                }
+                let (same, other) = pair.split_at_mut(1);
+                let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
+                class_sums(vsum, SQUARE_RADIUS, same, other, pairs);
             }
         }
     }
@@ -480,7 +496,9 @@ impl Mlri {
     fn chroma_coefficients(&self, st: &mut State, t: &Tile, ty: usize) {
         let sp = t.span(ty, R_RB_COEF);
         let m = self.mask(&st.chroma, t, ty, R_RB_COEF, sp.n);
-        let count = |v: Parity, h: Parity| (v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS)) as f32;
+        let count = |v: Parity, h: Parity| {
+            window(v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS), self.flat)
+        };
         let (same, other) = (Parity::Same, Parity::Other);
         let (own_at_chroma, own_at_green) = (count(same, same), count(same, other));
         let (far_at_chroma, far_at_green) = (count(other, other), count(other, same));
@@ -500,10 +518,10 @@ impl Mlri {
                 (stats(&ss, i), stats(&so, i), stats(&os, i), stats(&oo, i));
             let own = blend(mi, s_ss, s_so);
             let far = blend(mi, s_oo, s_os);
-            let own_n = select(mi, own_at_chroma, own_at_green);
-            let far_n = select(mi, far_at_chroma, far_at_green);
-            (ao[i], bo[i]) = coefficients(own, own_n, self.flat);
-            (ax[i], bx[i]) = coefficients(far, far_n, self.flat);
+            let own_n = select_window(mi, own_at_chroma, own_at_green);
+            let far_n = select_window(mi, far_at_chroma, far_at_green);
+            (ao[i], bo[i]) = coefficients(own, own_n);
+            (ax[i], bx[i]) = coefficients(far, far_n);
         }
     }
 
@@ -514,7 +532,9 @@ impl Mlri {
         let at = t.span(ty, R_RB_COEF).range().start;
         let sp = t.span(ty, R_RB_MEAN);
         let wide = t.stride - 2 * R_RB_COEF;
-        let Row { vsum, mean, .. } = &mut st.row;
+        let Row {
+            vsum, mean, pairs, ..
+        } = &mut st.row;
         for (src, dst) in st.coef.iter().zip(mean.iter_mut()) {
             window_sum(
                 src,
@@ -524,8 +544,7 @@ impl Mlri {
                 SQUARE_RADIUS,
                 Parity::All,
             );
-            let dst = &mut dst[..sp.n];
-            window_sum(vsum, SQUARE_RADIUS, 1, dst, SQUARE_RADIUS, Parity::All);
+            all_sums(vsum, SQUARE_RADIUS, &mut dst[..sp.n], pairs);
         }
         let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
         let m = self.mask(&st.chroma, t, ty, R_RB_MEAN, sp.n);
@@ -591,11 +610,13 @@ impl TileKernel for Mlri {
                 mean: [0; 4].map(|_| line()),
                 res: line(),
                 part: line(),
+                pairs: line(),
             },
             row: Row {
                 vsum: line(),
                 sums: [0; STATS].map(|_| [0; 4].map(|_| line())),
                 mean: [0; 4].map(|_| line()),
+                pairs: line(),
             },
             across: plane(),
             across_dif: plane(),
@@ -640,10 +661,10 @@ mod tests {
         let si: f32 = guide.iter().sum();
         let sp: f32 = guide.iter().map(|g| 2.0 * g + 3.0).sum();
         let sii: f32 = lap.iter().map(|l| l * l).sum();
-        let (a, b) = coefficients([si, sp, 2.0 * sii, sii], 4.0, 1e-5);
+        let (a, b) = coefficients([si, sp, 2.0 * sii, sii], window(4, 1e-5));
         assert_eq!((a, b), (2.0, 3.0));
         // A flat guide: the floor keeps the slope finite and small.
-        let (a, b) = coefficients([4.0, 8.0, 0.0, 0.0], 4.0, 1e-5);
+        let (a, b) = coefficients([4.0, 8.0, 0.0, 0.0], window(4, 1e-5));
         assert_eq!((a, b), (0.0, 2.0));
     }
 
