@@ -476,14 +476,8 @@ impl Mlri {
         } = &mut st.row;
         for (src, sums) in sources.iter().zip(sums.iter_mut()) {
             for (pair, vertical) in sums.chunks_exact_mut(2).zip(parities) {
-                window_sum(
-                    src,
-                    at,
-                    t.stride,
-                    &mut vsum[..wide],
-                    SQUARE_RADIUS,
-                    vertical,
-                );
+                let column = &mut vsum[..wide];
+                window_sum(src, at, t.stride, column, SQUARE_RADIUS, vertical);
                 let (same, other) = pair.split_at_mut(1);
                 let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
                 class_sums(vsum, SQUARE_RADIUS, same, other, pairs);
@@ -536,14 +530,8 @@ impl Mlri {
             vsum, mean, pairs, ..
         } = &mut st.row;
         for (src, dst) in st.coef.iter().zip(mean.iter_mut()) {
-            window_sum(
-                src,
-                at,
-                t.stride,
-                &mut vsum[..wide],
-                SQUARE_RADIUS,
-                Parity::All,
-            );
+            let column = &mut vsum[..wide];
+            window_sum(src, at, t.stride, column, SQUARE_RADIUS, Parity::All);
             all_sums(vsum, SQUARE_RADIUS, &mut dst[..sp.n], pairs);
         }
         let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
