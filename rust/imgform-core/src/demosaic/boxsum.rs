@@ -37,13 +37,137 @@ impl Parity {
     }
 
     /// The distances kept, nearest first (the centre, 0, is not listed).
-    fn steps(self, radius: usize) -> impl Iterator<Item = isize> {
+    fn steps(self, radius: usize) -> impl Iterator<Item = usize> {
         let (first, step) = match self {
             Parity::All => (1, 1),
             Parity::Same => (2, 2),
             Parity::Other => (1, 2),
         };
-        (first..=radius as isize).step_by(step)
+        (first..=radius).step_by(step)
+    }
+}
+
+/// `out[i]` = the sum of `src` around index `at + i`, over the samples
+/// `k * step` away for the distances `k <= radius` that `parity` keeps
+/// (`step` 1 along a row, the row stride down a column).
+///
+/// The one loop behind every box of the method: it works on any flat
+/// buffer, so a stage can sum a whole tile plane or a single row it keeps
+/// in cache. `src` must hold `radius * step` values beyond both ends.
+/// The method's windows (radius 5, and the 3x3 box) get a loop whose taps
+/// are known at compile time, which keeps each sum in a register.
+#[inline(always)]
+pub(super) fn window_sum(
+    src: &[f32],
+    at: usize,
+    step: usize,
+    out: &mut [f32],
+    radius: usize,
+    parity: Parity,
+) {
+    match (parity, radius) {
+        (Parity::All, 1) => taps(src, at, step, out, true, [1]),
+        (Parity::All, 5) => taps(src, at, step, out, true, [1, 2, 3, 4, 5]),
+        (Parity::Same, 5) => taps(src, at, step, out, true, [2, 4]),
+        (Parity::Other, 5) => taps(src, at, step, out, false, [1, 3, 5]),
+        _ => {
+            let n = out.len();
+            if parity == Parity::Other {
+                out.fill(0.0);
+            } else {
+                out.copy_from_slice(&src[at..at + n]);
+            }
+            for k in parity.steps(radius) {
+                let d = k * step;
+                let (a, b) = (&src[at - d..at - d + n], &src[at + d..at + d + n]);
+                for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+                    *o += a + b;
+                }
+            }
+        }
+    }
+}
+
+/// [`window_sum`] over the mirrored pairs at `dist` (nearest first) and,
+/// if `centre`, the centre: the pairs are added in order, then the centre,
+/// so a mirrored line gives the same bits.
+#[inline(always)]
+fn taps<const K: usize>(
+    src: &[f32],
+    at: usize,
+    step: usize,
+    out: &mut [f32],
+    centre: bool,
+    dist: [usize; K],
+) {
+    let n = out.len();
+    let left = dist.map(|d| &src[at - d * step..][..n]);
+    let right = dist.map(|d| &src[at + d * step..][..n]);
+    let mid = &src[at..at + n];
+    for i in 0..n {
+        let mut s = left[0][i] + right[0][i];
+        for k in 1..K {
+            s += left[k][i] + right[k][i];
+        }
+        out[i] = if centre { mid[i] + s } else { s };
+    }
+}
+
+/// The same-class and other-class sums of radius 5 along a line (step 1)
+/// around `at + i`, into `same[i]` and `other[i]`, through the pair sums
+/// `q(y) = src(y) + src(y + 2)` of neighbours of one class kept in `q`:
+/// `same(x) = src(x) + (q(x - 4) + q(x + 2))` and
+/// `other(x) = q(x - 1) + (q(x - 5) + q(x + 3))`, 5 additions for both
+/// where [`window_sum`] needs 9. Each inner sum adds a pair that a mirror
+/// swaps, so a mirrored line still gives the same bits.
+#[inline(always)]
+pub(super) fn class_sums(
+    src: &[f32],
+    at: usize,
+    same: &mut [f32],
+    other: &mut [f32],
+    q: &mut [f32],
+) {
+    let n = same.len();
+    // q[j] = q(at - 5 + j), for j in 0 .. n + 8.
+    let m = n + 8;
+    let (a, b) = (&src[at - 5..][..m], &src[at - 3..][..m]);
+    for ((q, a), b) in q[..m].iter_mut().zip(a).zip(b) {
+        *q = a + b;
+    }
+    let q = |d: usize| &q[d..d + n];
+    let (c, left, right) = (&src[at..at + n], q(1), q(7));
+    for (((o, c), l), r) in same.iter_mut().zip(c).zip(left).zip(right) {
+        *o = c + (l + r);
+    }
+    let (mid, left, right) = (q(4), q(0), q(8));
+    for (((o, c), l), r) in other[..n].iter_mut().zip(mid).zip(left).zip(right) {
+        *o = c + (l + r);
+    }
+}
+
+/// The 11-sample sums along a line (step 1) around `at + i` into
+/// `out[i]`, through the pair sums `d(y) = src(y) + src(y + 1)` and
+/// quadruple sums `f(y) = d(y) + d(y + 2)` kept in `f`:
+/// `out(x) = (src(x) + (src(x - 1) + src(x + 1))) + (f(x - 5) + f(x + 2))`,
+/// 6 additions where [`window_sum`] needs 10; a mirror swaps the members of
+/// every inner sum, so a mirrored line still gives the same bits.
+#[inline(always)]
+pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
+    let n = out.len();
+    // f[j] = d(at - 5 + j) for j < n + 9, then f(at - 5 + j) for j < n + 7.
+    let f = &mut f[..n + 9];
+    let (a, b) = (&src[at - 5..][..n + 9], &src[at - 4..][..n + 9]);
+    for ((f, a), b) in f.iter_mut().zip(a).zip(b) {
+        *f = a + b;
+    }
+    for j in 0..n + 7 {
+        f[j] += f[j + 2];
+    }
+    let (c, l, r) = (&src[at..][..n], &src[at - 1..][..n], &src[at + 1..][..n]);
+    let (fl, fr) = (&f[..n], &f[7..7 + n]);
+    for i in 0..n {
+        out[i] = (c[i] + (l[i] + r[i])) + (fl[i] + fr[i]);
     }
 }
 
@@ -63,20 +187,10 @@ pub(super) fn line_sum(
     parity: Parity,
     (rows, cols): (std::ops::Range<usize>, usize),
 ) {
+    let step = dy as usize * t.stride + dx as usize;
     for ty in rows {
         let sp = t.span(ty, cols);
-        let o = sp.out(out);
-        if parity == Parity::Other {
-            o.fill(0.0);
-        } else {
-            o.copy_from_slice(sp.at(src, 0, 0));
-        }
-        for k in parity.steps(radius) {
-            let (a, b) = (sp.at(src, -k * dy, -k * dx), sp.at(src, k * dy, k * dx));
-            for ((o, a), b) in o.iter_mut().zip(a).zip(b) {
-                *o += a + b;
-            }
-        }
+        window_sum(src, sp.range().start, step, sp.out(out), radius, parity);
     }
 }
 
@@ -221,6 +335,29 @@ mod tests {
             2 * r,
         );
         assert_eq!(out[12 * w + 12], 30.0);
+    }
+
+    #[test]
+    fn class_sums_match_the_window_sums() {
+        let src = plane(64);
+        let (mut same, mut other, mut q) = (vec![0.0; 40], vec![0.0; 40], vec![0.0; 48]);
+        class_sums(&src, 8, &mut same, &mut other, &mut q);
+        let (mut want_same, mut want_other) = (vec![0.0; 40], vec![0.0; 40]);
+        window_sum(&src, 8, 1, &mut want_same, 5, Parity::Same);
+        window_sum(&src, 8, 1, &mut want_other, 5, Parity::Other);
+        // Small integers: every order of addition gives the same sums.
+        assert_eq!(same, want_same);
+        assert_eq!(other, want_other);
+    }
+
+    #[test]
+    fn all_sums_match_the_window_sum() {
+        let src = plane(64);
+        let (mut out, mut f) = (vec![0.0; 40], vec![0.0; 50]);
+        all_sums(&src, 8, &mut out, &mut f);
+        let mut want = vec![0.0; 40];
+        window_sum(&src, 8, 1, &mut want, 5, Parity::All);
+        assert_eq!(out, want);
     }
 
     #[test]

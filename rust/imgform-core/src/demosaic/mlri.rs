@@ -39,11 +39,17 @@
 //! Boxes are sums of mirrored pairs ([`boxsum`]), so the four Bayer phases
 //! are exact flips of each other; every sampled value is returned
 //! unchanged.
+//!
+//! Speed comes from keeping the many intermediate planes of a guided filter
+//! out of memory: the green stage runs line by line on buffers of one
+//! line (tile columns are first transposed into contiguous lines), and
+//! the red / blue stage sums its classes one row at a time, so only the
+//! planes that later stages read in 2-D (differences, green, products,
+//! coefficients, residuals) are ever written whole.
 
-use super::boxsum::{line_sum, square_sum, Parity};
-use super::select;
+use super::boxsum::{all_sums, class_sums, square_sum, window_sum, Parity};
 use super::tiled::{Span, Tile, TileKernel};
-use super::{chroma_masks, Phase};
+use super::{chroma_masks, select, shifted, Phase};
 
 /// Radius of the directional guided filters of the green stage.
 const LINE_RADIUS: usize = 5;
@@ -57,7 +63,8 @@ const FLAT: f32 = 1e-5;
 /// to the squared full scale: equal weights on flat data and no overflow.
 const WEIGHT_EPS: f32 = 1e-10;
 
-/// Reach (pixels from the tile's sides) at which each stage is valid.
+/// Reach (pixels from the ends of a line, or from the tile's sides) at
+/// which each stage is valid.
 const R_GUIDE: usize = 1;
 const R_LAPLACE: usize = R_GUIDE + 2;
 const R_COEF: usize = R_LAPLACE + LINE_RADIUS;
@@ -92,17 +99,50 @@ impl Mlri {
 /// input, Laplacian products and squared guide Laplacians.
 const STATS: usize = 4;
 
-pub(super) struct State {
+/// Buffers of one line of the green stage, as long as the longest line.
+struct Line {
     /// The guide, and the products of Laplacians (`L(I) L(p)`, `L(I)^2`).
     guide: Vec<f32>,
     prod: [Vec<f32>; 2],
-    /// Window sums of the statistics, per parity combination.
-    sums: [[Vec<f32>; 4]; STATS],
-    /// Guided-filter coefficients (a, b) of two classes, then their means.
+    /// Window sums of the statistics over the same and the other class.
+    sums: [[Vec<f32>; 2]; STATS],
+    /// Coefficients (a, b) of the chroma and the green class, then their
+    /// window sums.
     coef: [Vec<f32>; 4],
     mean: [Vec<f32>; 4],
+    /// Residuals of each site's own class, tentative values of the other.
+    res: Vec<f32>,
+    part: Vec<f32>,
+    /// Pair sums of [`class_sums`].
+    pairs: Vec<f32>,
+}
+
+/// Buffers of one tile row of the red / blue stage.
+struct Row {
+    /// A vertical window sum, the input of the horizontal ones.
+    vsum: Vec<f32>,
+    /// Class sums of the statistics: vertical parity (same, other) by
+    /// horizontal parity (same, other).
+    sums: [[Vec<f32>; 4]; STATS],
+    /// Box sums of the four coefficient planes.
+    mean: [Vec<f32>; 4],
+    /// Pair sums of [`class_sums`].
+    pairs: Vec<f32>,
+}
+
+pub(super) struct State {
+    line: Line,
+    row: Row,
+    /// The raw tile transposed, and the column differences in that layout:
+    /// the green stage reads columns as contiguous lines.
+    across: Vec<f32>,
+    across_dif: Vec<f32>,
+    /// Products of Laplacians of the red / blue stage.
+    prod: [Vec<f32>; 2],
+    /// Guided-filter coefficients (a, b) of red, then blue.
+    coef: [Vec<f32>; 4],
     tmp: Vec<f32>,
-    /// Residuals and tentative values (per class in the red / blue stage).
+    /// Residuals and tentative values of red and blue.
     res: [Vec<f32>; 2],
     part: [Vec<f32>; 2],
     /// Directional colour differences `G - C` (rows, columns) and their
@@ -116,13 +156,44 @@ pub(super) struct State {
     chroma: [Vec<u32>; 2],
 }
 
-/// The guided filter's coefficients from window sums over `n` samples:
-/// the slope fitted on Laplacians, the offset on the samples.
+/// The guided filter's coefficients from window sums over `n` samples,
+/// given as `window(n, flat)`: the slope fitted on Laplacians, the offset
+/// on the samples.
 #[inline(always)]
-fn coefficients(s: [f32; STATS], n: f32, flat: f32) -> (f32, f32) {
+fn coefficients(s: [f32; STATS], (floor, inv_n): (f32, f32)) -> (f32, f32) {
     let [si, sp, sip, sii] = s;
-    let a = sip / sii.max(n * flat);
-    (a, (sp - a * si) / n)
+    let a = sip / sii.max(floor);
+    (a, (sp - a * si) * inv_n)
+}
+
+/// What [`coefficients`] needs of a window of `n` samples: the floor on its
+/// sum of squared Laplacians, and `1 / n` (a product per pixel where a
+/// quotient cost as much as the rest of the formula).
+fn window(n: usize, flat: f32) -> (f32, f32) {
+    (n as f32 * flat, 1.0 / n as f32)
+}
+
+/// [`select`] between two [`window`]s.
+#[inline(always)]
+fn select_window(m: u32, a: (f32, f32), b: (f32, f32)) -> (f32, f32) {
+    (select(m, a.0, b.0), select(m, a.1, b.1))
+}
+
+/// The statistics of sample `i` from one slice per statistic.
+#[inline(always)]
+fn stats(q: &[&[f32]; STATS], i: usize) -> [f32; STATS] {
+    [q[0][i], q[1][i], q[2][i], q[3][i]]
+}
+
+/// [`select`] on each statistic.
+#[inline(always)]
+fn blend(m: u32, a: [f32; STATS], b: [f32; STATS]) -> [f32; STATS] {
+    [
+        select(m, a[0], b[0]),
+        select(m, a[1], b[1]),
+        select(m, a[2], b[2]),
+        select(m, a[3], b[3]),
+    ]
 }
 
 /// The weights of a one-sided Gaussian of sigma 1 over distances 0..=4,
@@ -140,6 +211,12 @@ fn arm(sp: Span, p: &[f32], (dy, dx): (isize, isize)) -> [&[f32]; 5] {
     [0, 1, 2, 3, 4].map(|k| sp.at(p, k * dy, k * dx))
 }
 
+/// `&mut v[r .. len - r]`: a line buffer over the sites a stage fills.
+#[inline(always)]
+fn inner(v: &mut [f32], r: usize, len: usize) -> &mut [f32] {
+    &mut v[r..len - r]
+}
+
 impl Mlri {
     #[inline(always)]
     fn mask<'a>(
@@ -153,98 +230,129 @@ impl Mlri {
         &chroma[t.kind(self.phase, ty).chroma_parity][s..s + n]
     }
 
-    /// Step 1 along `d`: the colour difference `G - C` into `st.dif[which]`.
+    /// Step 1 on one line `c` (a tile row, or a tile column made
+    /// contiguous) whose chroma sites `m` marks: the colour difference
+    /// `G - C` into `out`, valid `R_DIF` from the line's ends.
     #[inline(always)]
-    fn directional(&self, st: &mut State, t: &Tile, c: &[f32], d: (isize, isize), which: usize) {
-        let (dy, dx) = d;
+    fn green_line(&self, lb: &mut Line, c: &[f32], m: &[u32], out: &mut [f32]) {
+        let len = c.len();
         // The guide: the line's other class, interpolated linearly.
-        for ty in R_GUIDE..t.rows - R_GUIDE {
-            let sp = t.span(ty, R_GUIDE);
-            let (a, b) = (sp.at(c, -dy, -dx), sp.at(c, dy, dx));
-            for ((o, a), b) in sp.out(&mut st.guide).iter_mut().zip(a).zip(b) {
-                *o = 0.5 * (a + b);
-            }
+        let n = len - 2 * R_GUIDE;
+        let (a, b) = (shifted(c, R_GUIDE, -1, n), shifted(c, R_GUIDE, 1, n));
+        for ((o, a), b) in inner(&mut lb.guide, R_GUIDE, len).iter_mut().zip(a).zip(b) {
+            *o = 0.5 * (a + b);
         }
         // Laplacians along the line over same-class samples (two steps).
-        for ty in R_LAPLACE..t.rows - R_LAPLACE {
-            let sp = t.span(ty, R_LAPLACE);
-            let g = |k: isize| sp.at(&st.guide, k * dy, k * dx);
-            let v = |k: isize| sp.at(c, k * dy, k * dx);
-            let (g0, gm, gp, c0, cm, cp) = (g(0), g(-2), g(2), v(0), v(-2), v(2));
-            let [ip, ii] = &mut st.prod;
-            let (ip, ii) = (sp.out(ip), sp.out(ii));
-            for i in 0..sp.n {
-                let li = 2.0 * g0[i] - (gm[i] + gp[i]);
-                let lp = 2.0 * c0[i] - (cm[i] + cp[i]);
-                ip[i] = li * lp;
-                ii[i] = li * li;
-            }
+        let (r, n) = (R_LAPLACE, len - 2 * R_LAPLACE);
+        let g = |k: isize| shifted(&lb.guide, r, k, n);
+        let v = |k: isize| shifted(c, r, k, n);
+        let (g0, gm, gp, c0, cm, cp) = (g(0), g(-2), g(2), v(0), v(-2), v(2));
+        let [ip, ii] = &mut lb.prod;
+        let (ip, ii) = (inner(ip, r, len), inner(ii, r, len));
+        for i in 0..n {
+            let li = 2.0 * g0[i] - (gm[i] + gp[i]);
+            let lp = 2.0 * c0[i] - (cm[i] + cp[i]);
+            ip[i] = li * lp;
+            ii[i] = li * li;
         }
-        let rows = (R_COEF..t.rows - R_COEF, R_COEF);
-        let [ip, ii] = &st.prod;
-        let sources: [&[f32]; STATS] = [&st.guide, c, ip, ii];
-        for (src, sums) in sources.iter().zip(st.sums.iter_mut()) {
-            for (dst, parity) in sums.iter_mut().zip([Parity::Same, Parity::Other]) {
-                line_sum(t, src, dst, d, LINE_RADIUS, parity, rows.clone());
-            }
+        let [ip, ii] = &lb.prod;
+        let sources: [&[f32]; STATS] = [&lb.guide, c, ip, ii];
+        for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
+            let (same, other) = (inner(same, R_COEF, len), inner(other, R_COEF, len));
+            class_sums(src, R_COEF, same, other, &mut lb.pairs);
         }
-        // Coefficients of the chroma and the green class of each line.
+        self.line_coefficients(lb, &m[R_COEF..len - R_COEF]);
+        for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
+            all_sums(src, R_MEAN, inner(dst, R_MEAN, len), &mut lb.pairs);
+        }
+        line_residuals(lb, c, m, len);
+        // The missing class: its tentative value plus the mean of the two
+        // neighbouring residuals.
+        let (r, n) = (R_DIF, len - 2 * R_DIF);
+        let (c0, part) = (shifted(c, r, 0, n), shifted(&lb.part, r, 0, n));
+        let (rm, rp) = (shifted(&lb.res, r, -1, n), shifted(&lb.res, r, 1, n));
+        let (m, o) = (&m[r..len - r], inner(out, r, len));
+        for i in 0..n {
+            let est = part[i] + 0.5 * (rm[i] + rp[i]);
+            o[i] = select(m[i], est - c0[i], c0[i] - est);
+        }
+    }
+
+    /// Coefficients of the chroma and the green class of a line, from its
+    /// class sums, at the sites `m` covers (from `R_COEF` on).
+    #[inline(always)]
+    fn line_coefficients(&self, lb: &mut Line, m: &[u32]) {
+        let n = m.len();
         let (n_same, n_other) = (
-            Parity::Same.count(LINE_RADIUS) as f32,
-            Parity::Other.count(LINE_RADIUS) as f32,
+            window(Parity::Same.count(LINE_RADIUS), self.flat),
+            window(Parity::Other.count(LINE_RADIUS), self.flat),
         );
-        for ty in rows.0.clone() {
-            let sp = t.span(ty, R_COEF);
-            let m = self.mask(&st.chroma, t, ty, R_COEF, sp.n);
-            let same = st.sums.each_ref().map(|q| sp.at(&q[0], 0, 0));
-            let other = st.sums.each_ref().map(|q| sp.at(&q[1], 0, 0));
-            let [ac, bc, ag, bg] = &mut st.coef;
-            let (ac, bc, ag, bg) = (sp.out(ac), sp.out(bc), sp.out(ag), sp.out(bg));
-            for i in 0..sp.n {
-                let at = |q: &[&[f32]; STATS]| [q[0][i], q[1][i], q[2][i], q[3][i]];
-                let (a_s, b_s) = coefficients(at(&same), n_same, self.flat);
-                let (a_o, b_o) = coefficients(at(&other), n_other, self.flat);
-                ac[i] = select(m[i], a_s, a_o);
-                bc[i] = select(m[i], b_s, b_o);
-                ag[i] = select(m[i], a_o, a_s);
-                bg[i] = select(m[i], b_o, b_s);
-            }
+        let same = lb.sums.each_ref().map(|q| &q[0][R_COEF..R_COEF + n]);
+        let other = lb.sums.each_ref().map(|q| &q[1][R_COEF..R_COEF + n]);
+        let [ac, bc, ag, bg] = &mut lb.coef;
+        let (ac, bc) = (&mut ac[R_COEF..R_COEF + n], &mut bc[R_COEF..R_COEF + n]);
+        let (ag, bg) = (&mut ag[R_COEF..R_COEF + n], &mut bg[R_COEF..R_COEF + n]);
+        for i in 0..n {
+            let (a_s, b_s) = coefficients(stats(&same, i), n_same);
+            let (a_o, b_o) = coefficients(stats(&other, i), n_other);
+            ac[i] = select(m[i], a_s, a_o);
+            bc[i] = select(m[i], b_s, b_o);
+            ag[i] = select(m[i], a_o, a_s);
+            bg[i] = select(m[i], b_o, b_s);
         }
-        let rows = (R_MEAN..t.rows - R_MEAN, R_MEAN);
-        let scale = 1.0 / Parity::All.count(LINE_RADIUS) as f32;
-        for (src, dst) in st.coef.iter().zip(st.mean.iter_mut()) {
-            line_sum(t, src, dst, d, LINE_RADIUS, Parity::All, rows.clone());
-        }
-        // Residual of each site's own class, and the tentative value of
-        // the line's other class there (guided by the sample itself).
-        for ty in rows.0 {
-            let sp = t.span(ty, R_MEAN);
-            let m = self.mask(&st.chroma, t, ty, R_MEAN, sp.n);
-            let (c0, g0) = (sp.at(c, 0, 0), sp.at(&st.guide, 0, 0));
-            let [ac, bc, ag, bg] = st.mean.each_ref().map(|p| sp.at(p, 0, 0));
-            let [res, part] = [&mut st.res[0], &mut st.part[0]];
-            let (res, part) = (sp.out(res), sp.out(part));
-            for i in 0..sp.n {
-                let (ac, bc, ag, bg) = (scale * ac[i], scale * bc[i], scale * ag[i], scale * bg[i]);
-                let own_a = select(m[i], ac, ag);
-                let own_b = select(m[i], bc, bg);
-                let far_a = select(m[i], ag, ac);
-                let far_b = select(m[i], bg, bc);
-                res[i] = c0[i] - (own_a * g0[i] + own_b);
-                part[i] = far_a * c0[i] + far_b;
-            }
-        }
+    }
+
+    /// Step 1 along the rows: `st.dif[0]`.
+    #[inline(always)]
+    fn green_rows(&self, st: &mut State, t: &Tile, c: &[f32]) {
         for ty in R_DIF..t.rows - R_DIF {
-            let sp = t.span(ty, R_DIF);
-            let m = self.mask(&st.chroma, t, ty, R_DIF, sp.n);
-            let (c0, part) = (sp.at(c, 0, 0), sp.at(&st.part[0], 0, 0));
-            let (rm, rp) = (sp.at(&st.res[0], -dy, -dx), sp.at(&st.res[0], dy, dx));
-            let o = sp.out(&mut st.dif[which]);
-            for i in 0..sp.n {
-                let est = part[i] + 0.5 * (rm[i] + rp[i]);
-                o[i] = select(m[i], est - c0[i], c0[i] - est);
-            }
+            let line = ty * t.stride..(ty + 1) * t.stride;
+            let m = self.mask(&st.chroma, t, ty, 0, t.stride);
+            self.green_line(&mut st.line, &c[line.clone()], m, &mut st.dif[0][line]);
         }
+    }
+
+    /// Step 1 along the columns: `st.dif[1]`, through the transposed tile.
+    #[inline(always)]
+    fn green_columns(&self, st: &mut State, t: &Tile, c: &[f32]) {
+        let len = t.stride * t.rows;
+        transpose::transpose(&c[..len], &mut st.across[..len], t.stride, t.rows);
+        // Column `tx` holds chroma on the rows whose chroma parity is its
+        // own parity; row parities alternate from row 0's.
+        let first = t.kind(self.phase, 0).chroma_parity;
+        for tx in R_DIF..t.stride - R_DIF {
+            let line = tx * t.rows..(tx + 1) * t.rows;
+            let m = &st.chroma[usize::from(first != tx % 2)][..t.rows];
+            let (c, out) = (&st.across[line.clone()], &mut st.across_dif[line]);
+            self.green_line(&mut st.line, c, m, out);
+        }
+        transpose::transpose(
+            &st.across_dif[..len],
+            &mut st.dif[1][..len],
+            t.rows,
+            t.stride,
+        );
+    }
+}
+
+/// The residual of each site's own class on a line, and the tentative
+/// value of the line's other class there (guided by the sample itself).
+#[inline(always)]
+fn line_residuals(lb: &mut Line, c: &[f32], m: &[u32], len: usize) {
+    let (r, n) = (R_MEAN, len - 2 * R_MEAN);
+    let scale = 1.0 / Parity::All.count(LINE_RADIUS) as f32;
+    let (c0, g0) = (shifted(c, r, 0, n), shifted(&lb.guide, r, 0, n));
+    let [ac, bc, ag, bg] = lb.mean.each_ref().map(|p| shifted(p, r, 0, n));
+    let m = &m[r..len - r];
+    let (res, part) = (inner(&mut lb.res, r, len), inner(&mut lb.part, r, len));
+    for i in 0..n {
+        let (ac, bc, ag, bg) = (scale * ac[i], scale * bc[i], scale * ag[i], scale * bg[i]);
+        let own_a = select(m[i], ac, ag);
+        let own_b = select(m[i], bc, bg);
+        let far_a = select(m[i], ag, ac);
+        let far_b = select(m[i], bg, bc);
+        res[i] = c0[i] - (own_a * g0[i] + own_b);
+        part[i] = far_a * c0[i] + far_b;
     }
 }
 
@@ -322,81 +430,12 @@ impl Mlri {
                 ii[i] = lg * lg;
             }
         }
-        // Class sums: vertical parity (same, other) by horizontal parity.
-        let [ip, ii] = &st.prod;
-        let sources: [&[f32]; STATS] = [&st.green, c, ip, ii];
-        let inner = (R_RB_COEF..t.rows - R_RB_COEF, R_RB_LAPLACE);
-        let outer = (R_RB_COEF..t.rows - R_RB_COEF, R_RB_COEF);
-        let parities = [Parity::Same, Parity::Other];
-        for (src, sums) in sources.iter().zip(st.sums.iter_mut()) {
-            for (pair, vertical) in sums.chunks_exact_mut(2).zip(parities) {
-                line_sum(
-                    t,
-                    src,
-                    &mut st.tmp,
-                    (1, 0),
-                    SQUARE_RADIUS,
-                    vertical,
-                    inner.clone(),
-                );
-                for (dst, along) in pair.iter_mut().zip(parities) {
-                    line_sum(t, &st.tmp, dst, (0, 1), SQUARE_RADIUS, along, outer.clone());
-                }
-            }
+        for ty in R_RB_COEF..t.rows - R_RB_COEF {
+            self.row_class_sums(st, t, c, ty);
+            self.chroma_coefficients(st, t, ty);
         }
-        let count = |v: Parity, h: Parity| (v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS)) as f32;
-        let (same, other) = (Parity::Same, Parity::Other);
-        for ty in outer.0.clone() {
-            let sp = t.span(ty, R_RB_COEF);
-            let m = self.mask(&st.chroma, t, ty, R_RB_COEF, sp.n);
-            let s = st
-                .sums
-                .each_ref()
-                .map(|q| q.each_ref().map(|p| sp.at(p, 0, 0)));
-            let [ar, br, ab, bb] = &mut st.coef;
-            // The row's own chroma class (vertical parity same), then the
-            // other one; each row's chroma sites share the own class's
-            // column parity.
-            let (ao, bo, ax, bx) = if t.kind(self.phase, ty).blue {
-                (sp.out(ab), sp.out(bb), sp.out(ar), sp.out(br))
-            } else {
-                (sp.out(ar), sp.out(br), sp.out(ab), sp.out(bb))
-            };
-            for i in 0..sp.n {
-                let pick = |a: usize, b: usize| {
-                    let one = |q: &[&[f32]; 4]| select(m[i], q[a][i], q[b][i]);
-                    [one(&s[0]), one(&s[1]), one(&s[2]), one(&s[3])]
-                };
-                let own_n = select(m[i], count(same, same), count(same, other));
-                let other_n = select(m[i], count(other, other), count(other, same));
-                (ao[i], bo[i]) = coefficients(pick(0, 1), own_n, self.flat);
-                (ax[i], bx[i]) = coefficients(pick(3, 2), other_n, self.flat);
-            }
-        }
-        for (src, dst) in st.coef.iter().zip(st.mean.iter_mut()) {
-            let all = (Parity::All, Parity::All);
-            square_sum(t, src, &mut st.tmp, dst, SQUARE_RADIUS, all, R_RB_MEAN);
-        }
-        let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
         for ty in R_RB_MEAN..t.rows - R_RB_MEAN {
-            let sp = t.span(ty, R_RB_MEAN);
-            let m = self.mask(&st.chroma, t, ty, R_RB_MEAN, sp.n);
-            let blue_row = t.kind(self.phase, ty).blue;
-            let (c0, g0) = (sp.at(c, 0, 0), sp.at(&st.green, 0, 0));
-            let mean = st.mean.each_ref().map(|p| sp.at(p, 0, 0));
-            for (k, (res, part)) in st.res.iter_mut().zip(st.part.iter_mut()).enumerate() {
-                // Class k (0 red, 1 blue) is sampled at this row's chroma
-                // sites when the row is of its kind.
-                let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
-                let (a, b) = (mean[2 * k], mean[2 * k + 1]);
-                let (res, part) = (sp.out(res), sp.out(part));
-                let inputs = a.iter().zip(b).zip(g0.iter().zip(c0)).zip(m);
-                for ((res, part), (((a, b), (g, c)), m)) in res.iter_mut().zip(part).zip(inputs) {
-                    let tent = scale * a * g + scale * b;
-                    *part = tent;
-                    *res = select(m & sampled, c - tent, 0.0);
-                }
-            }
+            self.chroma_residuals(st, t, c, ty);
         }
         for ty in R_OUT..t.rows - R_OUT {
             let sp = t.span(ty, R_OUT);
@@ -406,15 +445,110 @@ impl Mlri {
             } else {
                 (0, 1)
             };
-            let c0 = sp.at(c, 0, 0);
             // Each class's tentative value plus its residuals interpolated
             // bilinearly (they are zero away from the class's samples).
-            let est =
-                |k: usize, o: &mut [f32]| interpolate_residual(sp, &st.part[k], &st.res[k], o);
-            est(own_k, sp.out(&mut st.own));
-            est(other_k, sp.out(&mut st.other));
-            for (o, (m, c0)) in sp.out(&mut st.own).iter_mut().zip(m.iter().zip(c0)) {
+            let own = sp.out(&mut st.own);
+            interpolate_residual(sp, &st.part[own_k], &st.res[own_k], own);
+            interpolate_residual(
+                sp,
+                &st.part[other_k],
+                &st.res[other_k],
+                sp.out(&mut st.other),
+            );
+            for (o, (m, c0)) in own.iter_mut().zip(m.iter().zip(sp.at(c, 0, 0))) {
                 *o = select(*m, *c0, *o);
+            }
+        }
+    }
+
+    /// The class sums of tile row `ty` into `st.row.sums`, from `R_RB_COEF`
+    /// on: vertical parity (same, other) by horizontal parity, each
+    /// vertical sum kept in one row buffer for its two horizontal ones.
+    #[inline(always)]
+    fn row_class_sums(&self, st: &mut State, t: &Tile, c: &[f32], ty: usize) {
+        let [ip, ii] = &st.prod;
+        let sources: [&[f32]; STATS] = [&st.green, c, ip, ii];
+        let at = t.span(ty, R_RB_LAPLACE).range().start;
+        let (wide, n) = (t.stride - 2 * R_RB_LAPLACE, t.stride - 2 * R_RB_COEF);
+        let parities = [Parity::Same, Parity::Other];
+        let Row {
+            vsum, sums, pairs, ..
+        } = &mut st.row;
+        for (src, sums) in sources.iter().zip(sums.iter_mut()) {
+            for (pair, vertical) in sums.chunks_exact_mut(2).zip(parities) {
+                let column = &mut vsum[..wide];
+                window_sum(src, at, t.stride, column, SQUARE_RADIUS, vertical);
+                let (same, other) = pair.split_at_mut(1);
+                let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
+                class_sums(vsum, SQUARE_RADIUS, same, other, pairs);
+            }
+        }
+    }
+
+    /// Red and blue coefficients of tile row `ty` from its class sums.
+    #[inline(always)]
+    fn chroma_coefficients(&self, st: &mut State, t: &Tile, ty: usize) {
+        let sp = t.span(ty, R_RB_COEF);
+        let m = self.mask(&st.chroma, t, ty, R_RB_COEF, sp.n);
+        let count = |v: Parity, h: Parity| {
+            window(v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS), self.flat)
+        };
+        let (same, other) = (Parity::Same, Parity::Other);
+        let (own_at_chroma, own_at_green) = (count(same, same), count(same, other));
+        let (far_at_chroma, far_at_green) = (count(other, other), count(other, same));
+        // The row's own chroma class (vertical parity same) and the other
+        // one; each row's chroma sites share the own class's column parity.
+        let pick = |k: usize| st.row.sums.each_ref().map(|q| &q[k][..sp.n]);
+        let (ss, so, os, oo) = (pick(0), pick(1), pick(2), pick(3));
+        let [ar, br, ab, bb] = &mut st.coef;
+        let (ao, bo, ax, bx) = if t.kind(self.phase, ty).blue {
+            (sp.out(ab), sp.out(bb), sp.out(ar), sp.out(br))
+        } else {
+            (sp.out(ar), sp.out(br), sp.out(ab), sp.out(bb))
+        };
+        for i in 0..sp.n {
+            let mi = m[i];
+            let (s_ss, s_so, s_os, s_oo) =
+                (stats(&ss, i), stats(&so, i), stats(&os, i), stats(&oo, i));
+            let own = blend(mi, s_ss, s_so);
+            let far = blend(mi, s_oo, s_os);
+            let own_n = select_window(mi, own_at_chroma, own_at_green);
+            let far_n = select_window(mi, far_at_chroma, far_at_green);
+            (ao[i], bo[i]) = coefficients(own, own_n);
+            (ax[i], bx[i]) = coefficients(far, far_n);
+        }
+    }
+
+    /// Tentative red and blue values of tile row `ty` from the box means of
+    /// their coefficients, and their residuals at their own samples.
+    #[inline(always)]
+    fn chroma_residuals(&self, st: &mut State, t: &Tile, c: &[f32], ty: usize) {
+        let at = t.span(ty, R_RB_COEF).range().start;
+        let sp = t.span(ty, R_RB_MEAN);
+        let wide = t.stride - 2 * R_RB_COEF;
+        let Row {
+            vsum, mean, pairs, ..
+        } = &mut st.row;
+        for (src, dst) in st.coef.iter().zip(mean.iter_mut()) {
+            let column = &mut vsum[..wide];
+            window_sum(src, at, t.stride, column, SQUARE_RADIUS, Parity::All);
+            all_sums(vsum, SQUARE_RADIUS, &mut dst[..sp.n], pairs);
+        }
+        let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
+        let m = self.mask(&st.chroma, t, ty, R_RB_MEAN, sp.n);
+        let blue_row = t.kind(self.phase, ty).blue;
+        let (c0, g0) = (sp.at(c, 0, 0), sp.at(&st.green, 0, 0));
+        for (k, (res, part)) in st.res.iter_mut().zip(st.part.iter_mut()).enumerate() {
+            // Class k (0 red, 1 blue) is sampled at this row's chroma
+            // sites when the row is of its kind.
+            let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
+            let (a, b) = (&mean[2 * k][..sp.n], &mean[2 * k + 1][..sp.n]);
+            let (res, part) = (sp.out(res), sp.out(part));
+            let inputs = a.iter().zip(b).zip(g0.iter().zip(c0)).zip(m);
+            for ((res, part), (((a, b), (g, c)), m)) in res.iter_mut().zip(part).zip(inputs) {
+                let tent = scale * a * g + scale * b;
+                *part = tent;
+                *res = select(m & sampled, c - tent, 0.0);
             }
         }
     }
@@ -452,12 +586,30 @@ impl TileKernel for Mlri {
 
     fn state(&self, stride: usize, len: usize) -> State {
         let plane = || vec![0.0f32; len];
+        // Lines run along rows (`stride` long) and columns (`len / stride`).
+        let longest = stride.max(len / stride);
+        let line = || vec![0.0f32; longest];
         State {
-            guide: plane(),
+            line: Line {
+                guide: line(),
+                prod: [line(), line()],
+                sums: [0; STATS].map(|_| [line(), line()]),
+                coef: [0; 4].map(|_| line()),
+                mean: [0; 4].map(|_| line()),
+                res: line(),
+                part: line(),
+                pairs: line(),
+            },
+            row: Row {
+                vsum: line(),
+                sums: [0; STATS].map(|_| [0; 4].map(|_| line())),
+                mean: [0; 4].map(|_| line()),
+                pairs: line(),
+            },
+            across: plane(),
+            across_dif: plane(),
             prod: [plane(), plane()],
-            sums: [0; STATS].map(|_| [0; 4].map(|_| plane())),
             coef: [0; 4].map(|_| plane()),
-            mean: [0; 4].map(|_| plane()),
             tmp: plane(),
             res: [plane(), plane()],
             part: [plane(), plane()],
@@ -467,14 +619,14 @@ impl TileKernel for Mlri {
             green: plane(),
             own: plane(),
             other: plane(),
-            chroma: chroma_masks(stride),
+            chroma: chroma_masks(longest),
         }
     }
 
     #[inline(always)]
     fn run<'s>(&self, st: &'s mut State, t: &Tile, c: &[f32]) -> [&'s [f32]; 3] {
-        self.directional(st, t, c, (0, 1), 0);
-        self.directional(st, t, c, (1, 0), 1);
+        self.green_rows(st, t, c);
+        self.green_columns(st, t, c);
         self.combine(st, t, c);
         self.chroma(st, t, c);
         [&st.own, &st.green, &st.other]
@@ -497,10 +649,10 @@ mod tests {
         let si: f32 = guide.iter().sum();
         let sp: f32 = guide.iter().map(|g| 2.0 * g + 3.0).sum();
         let sii: f32 = lap.iter().map(|l| l * l).sum();
-        let (a, b) = coefficients([si, sp, 2.0 * sii, sii], 4.0, 1e-5);
+        let (a, b) = coefficients([si, sp, 2.0 * sii, sii], window(4, 1e-5));
         assert_eq!((a, b), (2.0, 3.0));
         // A flat guide: the floor keeps the slope finite and small.
-        let (a, b) = coefficients([4.0, 8.0, 0.0, 0.0], 4.0, 1e-5);
+        let (a, b) = coefficients([4.0, 8.0, 0.0, 0.0], window(4, 1e-5));
         assert_eq!((a, b), (0.0, 2.0));
     }
 
