@@ -206,6 +206,26 @@ def outputs(folder) -> list[str]:
     return sorted(os.listdir(folder))
 
 
+def worker_settings(client) -> set[tuple]:
+    """What WORKER_CONFIG changes, as every worker process sees it."""
+
+    def read():
+        import dask
+
+        return (
+            os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+            dask.config.get("distributed.worker.profile.enabled"),
+            dask.config.get("distributed.admin.tick.interval"),
+        )
+
+    return set(client.run(read).values())
+
+
+def test_local_workers_keep_glibc_malloc_tuning_and_no_profiler(client):
+    # Dask's nanny would set MALLOC_TRIM_THRESHOLD_=65536 and profile every 10 ms.
+    assert worker_settings(client) == {(None, False, "1s")}
+
+
 def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_path, client, raws):
     paths, corrupt = raws
     out = tmp_path / "out"
@@ -238,6 +258,7 @@ def test_a_killed_worker_loses_no_file_and_leaves_no_partial_file(tmp_path, clie
     out = tmp_path / "out"
     report = batch.develop_many(paths, out, client=client, on_result=kill_once)
     client.wait_for_workers(2)
+    assert worker_settings(client) == {(None, False, "1s")}  # the new one too
     assert killed
     assert killed[0] not in client.run(os.getpid).values()  # the nanny started a new one
     assert [f.status for f in report.files] == ["ok"] * 8
