@@ -5,13 +5,23 @@ RGGB, 12 bits, through ``simulate_sensor``) to 8-bit PNGs three ways:
 
 - a plain local loop, ``develop`` + ``write_image`` one file after the other,
   in a fresh interpreter with ``RAYON_NUM_THREADS=1``;
-- ``develop_many`` on a LocalCluster of 1 worker process, then of 2, each
+- ``develop_many`` on a ``local_client`` of 1 worker process, then of 2, each
   with one thread and ``RAYON_NUM_THREADS=1``, so a worker uses one core and
   the only difference between the runs is the number of workers.
 
+Both sides do the same work (the same ``develop``, the same PNG encoder at
+the same zlib level, the same files) and are warmed up alike: the loop and
+every worker develop the first raw once before the clock starts, so neither
+side's time includes first imports (rawpy) or first-touch memory.
+
 It reports the overhead of 1 worker against the local loop (scheduling,
 pickling, the atomic rename; goal < 10 %) and the scaling efficiency from 1
-to 2 workers, ``t1 / (2 t2)`` (goal >= 85 % on a 2-core machine).
+to 2 workers, ``t1 / (2 t2)`` (goal >= 85 % on a 2-core machine), and where
+the time went: the sum of the per-file times measured inside the tasks (so
+``busy %`` is the share of the workers' time spent in a task, the rest is
+scheduling and idling), and the CPU seconds and minor page faults of the
+worker processes per file, which other jobs on a shared machine barely
+change, unlike the wall-clock times.
 
 Part 2 demosaics a ``--side`` x ``--side`` uint16 mosaic (default 32768, 1.07
 gigapixels, 2 GB in and 6 GB out) with ``demosaic_dask`` on 2 workers, chunks
@@ -23,7 +33,8 @@ chunks, not by the image.
 
 Each configuration runs once (the machine is shared; the whole run takes
 minutes). Run: ``.venv/bin/python benchmarks/scale_out.py`` (``--count 20``
-for a shorter first part).
+for a shorter first part, ``--raws DIR`` to keep the generated DNGs for the
+next run).
 """
 
 from __future__ import annotations
