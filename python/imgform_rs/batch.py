@@ -235,10 +235,14 @@ def _write_report(outdir: Path, kind: str, results: list[FileResult]) -> BatchRe
     return BatchReport(results, path)
 
 
-def _remove_leftovers(targets: Iterable[Path]) -> None:
-    """Temporary files that workers killed mid-write left behind."""
-    for target in targets:
-        for tmp in target.parent.glob(f".{target.stem}.part-*{target.suffix}"):
+def _remove_leftovers(outdir: Path, targets: Iterable[Path]) -> None:
+    """Temporary files (see :func:`_temporary`) that workers killed mid-write
+    left behind: one scan of the folder, not one per file, which for
+    thousands of files would be quadratic."""
+    wanted = {(t.stem, t.suffix) for t in targets}
+    for tmp in outdir.glob(".*.part-*"):
+        stem = tmp.name[1:].rpartition(".part-")[0]
+        if (stem, tmp.suffix) in wanted:
             tmp.unlink(missing_ok=True)
 
 
@@ -308,7 +312,7 @@ def _run_batch(
             if client is None:
                 client = stack.enter_context(local_client())
             done = _submit_all(client, kind, todo, options, tick)
-        _remove_leftovers(t for _, t in todo)
+        _remove_leftovers(out, (t for _, t in todo))
     order = {str(t): i for i, (_, t) in enumerate(pairs)}
     results = sorted(skipped + done, key=lambda r: order[r.output])
     return _write_report(out, kind, results)
