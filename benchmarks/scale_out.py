@@ -99,6 +99,10 @@ class Run:
     faults: int
     """Minor page faults of the worker processes during the batch."""
     workers: int = 1
+    control: float = 0.0
+    """CPU seconds of this process (client, scheduler and nannies of a local
+    cluster) during the batch: on a loaded machine they share this session's
+    CPU with the workers (the kernel's autogroup fairness)."""
 
     def busy(self) -> float:
         """The share of the workers' time spent inside a task."""
@@ -162,15 +166,15 @@ def usage() -> tuple[float, int]:
 def on_cluster(paths: list[str], out: Path, workers: int) -> Run:
     with local_client(workers, env=ONE_CORE) as client:
         client.run(warm_up, paths[0], str(out.parent))
-        before = client.run(usage)
+        before, control = client.run(usage), usage()[0]
         start = time.perf_counter()
         report = develop_many(paths, out, client=client)
         took = time.perf_counter() - start
-        after = client.run(usage)
+        after, control = client.run(usage), usage()[0] - control
     if report.failed:
         raise RuntimeError(report.failed[0].reason)
     cpu, faults = (sum(a[i] - before[w][i] for w, a in after.items()) for i in (0, 1))
-    return Run(took, sum(f.seconds for f in report.files), cpu, faults, workers)
+    return Run(took, sum(f.seconds for f in report.files), cpu, faults, workers, control)
 
 
 def part_one(folder: Path, raws: Path, count: int, megapixels: float) -> dict[str, Run]:
@@ -194,6 +198,7 @@ def report_one(runs: dict[str, Run], count: int, megapixels: float) -> None:
             f"{r.in_tasks / count:.3f}",
             f"{100 * r.busy():.1f}",
             f"{r.cpu / count:.3f}",
+            f"{r.control / count:.3f}",
             f"{r.faults / count / 1000:.1f}",
         ]
         for k, r in runs.items()
@@ -206,6 +211,7 @@ def report_one(runs: dict[str, Run], count: int, megapixels: float) -> None:
         "s per file in task",
         "busy %",
         "CPU s per file",
+        "control CPU s per file",
         "k page faults/file",
     ]
     print(table(heads, rows))
