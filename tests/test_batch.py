@@ -206,6 +206,26 @@ def outputs(folder) -> list[str]:
     return sorted(os.listdir(folder))
 
 
+def worker_settings(client) -> set[tuple]:
+    """What WORKER_CONFIG changes, as every worker process sees it."""
+
+    def read():
+        import dask
+
+        return (
+            os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+            dask.config.get("distributed.worker.profile.enabled"),
+            dask.config.get("distributed.admin.tick.interval"),
+        )
+
+    return set(client.run(read).values())
+
+
+def test_local_workers_keep_glibc_malloc_tuning_and_no_profiler(client):
+    # Dask's nanny would set MALLOC_TRIM_THRESHOLD_=65536 and profile every 10 ms.
+    assert worker_settings(client) == {(None, False, "1s")}
+
+
 def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_path, client, raws):
     paths, corrupt = raws
     out = tmp_path / "out"
@@ -224,6 +244,21 @@ def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_p
     assert [os.stat(f.output).st_mtime_ns for f in again.files] == stamps
 
 
+def test_a_batch_removes_the_partial_files_of_its_own_outputs_only(tmp_path, client, raws):
+    paths, _ = raws
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = [out / ".shot0.part-0123abcd.png", out / ".shot1.part-4567.png"]
+    foreign = [out / ".shot0.part-89ab.tif", out / ".notours.part-cdef.png"]
+    for f in dead + foreign:
+        f.write_bytes(b"half a file")
+    report = batch.develop_many(paths[:2], out, client=client)
+    assert [f.status for f in report.files] == ["ok", "ok"]
+    assert outputs(out) == sorted(
+        [f.name for f in foreign] + ["shot0.png", "shot1.png", report.path.name]
+    )
+
+
 @pytest.mark.slow
 def test_a_killed_worker_loses_no_file_and_leaves_no_partial_file(tmp_path, client):
     paths = [write_raw(tmp_path / f"big{i}.dng", 600, 800, seed=i) for i in range(8)]
@@ -238,6 +273,7 @@ def test_a_killed_worker_loses_no_file_and_leaves_no_partial_file(tmp_path, clie
     out = tmp_path / "out"
     report = batch.develop_many(paths, out, client=client, on_result=kill_once)
     client.wait_for_workers(2)
+    assert worker_settings(client) == {(None, False, "1s")}  # the new one too
     assert killed
     assert killed[0] not in client.run(os.getpid).values()  # the nanny started a new one
     assert [f.status for f in report.files] == ["ok"] * 8
