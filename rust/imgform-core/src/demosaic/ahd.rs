@@ -163,15 +163,24 @@ const STEPS: [(isize, isize); 4] = [(0, -1), (0, 1), (-1, 0), (1, 0)];
 /// each channel's `(centre, [neighbours])` views.
 #[inline(always)]
 fn steps_dist(lab: &[(&[f32], [&[f32]; 4]); 3], i: usize) -> [(f32, f32); 4] {
+    // Not `[0, 1, 2, 3].map(..)` nor a closure: both stayed a call per
+    // pixel once the tile loop grew.
+    [
+        step_dist(lab, i, 0),
+        step_dist(lab, i, 1),
+        step_dist(lab, i, 2),
+        step_dist(lab, i, 3),
+    ]
+}
+
+/// [`steps_dist`] to neighbour `k`.
+#[inline(always)]
+fn step_dist(lab: &[(&[f32], [&[f32]; 4]); 3], i: usize, k: usize) -> (f32, f32) {
     let [(l0, ln), (a0, an), (b0, bn)] = lab;
-    let one = |k: usize| {
-        let l = (l0[i] - ln[k][i]).abs();
-        let a = a0[i] - an[k][i];
-        let b = b0[i] - bn[k][i];
-        (l, a * a + b * b)
-    };
-    // Not `[0, 1, 2, 3].map(..)`: that stayed a call per pixel.
-    [one(0), one(1), one(2), one(3)]
+    let l = (l0[i] - ln[k][i]).abs();
+    let a = a0[i] - an[k][i];
+    let b = b0[i] - bn[k][i];
+    (l, a * a + b * b)
 }
 
 /// How many of the four neighbours are within both thresholds.
