@@ -59,7 +59,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (about 51 MP/s on two free cores at 24 MP, 2.5x slower than ``"rcd_menon"``).
+  (43-65 MP/s at 24 MP on two cores, about 2.2-2.8x LibRaw AHD; 2.5x slower than
+  ``"rcd_menon"``).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
   Transactions on Computational Imaging 3(1), 2017: per CFA position and class of
@@ -67,22 +68,25 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   least-squares linear filter maps 26 local colour differences of the base output to
   the residual of the two missing colours. The filters (60 KB, shipped in the
   extension) are trained by ``python -m imgform_rs.training.demosaic`` (``make
-  weights`` checks the shipped file bit for bit) on scikit-image's grey sample images
-  coloured by a smooth random field and on ``hubble_deep_field``, never on the
-  benchmark's images. Not flip-symmetric. Outputs are clamped to the range of the
-  input mosaic. It does not beat its base yet: mean CPSNR 39.24 dB against 39.63
-  (astronaut 37.03, coffee 35.90, chelsea 41.16, rocket 32.74, immunohistochemistry
-  42.14, retina 50.37, motorcycle_left 35.38): the coloured grey images teach
-  inter-channel correlations that real colour photographs break.
-- ``"best"``: our highest-quality method, currently ``"rcd_menon"``. Mean CPSNR on
+  training-data`` fetches the photographs, ``make weights`` rebuilds the shipped file
+  bit for bit) on 33 openly licensed photographs from Debian wallpaper packages and
+  the scikit-learn and matplotlib wheels (listed with their licences in
+  :mod:`imgform_rs.training.photos`), never on the benchmark's images. Not
+  flip-symmetric. Outputs are clamped to the range of the input mosaic. Mean CPSNR
+  40.04 dB against its base's 39.63 (astronaut 37.70, coffee 36.38, chelsea 41.82,
+  rocket 33.12, immunohistochemistry 42.71, retina 52.52, motorcycle_left 36.04), and
+  above its base on the held-out photographs too; 48-63 MP/s at 24 MP on two cores.
+  It is the most accurate method here but not ``"best"``, which must keep 100 MP/s.
+- ``"best"``: our highest-quality method at 100 MP/s or more, currently
+  ``"rcd_menon"`` (``"raisr"`` is 0.4 dB better at half the speed). Mean CPSNR on
   the seven scikit-image images of ``benchmarks/demosaic.py`` (8-bit protocol,
   RGGB, 10 px crop): 39.63 dB, against ``"menon2007"`` 38.76, ``"rcd"`` 38.68 and the
   best peers LibRaw AAHD 38.78, colour-demosaicing Menon2007 38.76, LibRaw AHD 38.27.
   Per image: astronaut 37.01, coffee 35.09, chelsea 41.31, rocket 33.16,
   immunohistochemistry 42.61, retina 52.36, motorcycle_left 35.86. Speed on a 24 MP uint16
-  mosaic, 2 cores: 124 MP/s on a quiet machine, 80 MP/s in a loaded benchmark run
-  where LibRaw AHD made 15 MP/s (5.3x). Zone-plate false colour is about twice
-  Menon's alone (RCD's share), still below LibRaw AHD's.
+  mosaic, 2 cores: 100-109 MP/s on an idle machine, 5.5x LibRaw AHD in the same run.
+  Zone-plate false colour is about twice Menon's alone (RCD's share), still below
+  LibRaw AHD's.
 
 - ``"markesteijn"`` (X-Trans only): Frank Markesteijn's X-Trans method, as in dcraw's
   and LibRaw's ``xtrans_interpolate`` (one pass) — green interpolated along rows,
