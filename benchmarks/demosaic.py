@@ -42,19 +42,12 @@ from _bench import measure, table
 
 import imgform_rs as ig
 from imgform_rs.dng import write_dng
+from imgform_rs.training.demosaic import EVALUATION_IMAGES
 
 H, W = 4000, 6000
 MP = H * W / 1e6
 CROP = (800, 1250)  # 1 MP for colour-demosaicing
-IMAGES = [
-    "astronaut",
-    "coffee",
-    "chelsea",
-    "rocket",
-    "immunohistochemistry",
-    "retina",
-    "motorcycle_left",
-]
+IMAGES = EVALUATION_IMAGES  # held out of every training
 LIBRAW_METHODS = ["LINEAR", "VNG", "PPG", "AHD", "DCB", "DHT", "AAHD"]
 
 
