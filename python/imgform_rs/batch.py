@@ -158,7 +158,9 @@ def local_client(workers: int = 2, *, env: dict[str, str] | None = None) -> Iter
             n_workers=workers,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            # Any free port: the scheduler serves HTTP even without a
+            # dashboard, and Dask's default 8787 may be another cluster's.
+            dashboard_address=":0",
             env=env or {},
         )
         try:
@@ -369,7 +371,10 @@ def develop_many(
     >>> import numpy as np
     >>> from distributed import Client
     >>> from imgform_rs.dng import write_dng
-    >>> with tempfile.TemporaryDirectory() as d, Client(processes=False) as client:
+    >>> with (
+    ...     tempfile.TemporaryDirectory() as d,
+    ...     Client(processes=False, dashboard_address=":0") as client,
+    ... ):
     ...     cfa = (np.arange(32 * 32) % 2000 + 100).astype(np.uint16).reshape(32, 32)
     ...     write_dng(f"{d}/a.dng", cfa, "RGGB", white_level=4095)
     ...     report = develop_many([f"{d}/a.dng"], f"{d}/out", client=client)
