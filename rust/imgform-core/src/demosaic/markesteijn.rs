@@ -42,7 +42,7 @@ use rayon::prelude::*;
 /// phase of `ty % 6`).
 const ROWS: usize = 96;
 /// Output columns per tile: the ~25 planes of a tile (~4 MB) stay in cache.
-const COLS: usize = 384;
+const COLS: usize = 192;
 /// Columns computed together: one AVX vector of 8 lanes. (Runs of 24
 /// columns, the period times 4, left LLVM's vectoriser with scalar code.)
 const LANES: usize = 8;
