@@ -305,6 +305,12 @@ SHAPE = r"\(2, 2\) or \(6, 6\), got \(3, 3\)"
 DTYPE = "uint8, uint16 or float32"
 
 
+def float_with(value, shape, at):
+    raw = np.zeros(shape, np.float32)
+    raw[at] = value
+    return raw
+
+
 @pytest.mark.parametrize(
     ("raw", "pattern", "method", "exc", "match"),
     [
@@ -321,6 +327,8 @@ DTYPE = "uint8, uint16 or float32"
         (Z8, None, "bilinear", TypeError, "got None"),
         (np.zeros((0, 4), np.uint8), "RGGB", "bilinear", ValueError, "must not be empty"),
         (np.zeros((1, 5), np.uint8), "RGGB", "bilinear", ValueError, r"2x2 .*got \(1, 5\)"),
+        (float_with(np.nan, (4, 4), (1, 2)), "RGGB", "rcd", ValueError, "NaN at row 1, column 2"),
+        (float_with(-np.inf, (6, 6), (5, 5)), "XTRANS", "markesteijn", ValueError, "-inf at row 5"),
     ],
 )
 def test_bad_input_names_what_was_given_and_what_is_accepted(raw, pattern, method, exc, match):

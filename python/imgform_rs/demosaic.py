@@ -186,8 +186,9 @@ def demosaic(
     ValueError
         For a shape other than (H, W), an image smaller than 2x2, an unknown
         method or pattern, a method that does not support the pattern (a Bayer-only
-        method for X-Trans or ``"markesteijn"`` for Bayer), or an X-Trans mosaic
-        smaller than 6x6.
+        method for X-Trans or ``"markesteijn"`` for Bayer), an X-Trans mosaic
+        smaller than 6x6, or a float32 mosaic holding NaN or an infinity (the
+        message names the first one's row and column).
 
     Examples
     --------

@@ -31,6 +31,13 @@ pub trait Sample: Copy + Send + Sync + Default + PartialEq + std::fmt::Debug + '
     fn quantize(v: f32) -> f32 {
         Self::from_f32(v).to_f32()
     }
+
+    /// Whether the sample is a number: integers always are, so scans for
+    /// NaN and infinities compile away for them.
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        true
+    }
 }
 
 impl Sample for u8 {
@@ -111,6 +118,10 @@ impl Sample for f32 {
     #[inline(always)]
     fn from_f32(v: f32) -> Self {
         v
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f32::is_finite(self)
     }
 }
 

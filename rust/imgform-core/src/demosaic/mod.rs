@@ -42,6 +42,7 @@ use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::parallel::for_each_band;
 use menon2007::Menon2007;
+use rayon::prelude::*;
 use rcd::Rcd;
 use tiled::TileKernel;
 
@@ -265,7 +266,8 @@ impl Method {
 /// [`CoreError::Shape`] for a multi-channel `raw`, an image smaller than
 /// 2x2 (6x6 for X-Trans) or a wrong output length;
 /// [`CoreError::InvalidArgument`] for a method that does not support the
-/// pattern (see [`Method::supports`]).
+/// pattern (see [`Method::supports`]) or a float mosaic holding NaN or an
+/// infinity.
 pub fn demosaic<T: Sample>(
     raw: ImageView<'_, T>,
     pattern: &CfaPattern,
@@ -278,6 +280,7 @@ pub fn demosaic<T: Sample>(
             raw.channels()
         )));
     }
+    check_finite(&raw)?;
     let Some(phase) = checked_phase(raw.width(), raw.height(), pattern, method, out.len())? else {
         match method {
             Method::Markesteijn => markesteijn::run(&raw, pattern, out),
@@ -320,6 +323,23 @@ where
         }
         _ => Ok(false),
     }
+}
+
+/// Refuses NaN and infinities: every method mixes neighbouring samples, so
+/// one would spread into (or be clamped into) numbers around it that look
+/// valid. The first bad sample in row-major order is named, whatever the
+/// thread count.
+fn check_finite<T: Sample>(raw: &ImageView<'_, T>) -> Result<()> {
+    let bad_row = (0..raw.height())
+        .into_par_iter()
+        .find_first(|&y| !raw.row(y).iter().all(|v| v.is_finite()));
+    let Some(y) = bad_row else { return Ok(()) };
+    let row = raw.row(y);
+    let x = row.iter().position(|v| !v.is_finite()).unwrap_or_default();
+    Err(invalid!(
+        "the mosaic must hold finite numbers, got {:?} at row {y}, column {x}",
+        row[x]
+    ))
 }
 
 /// Checks the size, the output length and the method against the pattern;

@@ -185,6 +185,22 @@ fn integer_outputs_are_clamped_not_wrapped() {
 }
 
 #[test]
+fn non_finite_floats_are_refused_by_every_method() {
+    let mut raw = vec![0.5f32; 36];
+    raw[4 * 6 + 1] = f32::INFINITY;
+    for method in Method::ALL {
+        let name = if method.supports(&pattern("RGGB")) {
+            "RGGB"
+        } else {
+            "XTRANS"
+        };
+        let view = ImageView::contiguous(&raw, 6, 6, 1).unwrap();
+        let err = demosaic(view, &pattern(name), method, &mut [0.0; 108]).unwrap_err();
+        assert!(err.to_string().contains("inf at row 4, column 1"), "{err}");
+    }
+}
+
+#[test]
 fn bands_do_not_change_the_result() {
     // More rows than one band, compared with the oracle at band seams.
     let (w, h) = (5, 3 * ROWS_PER_BAND + 3);
