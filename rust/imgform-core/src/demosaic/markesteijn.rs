@@ -538,8 +538,13 @@ struct Ctx<'a, T> {
 }
 
 /// Demosaics an X-Trans mosaic (at least 6x6) into `out`, clamped to the
-/// range of `raw`.
-pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, pattern: &CfaPattern, out: &mut [T]) {
+/// range of `raw`, with the instruction set `isa` (any gives the same bits).
+pub(super) fn run<T: Sample>(
+    raw: &ImageView<'_, T>,
+    pattern: &CfaPattern,
+    isa: Isa,
+    out: &mut [T],
+) {
     let w = raw.width();
     // `LANES` columns of padding take the runs' overshoot (see
     // [`Tile::runs`]).
@@ -551,7 +556,6 @@ pub(super) fn run<T: Sample>(raw: &ImageView<'_, T>, pattern: &CfaPattern, out: 
     };
     let len = stride * (ROWS + 2 * HALO);
     let bands = raw.height().div_ceil(ROWS);
-    let isa = Isa::detect();
     out.par_chunks_mut(3 * w * ROWS)
         .with_min_len(bands.div_ceil(2 * rayon::current_num_threads()))
         .enumerate()
@@ -862,6 +866,20 @@ mod tests {
                 assert_eq!(mirror6(i as isize, n), i);
             }
         }
+    }
+
+    #[test]
+    fn every_instruction_set_gives_the_same_bits() {
+        // Two tiles each way, so seams and the runs' overshoot are covered.
+        let (w, h) = (COLS + 37, ROWS + 29);
+        let raw: Vec<u16> = (0..w * h).map(|i| ((i * 7919) % 4099) as u16).collect();
+        let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
+        let run_with = |isa| {
+            let mut out = vec![0u16; 3 * w * h];
+            run(&view, &CfaPattern::xtrans(), isa, &mut out);
+            out
+        };
+        assert_eq!(run_with(Isa::Baseline), run_with(Isa::detect()));
     }
 
     #[test]

@@ -283,7 +283,7 @@ pub fn demosaic<T: Sample>(
     check_finite(&raw)?;
     let Some(phase) = checked_phase(raw.width(), raw.height(), pattern, method, out.len())? else {
         match method {
-            Method::Markesteijn => markesteijn::run(&raw, pattern, out),
+            Method::Markesteijn => markesteijn::run(&raw, pattern, Isa::detect(), out),
             _ => xtrans::run(&raw, pattern, out),
         }
         return Ok(());
