@@ -13,8 +13,6 @@
 //! (`Other`: the neighbouring class). Guided filters over sparse CFA
 //! samples need the class sums; their coefficients then need the full box.
 
-use super::tiled::Tile;
-
 /// Which samples of a window a sum keeps, by their distance to the centre.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Parity {
@@ -49,13 +47,9 @@ impl Parity {
 
 /// `out[i]` = the sum of `src` around index `at + i`, over the samples
 /// `k * step` away for the distances `k <= radius` that `parity` keeps
-/// (`step` 1 along a row, the row stride down a column).
+/// (`step` 1 along a row).
 ///
-/// The one loop behind every box of the method: it works on any flat
-/// buffer, so a stage can sum a whole tile plane or a single row it keeps
-/// in cache. `src` must hold `radius * step` values beyond both ends.
-/// The method's windows (radius 5, and the 3x3 box) get a loop whose taps
-/// are known at compile time, which keeps each sum in a register.
+/// `src` must hold `radius * step` values beyond both ends.
 #[inline(always)]
 pub(super) fn window_sum(
     src: &[f32],
@@ -65,21 +59,42 @@ pub(super) fn window_sum(
     radius: usize,
     parity: Parity,
 ) {
+    let n = out.len();
+    let view = |d: isize| {
+        let start = (at as isize + d * step as isize) as usize;
+        &src[start..start + n]
+    };
+    window_sum_by(view, out, radius, parity);
+}
+
+/// [`window_sum`] over any layout: `view(d)` gives the samples `d` steps
+/// from the centres (at least `out.len()` of them), whether they lie along
+/// a row or in the rows of a ring.
+///
+/// The one loop behind every box of the method. Its windows (radius 5,
+/// and the 3x3 box) get a loop whose taps are known at compile time, which
+/// keeps each sum in a register.
+#[inline(always)]
+pub(super) fn window_sum_by<'a>(
+    view: impl Fn(isize) -> &'a [f32],
+    out: &mut [f32],
+    radius: usize,
+    parity: Parity,
+) {
     match (parity, radius) {
-        (Parity::All, 1) => taps(src, at, step, out, true, [1]),
-        (Parity::All, 5) => taps(src, at, step, out, true, [1, 2, 3, 4, 5]),
-        (Parity::Same, 5) => taps(src, at, step, out, true, [2, 4]),
-        (Parity::Other, 5) => taps(src, at, step, out, false, [1, 3, 5]),
+        (Parity::All, 1) => taps(&view, out, true, [1]),
+        (Parity::All, 5) => taps(&view, out, true, [1, 2, 3, 4, 5]),
+        (Parity::Same, 5) => taps(&view, out, true, [2, 4]),
+        (Parity::Other, 5) => taps(&view, out, false, [1, 3, 5]),
         _ => {
             let n = out.len();
             if parity == Parity::Other {
                 out.fill(0.0);
             } else {
-                out.copy_from_slice(&src[at..at + n]);
+                out.copy_from_slice(&view(0)[..n]);
             }
             for k in parity.steps(radius) {
-                let d = k * step;
-                let (a, b) = (&src[at - d..at - d + n], &src[at + d..at + d + n]);
+                let (a, b) = (&view(-(k as isize))[..n], &view(k as isize)[..n]);
                 for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
                     *o += a + b;
                 }
@@ -88,22 +103,20 @@ pub(super) fn window_sum(
     }
 }
 
-/// [`window_sum`] over the mirrored pairs at `dist` (nearest first) and,
+/// [`window_sum_by`] over the mirrored pairs at `dist` (nearest first) and,
 /// if `centre`, the centre: the pairs are added in order, then the centre,
 /// so a mirrored line gives the same bits.
 #[inline(always)]
-fn taps<const K: usize>(
-    src: &[f32],
-    at: usize,
-    step: usize,
+fn taps<'a, const K: usize>(
+    view: &impl Fn(isize) -> &'a [f32],
     out: &mut [f32],
     centre: bool,
     dist: [usize; K],
 ) {
     let n = out.len();
-    let left = dist.map(|d| &src[at - d * step..][..n]);
-    let right = dist.map(|d| &src[at + d * step..][..n]);
-    let mid = &src[at..at + n];
+    let left = dist.map(|d| &view(-(d as isize))[..n]);
+    let right = dist.map(|d| &view(d as isize)[..n]);
+    let mid = &view(0)[..n];
     for i in 0..n {
         let mut s = left[0][i] + right[0][i];
         for k in 1..K {
@@ -171,80 +184,56 @@ pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
     }
 }
 
-/// `out` = the sum of `src` over a line window of `radius` along `dir`
-/// (`(0, 1)` along rows, `(1, 0)` along columns), keeping `parity`.
-///
-/// Filled on tile rows `rows` and, within them, the columns at least
-/// `cols` from the tile's sides; `src` must be valid `radius` steps
-/// further along `dir`.
+/// [`class_sums`] across rows: `view(d)` gives row `d` from the centres.
+/// The same groups are added in the same order, so a column run through
+/// this gives the bits [`class_sums`] gives it as a line.
 #[inline(always)]
-pub(super) fn line_sum(
-    t: &Tile,
-    src: &[f32],
-    out: &mut [f32],
-    (dy, dx): (isize, isize),
-    radius: usize,
-    parity: Parity,
-    (rows, cols): (std::ops::Range<usize>, usize),
+pub(super) fn class_sums_across<'a>(
+    view: impl Fn(isize) -> &'a [f32],
+    same: &mut [f32],
+    other: &mut [f32],
 ) {
-    let step = dy as usize * t.stride + dx as usize;
-    for ty in rows {
-        let sp = t.span(ty, cols);
-        window_sum(src, sp.range().start, step, sp.out(out), radius, parity);
+    let n = same.len();
+    let s = [-5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5].map(|d| &view(d)[..n]);
+    for i in 0..n {
+        let s = |d: usize| s[d][i];
+        same[i] = s(5) + ((s(1) + s(3)) + (s(7) + s(9)));
+        other[i] = (s(4) + s(6)) + ((s(0) + s(2)) + (s(8) + s(10)));
     }
 }
 
-/// `out` = the 2D sum of `src` over the `(2 radius + 1)`-square window,
-/// keeping `parity` along the columns and `along_rows` along the rows
-/// (vertical pass into `tmp`, then horizontal). Filled `reach` from the
-/// tile's sides; `src` must be valid `reach - radius` from them.
+/// [`all_sums`] across rows, with its groups and order (see
+/// [`class_sums_across`]).
 #[inline(always)]
-pub(super) fn square_sum(
-    t: &Tile,
-    src: &[f32],
-    tmp: &mut [f32],
-    out: &mut [f32],
-    radius: usize,
-    (vertical, along_rows): (Parity, Parity),
-    reach: usize,
-) {
-    let inner = reach - radius;
-    line_sum(
-        t,
-        src,
-        tmp,
-        (1, 0),
-        radius,
-        vertical,
-        (reach..t.rows - reach, inner),
-    );
-    line_sum(
-        t,
-        tmp,
-        out,
-        (0, 1),
-        radius,
-        along_rows,
-        (reach..t.rows - reach, reach),
-    );
+pub(super) fn all_sums_across<'a>(view: impl Fn(isize) -> &'a [f32], out: &mut [f32]) {
+    let n = out.len();
+    let s = [-5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5].map(|d| &view(d)[..n]);
+    for (i, o) in out.iter_mut().enumerate() {
+        let s = |d: usize| s[d][i];
+        let (near, left, right) = (
+            s(5) + (s(4) + s(6)),
+            (s(0) + s(1)) + (s(2) + s(3)),
+            (s(7) + s(8)) + (s(9) + s(10)),
+        );
+        *o = near + (left + right);
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn tile(w: usize, h: usize) -> Tile {
-        Tile {
-            stride: w,
-            rows: h,
-            y0: 0,
-        }
-    }
-
     /// A plane of distinct, irregular values.
     fn plane(len: usize) -> Vec<f32> {
         (0..len)
             .map(|i| ((i * 37 + 11) % 23) as f32 - 7.0)
+            .collect()
+    }
+
+    /// Values whose sums round differently in different orders.
+    fn rounding(len: usize) -> Vec<f32> {
+        (0..len)
+            .map(|i| 1.0 / (1.0 + (i % 29) as f32 * 0.37).powi(3) + (i % 7) as f32 * 1e3)
             .collect()
     }
 
@@ -262,79 +251,31 @@ mod tests {
     }
 
     #[test]
-    fn line_sums_match_a_direct_sum() {
-        let (w, h, r) = (17, 13, 3);
-        let t = tile(w, h);
+    fn window_sums_match_a_direct_sum() {
+        let (w, h) = (17, 13);
         let src = plane(w * h);
-        for (dir, parity) in [
-            ((0, 1), Parity::Other),
-            ((1, 0), Parity::Same),
-            ((0, 1), Parity::All),
+        for (step, parity, r) in [
+            (1, Parity::Other, 3),
+            (w, Parity::Same, 3),
+            (1, Parity::All, 1),
+            (w, Parity::All, 5),
+            (w, Parity::Other, 5),
         ] {
-            let mut out = vec![f32::NAN; w * h];
-            line_sum(&t, &src, &mut out, dir, r, parity, (r..h - r, r));
-            for y in r..h - r {
-                for x in r..w - r {
-                    let want: f32 = (-(r as isize)..=r as isize)
-                        .filter(|k| match parity {
-                            Parity::All => true,
-                            Parity::Same => k % 2 == 0,
-                            Parity::Other => k % 2 != 0,
-                        })
-                        .map(|k| {
-                            let (yy, xx) = (y as isize + k * dir.0, x as isize + k * dir.1);
-                            src[yy as usize * w + xx as usize]
-                        })
-                        .sum();
-                    assert_eq!(out[y * w + x], want, "{dir:?} {parity:?} at ({y}, {x})");
-                }
+            let at = 6 * w + 6;
+            let mut out = vec![f32::NAN; 4];
+            window_sum(&src, at, step, &mut out, r, parity);
+            for (i, got) in out.iter().enumerate() {
+                let want: f32 = (-(r as isize)..=r as isize)
+                    .filter(|k| match parity {
+                        Parity::All => true,
+                        Parity::Same => k % 2 == 0,
+                        Parity::Other => k % 2 != 0,
+                    })
+                    .map(|k| src[((at + i) as isize + k * step as isize) as usize])
+                    .sum();
+                assert_eq!(*got, want, "{step} {parity:?} {r} at {i}");
             }
         }
-    }
-
-    #[test]
-    fn square_sums_keep_the_class_of_each_axis() {
-        // Ones on the even rows and odd columns only: an "R" class of a
-        // Bayer-like lattice. From an odd row and an even column, the
-        // other-parity sums of a radius-5 window see 6 x 6 of them.
-        let (w, h, r) = (24, 24, 5);
-        let t = tile(w, h);
-        let src: Vec<f32> = (0..w * h)
-            .map(|i| f32::from(u8::from((i / w) % 2 == 0 && (i % w) % 2 == 1)))
-            .collect();
-        let (mut tmp, mut out) = (vec![0.0; w * h], vec![0.0; w * h]);
-        square_sum(
-            &t,
-            &src,
-            &mut tmp,
-            &mut out,
-            r,
-            (Parity::Other, Parity::Other),
-            2 * r,
-        );
-        assert_eq!(out[11 * w + 12], 36.0);
-        square_sum(
-            &t,
-            &src,
-            &mut tmp,
-            &mut out,
-            r,
-            (Parity::Same, Parity::Other),
-            2 * r,
-        );
-        assert_eq!(out[12 * w + 12], 30.0);
-        assert_eq!(out[11 * w + 12], 0.0);
-        // Rows 7..=17 hold five even rows, columns 7..=17 six odd ones.
-        square_sum(
-            &t,
-            &src,
-            &mut tmp,
-            &mut out,
-            r,
-            (Parity::All, Parity::All),
-            2 * r,
-        );
-        assert_eq!(out[12 * w + 12], 30.0);
     }
 
     #[test]
@@ -361,23 +302,54 @@ mod tests {
     }
 
     #[test]
+    fn sums_across_rows_give_the_bits_of_sums_along_a_line() {
+        // Column x of a plane, summed across its rows, against the same
+        // column copied out as a line.
+        let (w, h) = (5, 31);
+        let src = rounding(w * h);
+        let n = h - 10;
+        let view = |d: isize| &src[((5 + d) as usize) * w..];
+        let (mut same, mut other, mut all) = (vec![0.0; n * w], vec![0.0; n * w], vec![0.0; n * w]);
+        for y in 0..n {
+            let row = |d: isize| &view(y as isize + d)[..w];
+            class_sums_across(row, &mut same[y * w..][..w], &mut other[y * w..][..w]);
+            all_sums_across(row, &mut all[y * w..][..w]);
+        }
+        let mut q = vec![0.0; h + 10];
+        for x in 0..w {
+            let line: Vec<f32> = (0..h).map(|y| src[y * w + x]).collect();
+            let (mut ls, mut lo, mut la) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+            class_sums(&line, 5, &mut ls, &mut lo, &mut q);
+            all_sums(&line, 5, &mut la, &mut q);
+            for y in 0..n {
+                let i = y * w + x;
+                assert_eq!(same[i].to_bits(), ls[y].to_bits(), "same ({y}, {x})");
+                assert_eq!(other[i].to_bits(), lo[y].to_bits(), "other ({y}, {x})");
+                assert_eq!(all[i].to_bits(), la[y].to_bits(), "all ({y}, {x})");
+            }
+        }
+    }
+
+    #[test]
     fn sums_are_exactly_mirror_symmetric() {
-        // Values whose sums round differently in different orders.
-        let (w, h, r) = (21, 3, 5);
-        let t = tile(w, h);
-        let src: Vec<f32> = (0..w * h)
-            .map(|i| 1.0 / (1.0 + (i % w) as f32 * 0.37).powi(3))
-            .collect();
-        let flipped: Vec<f32> = src
-            .chunks_exact(w)
-            .flat_map(|row| row.iter().rev().copied())
-            .collect();
-        let (mut a, mut b) = (vec![0.0; w * h], vec![0.0; w * h]);
-        line_sum(&t, &src, &mut a, (0, 1), r, Parity::All, (0..h, r));
-        line_sum(&t, &flipped, &mut b, (0, 1), r, Parity::All, (0..h, r));
-        for y in 0..h {
-            for x in r..w - r {
-                assert_eq!(a[y * w + x].to_bits(), b[y * w + w - 1 - x].to_bits());
+        let w = 21;
+        let src = rounding(w);
+        let flipped: Vec<f32> = src.iter().rev().copied().collect();
+        let n = w - 10;
+        let mut q = vec![0.0; w];
+        for kind in 0..4 {
+            let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
+            let mut other = vec![0.0; n];
+            for (src, out) in [(&src, &mut a), (&flipped, &mut b)] {
+                match kind {
+                    0 => window_sum(src, 5, 1, out, 5, Parity::All),
+                    1 => window_sum(src, 5, 1, out, 5, Parity::Other),
+                    2 => class_sums(src, 5, out, &mut other, &mut q),
+                    _ => all_sums(src, 5, out, &mut q),
+                }
+            }
+            for x in 0..n {
+                assert_eq!(a[x].to_bits(), b[n - 1 - x].to_bits(), "kind {kind} at {x}");
             }
         }
     }

@@ -41,14 +41,21 @@
 //! unchanged.
 //!
 //! Speed comes from keeping the many intermediate planes of a guided filter
-//! out of memory: the green stage runs line by line on buffers of one
-//! line (tile columns are first transposed into contiguous lines), and
-//! the red / blue stage sums its classes one row at a time, so only the
-//! planes that later stages read in 2-D (differences, green, products,
-//! coefficients, residuals) are ever written whole.
+//! out of memory. A tile streams down its rows: each stage computes one row
+//! per step, as many rows behind the raw data as its reach, and keeps its
+//! output in a [`Ring`] just deep enough for the stages that read it, so
+//! every buffer stays in the core's cache and tiles can be tall (a
+//! haloed tile recomputes its 64 halo rows). Columns need no transposes:
+//! across rows, a vertical filter is the same arithmetic, sample by sample,
+//! as a horizontal one along a row, and sums keep the groups of their line
+//! versions ([`class_sums_across`]), so both directions and all four phases
+//! give the bits of a line-by-line run.
 
-use super::boxsum::{all_sums, class_sums, square_sum, window_sum, Parity};
-use super::tiled::{Span, Tile, TileKernel};
+use super::boxsum::{
+    all_sums, all_sums_across, class_sums, class_sums_across, window_sum, window_sum_by, Parity,
+};
+use super::ring::{Plane, Ring, Rows};
+use super::tiled::{StreamKernel, Tile};
 use super::{chroma_masks, select, shifted, Phase};
 
 /// Radius of the directional guided filters of the green stage.
@@ -64,17 +71,32 @@ const FLAT: f32 = 1e-5;
 const WEIGHT_EPS: f32 = 1e-10;
 
 /// Reach (pixels from the ends of a line, or from the tile's sides) at
-/// which each stage is valid.
+/// which each stage is valid. A stage of reach `r` computes tile row
+/// `j - r` at step `j`, so what it reads `r - r'` rows further down of a
+/// stage of reach `r'` was computed earlier in the same step.
 const R_GUIDE: usize = 1;
 const R_LAPLACE: usize = R_GUIDE + 2;
 const R_COEF: usize = R_LAPLACE + LINE_RADIUS;
 const R_MEAN: usize = R_COEF + LINE_RADIUS;
 const R_DIF: usize = R_MEAN + 1;
+const R_GRAD: usize = R_DIF + 1;
+const R_WEIGHT: usize = R_GRAD + 1;
 const R_GREEN: usize = R_DIF + 4;
 const R_RB_LAPLACE: usize = R_GREEN + 2;
 const R_RB_COEF: usize = R_RB_LAPLACE + SQUARE_RADIUS;
 const R_RB_MEAN: usize = R_RB_COEF + SQUARE_RADIUS;
 const R_OUT: usize = R_RB_MEAN + 1;
+
+/// Ring depth for a stage of reach `from` whose last reader is a stage of
+/// reach `to` reading `back` rows above its own.
+const fn depth(from: usize, to: usize, back: usize) -> usize {
+    to + back - from + 1
+}
+
+/// Output rows per tile: 4x the halo, so the recomputed halo rows cost
+/// ~12 % where the 128-row tiles of the plane version cost ~50 %; a
+/// 24 MP image still gives 8 tasks.
+const ROWS_PER_TILE: usize = 512;
 
 pub(super) struct Mlri {
     pub(super) phase: Phase,
@@ -99,7 +121,7 @@ impl Mlri {
 /// input, Laplacian products and squared guide Laplacians.
 const STATS: usize = 4;
 
-/// Buffers of one line of the green stage, as long as the longest line.
+/// Buffers of one row of the green stage's horizontal pass.
 struct Line {
     /// The guide, and the products of Laplacians (`L(I) L(p)`, `L(I)^2`).
     guide: Vec<f32>,
@@ -117,43 +139,99 @@ struct Line {
     pairs: Vec<f32>,
 }
 
-/// Buffers of one tile row of the red / blue stage.
-struct Row {
+/// The green stage's vertical pass: the rows of [`Line`] as rings where
+/// later steps read them across rows, single rows where they do not.
+struct Columns {
+    guide: Ring,
+    prod: [Ring; 2],
+    sums: [[Vec<f32>; 2]; STATS],
+    coef: [Ring; 4],
+    mean: [Vec<f32>; 4],
+    res: Ring,
+    part: Ring,
+}
+
+/// The combination of the two directions.
+struct Combine {
+    /// Directional colour differences `G - C` (rows, columns), their
+    /// gradients and the gradients' 3x3 sums.
+    dif: [Ring; 2],
+    grad: [Ring; 2],
+    weight: [Ring; 2],
+    /// The vertical pass of a 3x3 sum.
+    tmp: Vec<f32>,
+}
+
+/// The red / blue stage.
+struct Chroma {
+    /// Products of Laplacians.
+    prod: [Ring; 2],
     /// A vertical window sum, the input of the horizontal ones.
     vsum: Vec<f32>,
     /// Class sums of the statistics: vertical parity (same, other) by
     /// horizontal parity (same, other).
     sums: [[Vec<f32>; 4]; STATS],
-    /// Box sums of the four coefficient planes.
+    /// Guided-filter coefficients (a, b) of red, then blue, and their box
+    /// sums.
+    coef: [Ring; 4],
     mean: [Vec<f32>; 4],
-    /// Pair sums of [`class_sums`].
+    /// Pair sums of [`class_sums`] and [`all_sums`].
     pairs: Vec<f32>,
+    /// Residuals and tentative values of red and blue.
+    res: [Ring; 2],
+    part: [Ring; 2],
+    /// The output row's own and other chroma.
+    own: Vec<f32>,
+    other: Vec<f32>,
 }
 
 pub(super) struct State {
     line: Line,
-    row: Row,
-    /// The raw tile transposed, and the column differences in that layout:
-    /// the green stage reads columns as contiguous lines.
-    across: Vec<f32>,
-    across_dif: Vec<f32>,
-    /// Products of Laplacians of the red / blue stage.
-    prod: [Vec<f32>; 2],
-    /// Guided-filter coefficients (a, b) of red, then blue.
-    coef: [Vec<f32>; 4],
-    tmp: Vec<f32>,
-    /// Residuals and tentative values of red and blue.
-    res: [Vec<f32>; 2],
-    part: [Vec<f32>; 2],
-    /// Directional colour differences `G - C` (rows, columns) and their
-    /// summed gradients.
-    dif: [Vec<f32>; 2],
-    grad: [Vec<f32>; 2],
-    weight: [Vec<f32>; 2],
-    green: Vec<f32>,
-    own: Vec<f32>,
-    other: Vec<f32>,
-    chroma: [Vec<u32>; 2],
+    columns: Columns,
+    combine: Combine,
+    green: Ring,
+    chroma: Chroma,
+    masks: [Vec<u32>; 2],
+}
+
+impl State {
+    /// Makes every row `stride` long: the last tile of a row of tiles is
+    /// narrower than the others, and stages size their loops by their rows.
+    fn fit(&mut self, stride: usize) {
+        let State {
+            line: l,
+            columns: v,
+            combine: cb,
+            green,
+            chroma: x,
+            ..
+        } = self;
+        let rows = [&mut l.guide, &mut l.res, &mut l.part, &mut l.pairs]
+            .into_iter()
+            .chain(l.prod.iter_mut().chain(l.sums.iter_mut().flatten()))
+            .chain(l.coef.iter_mut().chain(l.mean.iter_mut()))
+            .chain(v.sums.iter_mut().flatten().chain(v.mean.iter_mut()))
+            .chain([
+                &mut cb.tmp,
+                &mut x.vsum,
+                &mut x.pairs,
+                &mut x.own,
+                &mut x.other,
+            ])
+            .chain(x.sums.iter_mut().flatten().chain(x.mean.iter_mut()));
+        for row in rows {
+            row.resize(stride, 0.0);
+        }
+        let rings = [&mut v.guide, &mut v.res, &mut v.part, green]
+            .into_iter()
+            .chain(v.prod.iter_mut().chain(v.coef.iter_mut()))
+            .chain(cb.dif.iter_mut().chain(&mut cb.grad).chain(&mut cb.weight))
+            .chain(x.prod.iter_mut().chain(&mut x.coef))
+            .chain(x.res.iter_mut().chain(&mut x.part));
+        for ring in rings {
+            ring.fit(stride);
+        }
+    }
 }
 
 /// The guided filter's coefficients from window sums over `n` samples,
@@ -204,95 +282,111 @@ fn half_gaussian() -> [f32; 5] {
     g.map(|v| v / total)
 }
 
-/// Plane `p` at distances 0..=4 from the span along `(dy, dx)`: one side
-/// of the combination's Gaussian.
+/// `&v[r .. len - r]` of a row: the columns a stage of reach `r` fills.
 #[inline(always)]
-fn arm(sp: Span, p: &[f32], (dy, dx): (isize, isize)) -> [&[f32]; 5] {
-    [0, 1, 2, 3, 4].map(|k| sp.at(p, k * dy, k * dx))
+fn cols(v: &[f32], r: usize) -> &[f32] {
+    &v[r..v.len() - r]
 }
 
-/// `&mut v[r .. len - r]`: a line buffer over the sites a stage fills.
+/// [`cols`], writable.
 #[inline(always)]
-fn inner(v: &mut [f32], r: usize, len: usize) -> &mut [f32] {
+fn cols_mut(v: &mut [f32], r: usize) -> &mut [f32] {
+    let len = v.len();
     &mut v[r..len - r]
 }
 
+/// Row `ty + d` of `p`, columns `r ..` on: what a stage of reach `r` reads
+/// across rows.
+#[inline(always)]
+fn across<'a>(p: &'a dyn Rows, ty: usize, r: usize) -> impl Fn(isize) -> &'a [f32] {
+    move |d| &p.row((ty as isize + d) as usize)[r..]
+}
+
+/// The guide: the midpoints of the line's two neighbours `a` and `b`.
+#[inline(always)]
+fn midpoints(a: &[f32], b: &[f32], out: &mut [f32]) {
+    for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+        *o = 0.5 * (a + b);
+    }
+}
+
+/// Products of the second differences of the guide `g` and the samples
+/// `c` on a line (each given as centre, one side, the other side, two
+/// steps apart: one class).
+#[inline(always)]
+fn laplace_products(g: [&[f32]; 3], c: [&[f32]; 3], ip: &mut [f32], ii: &mut [f32]) {
+    for i in 0..ip.len() {
+        let li = 2.0 * g[0][i] - (g[1][i] + g[2][i]);
+        let lp = 2.0 * c[0][i] - (c[1][i] + c[2][i]);
+        ip[i] = li * lp;
+        ii[i] = li * li;
+    }
+}
+
+/// `|b - a|`: the gradient of a difference plane across a site.
+#[inline(always)]
+fn gradient(a: &[f32], b: &[f32], out: &mut [f32]) {
+    for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+        *o = (b - a).abs();
+    }
+}
+
+/// The missing class at each site of a line: its tentative value plus the
+/// mean of the two neighbouring residuals (`rm`, `rp`); then `G - C`.
+#[inline(always)]
+fn difference(part: &[f32], (rm, rp): (&[f32], &[f32]), c: &[f32], m: &[u32], out: &mut [f32]) {
+    for i in 0..out.len() {
+        let est = part[i] + 0.5 * (rm[i] + rp[i]);
+        out[i] = select(m[i], est - c[i], c[i] - est);
+    }
+}
+
+/// The residual of each site's own class on a line, and the tentative
+/// value of the line's other class there (guided by the sample itself),
+/// from the window sums `mean` of the coefficients.
+#[inline(always)]
+fn line_residuals(
+    mean: [&[f32]; 4],
+    (c, g): (&[f32], &[f32]),
+    m: &[u32],
+    res: &mut [f32],
+    part: &mut [f32],
+) {
+    let scale = 1.0 / Parity::All.count(LINE_RADIUS) as f32;
+    let [ac, bc, ag, bg] = mean;
+    for i in 0..res.len() {
+        let (ac, bc, ag, bg) = (scale * ac[i], scale * bc[i], scale * ag[i], scale * bg[i]);
+        let own_a = select(m[i], ac, ag);
+        let own_b = select(m[i], bc, bg);
+        let far_a = select(m[i], ag, ac);
+        let far_b = select(m[i], bg, bc);
+        res[i] = c[i] - (own_a * g[i] + own_b);
+        part[i] = far_a * c[i] + far_b;
+    }
+}
+
 impl Mlri {
+    /// The chroma sites of tile row `ty`, columns `r ..` on.
     #[inline(always)]
-    fn mask<'a>(
+    fn mask<'a>(&self, masks: &'a [Vec<u32>; 2], t: &Tile, ty: usize, r: usize) -> &'a [u32] {
+        &masks[t.kind(self.phase, ty).chroma_parity][r..t.stride - r]
+    }
+
+    /// Coefficients of the chroma and the green class of a line, from the
+    /// window sums over its same and other class, at the sites `m` covers.
+    #[inline(always)]
+    fn line_coefficients(
         &self,
-        chroma: &'a [Vec<u32>; 2],
-        t: &Tile,
-        ty: usize,
-        s: usize,
-        n: usize,
-    ) -> &'a [u32] {
-        &chroma[t.kind(self.phase, ty).chroma_parity][s..s + n]
-    }
-
-    /// Step 1 on one line `c` (a tile row, or a tile column made
-    /// contiguous) whose chroma sites `m` marks: the colour difference
-    /// `G - C` into `out`, valid `R_DIF` from the line's ends.
-    #[inline(always)]
-    fn green_line(&self, lb: &mut Line, c: &[f32], m: &[u32], out: &mut [f32]) {
-        let len = c.len();
-        // The guide: the line's other class, interpolated linearly.
-        let n = len - 2 * R_GUIDE;
-        let (a, b) = (shifted(c, R_GUIDE, -1, n), shifted(c, R_GUIDE, 1, n));
-        for ((o, a), b) in inner(&mut lb.guide, R_GUIDE, len).iter_mut().zip(a).zip(b) {
-            *o = 0.5 * (a + b);
-        }
-        // Laplacians along the line over same-class samples (two steps).
-        let (r, n) = (R_LAPLACE, len - 2 * R_LAPLACE);
-        let g = |k: isize| shifted(&lb.guide, r, k, n);
-        let v = |k: isize| shifted(c, r, k, n);
-        let (g0, gm, gp, c0, cm, cp) = (g(0), g(-2), g(2), v(0), v(-2), v(2));
-        let [ip, ii] = &mut lb.prod;
-        let (ip, ii) = (inner(ip, r, len), inner(ii, r, len));
-        for i in 0..n {
-            let li = 2.0 * g0[i] - (gm[i] + gp[i]);
-            let lp = 2.0 * c0[i] - (cm[i] + cp[i]);
-            ip[i] = li * lp;
-            ii[i] = li * li;
-        }
-        let [ip, ii] = &lb.prod;
-        let sources: [&[f32]; STATS] = [&lb.guide, c, ip, ii];
-        for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
-            let (same, other) = (inner(same, R_COEF, len), inner(other, R_COEF, len));
-            class_sums(src, R_COEF, same, other, &mut lb.pairs);
-        }
-        self.line_coefficients(lb, &m[R_COEF..len - R_COEF]);
-        for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
-            all_sums(src, R_MEAN, inner(dst, R_MEAN, len), &mut lb.pairs);
-        }
-        line_residuals(lb, c, m, len);
-        // The missing class: its tentative value plus the mean of the two
-        // neighbouring residuals.
-        let (r, n) = (R_DIF, len - 2 * R_DIF);
-        let (c0, part) = (shifted(c, r, 0, n), shifted(&lb.part, r, 0, n));
-        let (rm, rp) = (shifted(&lb.res, r, -1, n), shifted(&lb.res, r, 1, n));
-        let (m, o) = (&m[r..len - r], inner(out, r, len));
-        for i in 0..n {
-            let est = part[i] + 0.5 * (rm[i] + rp[i]);
-            o[i] = select(m[i], est - c0[i], c0[i] - est);
-        }
-    }
-
-    /// Coefficients of the chroma and the green class of a line, from its
-    /// class sums, at the sites `m` covers (from `R_COEF` on).
-    #[inline(always)]
-    fn line_coefficients(&self, lb: &mut Line, m: &[u32]) {
-        let n = m.len();
+        same: [&[f32]; STATS],
+        other: [&[f32]; STATS],
+        m: &[u32],
+        [ac, bc, ag, bg]: [&mut [f32]; 4],
+    ) {
         let (n_same, n_other) = (
             window(Parity::Same.count(LINE_RADIUS), self.flat),
             window(Parity::Other.count(LINE_RADIUS), self.flat),
         );
-        let same = lb.sums.each_ref().map(|q| &q[0][R_COEF..R_COEF + n]);
-        let other = lb.sums.each_ref().map(|q| &q[1][R_COEF..R_COEF + n]);
-        let [ac, bc, ag, bg] = &mut lb.coef;
-        let (ac, bc) = (&mut ac[R_COEF..R_COEF + n], &mut bc[R_COEF..R_COEF + n]);
-        let (ag, bg) = (&mut ag[R_COEF..R_COEF + n], &mut bg[R_COEF..R_COEF + n]);
-        for i in 0..n {
+        for i in 0..m.len() {
             let (a_s, b_s) = coefficients(stats(&same, i), n_same);
             let (a_o, b_o) = coefficients(stats(&other, i), n_other);
             ac[i] = select(m[i], a_s, a_o);
@@ -302,194 +396,226 @@ impl Mlri {
         }
     }
 
-    /// Step 1 along the rows: `st.dif[0]`.
+    /// Step 1 along tile row `c` whose chroma sites `m` marks: the colour
+    /// difference `G - C` into `out`, valid `R_DIF` from the row's ends.
     #[inline(always)]
-    fn green_rows(&self, st: &mut State, t: &Tile, c: &[f32]) {
-        for ty in R_DIF..t.rows - R_DIF {
-            let line = ty * t.stride..(ty + 1) * t.stride;
-            let m = self.mask(&st.chroma, t, ty, 0, t.stride);
-            self.green_line(&mut st.line, &c[line.clone()], m, &mut st.dif[0][line]);
+    fn green_row(&self, lb: &mut Line, c: &[f32], m: &[u32], out: &mut [f32]) {
+        let len = c.len();
+        let n = len - 2 * R_GUIDE;
+        let (a, b) = (shifted(c, R_GUIDE, -1, n), shifted(c, R_GUIDE, 1, n));
+        midpoints(a, b, cols_mut(&mut lb.guide, R_GUIDE));
+        let (r, n) = (R_LAPLACE, len - 2 * R_LAPLACE);
+        let g = |k: isize| shifted(&lb.guide, r, k, n);
+        let v = |k: isize| shifted(c, r, k, n);
+        let [ip, ii] = &mut lb.prod;
+        let (ip, ii) = (cols_mut(ip, r), cols_mut(ii, r));
+        laplace_products([g(0), g(-2), g(2)], [v(0), v(-2), v(2)], ip, ii);
+        let [ip, ii] = &lb.prod;
+        let sources: [&[f32]; STATS] = [&lb.guide, c, ip, ii];
+        for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
+            let (same, other) = (cols_mut(same, R_COEF), cols_mut(other, R_COEF));
+            class_sums(src, R_COEF, same, other, &mut lb.pairs);
         }
-    }
-
-    /// Step 1 along the columns: `st.dif[1]`, through the transposed tile.
-    #[inline(always)]
-    fn green_columns(&self, st: &mut State, t: &Tile, c: &[f32]) {
-        let len = t.stride * t.rows;
-        transpose::transpose(&c[..len], &mut st.across[..len], t.stride, t.rows);
-        // Column `tx` holds chroma on the rows whose chroma parity is its
-        // own parity; row parities alternate from row 0's.
-        let first = t.kind(self.phase, 0).chroma_parity;
-        for tx in R_DIF..t.stride - R_DIF {
-            let line = tx * t.rows..(tx + 1) * t.rows;
-            let m = &st.chroma[usize::from(first != tx % 2)][..t.rows];
-            let (c, out) = (&st.across[line.clone()], &mut st.across_dif[line]);
-            self.green_line(&mut st.line, c, m, out);
+        let same = lb.sums.each_ref().map(|q| cols(&q[0], R_COEF));
+        let other = lb.sums.each_ref().map(|q| cols(&q[1], R_COEF));
+        let coef = lb.coef.each_mut().map(|p| cols_mut(p, R_COEF));
+        self.line_coefficients(same, other, &m[R_COEF..len - R_COEF], coef);
+        for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
+            all_sums(src, R_MEAN, cols_mut(dst, R_MEAN), &mut lb.pairs);
         }
-        transpose::transpose(
-            &st.across_dif[..len],
-            &mut st.dif[1][..len],
-            t.rows,
-            t.stride,
+        let r = R_MEAN;
+        let mean = lb.mean.each_ref().map(|p| cols(p, r));
+        let (res, part) = (cols_mut(&mut lb.res, r), cols_mut(&mut lb.part, r));
+        line_residuals(
+            mean,
+            (cols(c, r), cols(&lb.guide, r)),
+            &m[r..len - r],
+            res,
+            part,
+        );
+        let (r, n) = (R_DIF, len - 2 * R_DIF);
+        let near = (shifted(&lb.res, r, -1, n), shifted(&lb.res, r, 1, n));
+        difference(
+            cols(&lb.part, r),
+            near,
+            cols(c, r),
+            &m[r..len - r],
+            cols_mut(out, r),
         );
     }
 }
 
-/// The residual of each site's own class on a line, and the tentative
-/// value of the line's other class there (guided by the sample itself).
-#[inline(always)]
-fn line_residuals(lb: &mut Line, c: &[f32], m: &[u32], len: usize) {
-    let (r, n) = (R_MEAN, len - 2 * R_MEAN);
-    let scale = 1.0 / Parity::All.count(LINE_RADIUS) as f32;
-    let (c0, g0) = (shifted(c, r, 0, n), shifted(&lb.guide, r, 0, n));
-    let [ac, bc, ag, bg] = lb.mean.each_ref().map(|p| shifted(p, r, 0, n));
-    let m = &m[r..len - r];
-    let (res, part) = (inner(&mut lb.res, r, len), inner(&mut lb.part, r, len));
-    for i in 0..n {
-        let (ac, bc, ag, bg) = (scale * ac[i], scale * bc[i], scale * ag[i], scale * bg[i]);
-        let own_a = select(m[i], ac, ag);
-        let own_b = select(m[i], bc, bg);
-        let far_a = select(m[i], ag, ac);
-        let far_b = select(m[i], bg, bc);
-        res[i] = c0[i] - (own_a * g0[i] + own_b);
-        part[i] = far_a * c0[i] + far_b;
+/// The vertical pass of step 1, one stage per method: each computes tile
+/// row `ty` over the columns `R_DIF ..` whose lines step 1 needs.
+impl Mlri {
+    #[inline(always)]
+    fn columns_guide(&self, v: &mut Columns, c: &Plane, ty: usize) {
+        let (a, b) = (cols(c.row(ty - 1), R_DIF), cols(c.row(ty + 1), R_DIF));
+        midpoints(a, b, cols_mut(v.guide.row_mut(ty), R_DIF));
+    }
+
+    #[inline(always)]
+    fn columns_products(&self, v: &mut Columns, c: &Plane, ty: usize) {
+        let g = |y: usize| cols(v.guide.row(y), R_DIF);
+        let s = |y: usize| cols(c.row(y), R_DIF);
+        let [ip, ii] = &mut v.prod;
+        let (ip, ii) = (
+            cols_mut(ip.row_mut(ty), R_DIF),
+            cols_mut(ii.row_mut(ty), R_DIF),
+        );
+        let (gs, cs) = ([g(ty), g(ty - 2), g(ty + 2)], [s(ty), s(ty - 2), s(ty + 2)]);
+        laplace_products(gs, cs, ip, ii);
+    }
+
+    #[inline(always)]
+    fn columns_coefficients(&self, v: &mut Columns, c: &Plane, m: &[u32], ty: usize) {
+        let sources: [&dyn Rows; STATS] = [&v.guide, c, &v.prod[0], &v.prod[1]];
+        for (src, [same, other]) in sources.into_iter().zip(v.sums.iter_mut()) {
+            let n = m.len();
+            class_sums_across(across(src, ty, R_DIF), &mut same[..n], &mut other[..n]);
+        }
+        let same = v.sums.each_ref().map(|q| &q[0][..]);
+        let other = v.sums.each_ref().map(|q| &q[1][..]);
+        let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), R_DIF));
+        self.line_coefficients(same, other, m, coef);
+    }
+
+    #[inline(always)]
+    fn columns_residuals(&self, v: &mut Columns, c: &Plane, m: &[u32], ty: usize) {
+        for (src, dst) in v.coef.iter().zip(v.mean.iter_mut()) {
+            all_sums_across(across(src, ty, R_DIF), &mut dst[..m.len()]);
+        }
+        let mean = v.mean.each_ref().map(|p| &p[..]);
+        let inputs = (cols(c.row(ty), R_DIF), cols(v.guide.row(ty), R_DIF));
+        let res = cols_mut(v.res.row_mut(ty), R_DIF);
+        let part = cols_mut(v.part.row_mut(ty), R_DIF);
+        line_residuals(mean, inputs, m, res, part);
+    }
+
+    #[inline(always)]
+    fn columns_difference(&self, v: &Columns, c: &Plane, m: &[u32], ty: usize, out: &mut [f32]) {
+        let near = (
+            cols(v.res.row(ty - 1), R_DIF),
+            cols(v.res.row(ty + 1), R_DIF),
+        );
+        let part = cols(v.part.row(ty), R_DIF);
+        difference(part, near, cols(c.row(ty), R_DIF), m, cols_mut(out, R_DIF));
     }
 }
 
 impl Mlri {
-    /// Step 2: green from the two directional colour differences.
+    /// The gradients of both directional differences at tile row `ty`.
     #[inline(always)]
-    fn combine(&self, st: &mut State, t: &Tile, c: &[f32]) {
-        let r = R_DIF + 1;
-        for ty in r..t.rows - r {
-            let sp = t.span(ty, r);
-            for (k, (dy, dx)) in [(0, 1), (1, 0)].into_iter().enumerate() {
-                let (a, b) = (sp.at(&st.dif[k], -dy, -dx), sp.at(&st.dif[k], dy, dx));
-                for ((o, a), b) in sp.out(&mut st.grad[k]).iter_mut().zip(a).zip(b) {
-                    *o = (b - a).abs();
-                }
-            }
+    fn gradients(&self, cb: &mut Combine, ty: usize) {
+        let (r, n) = (R_GRAD, cb.tmp.len() - 2 * R_GRAD);
+        let dh = cb.dif[0].row(ty);
+        let (a, b) = (shifted(dh, r, -1, n), shifted(dh, r, 1, n));
+        gradient(a, b, cols_mut(cb.grad[0].row_mut(ty), r));
+        let (a, b) = (
+            cols(cb.dif[1].row(ty - 1), r),
+            cols(cb.dif[1].row(ty + 1), r),
+        );
+        gradient(a, b, cols_mut(cb.grad[1].row_mut(ty), r));
+    }
+
+    /// The 3x3 sums of the gradients at tile row `ty`: the weights.
+    #[inline(always)]
+    fn weights(&self, cb: &mut Combine, ty: usize) {
+        let Combine {
+            grad, weight, tmp, ..
+        } = cb;
+        for (g, w) in grad.iter().zip(weight.iter_mut()) {
+            window_sum_by(across(g, ty, R_GRAD), cols_mut(tmp, R_GRAD), 1, Parity::All);
+            let out = cols_mut(w.row_mut(ty), R_WEIGHT);
+            window_sum(tmp, R_WEIGHT, 1, out, 1, Parity::All);
         }
-        for (g, w) in st.grad.iter().zip(st.weight.iter_mut()) {
-            square_sum(
-                t,
-                g,
-                &mut st.tmp,
-                w,
-                1,
-                (Parity::All, Parity::All),
-                R_DIF + 2,
-            );
-        }
+    }
+
+    /// Step 2 at tile row `ty`: green from the two directional colour
+    /// differences.
+    #[inline(always)]
+    fn green(&self, cb: &Combine, c: &Plane, m: &[u32], ty: usize, out: &mut [f32]) {
+        let (r, n) = (R_GREEN, m.len());
         let gauss = half_gaussian();
         let eps = self.weight_eps;
-        for ty in R_GREEN..t.rows - R_GREEN {
-            let sp = t.span(ty, R_GREEN);
-            let m = self.mask(&st.chroma, t, ty, R_GREEN, sp.n);
-            let [dh, dv] = &st.dif;
-            let [wh, wv] = &st.weight;
-            let (ww, we) = (sp.at(wh, 0, -1), sp.at(wh, 0, 1));
-            let (wn, ws) = (sp.at(wv, -1, 0), sp.at(wv, 1, 0));
-            let (aw, ae) = (arm(sp, dh, (0, -1)), arm(sp, dh, (0, 1)));
-            let (an, as_) = (arm(sp, dv, (-1, 0)), arm(sp, dv, (1, 0)));
-            let c0 = sp.at(c, 0, 0);
-            let o = sp.out(&mut st.green);
-            for i in 0..sp.n {
-                let mean = |a: &[&[f32]; 5]| {
-                    let mut s = 0.0;
-                    for (g, p) in gauss.iter().zip(a) {
-                        s += g * p[i];
-                    }
-                    s
-                };
-                let weight = |v: f32| 1.0 / (v * v + eps);
-                let (w_w, w_e, w_n, w_s) =
-                    (weight(ww[i]), weight(we[i]), weight(wn[i]), weight(ws[i]));
-                let num =
-                    (w_n * mean(&an) + w_s * mean(&as_)) + (w_w * mean(&aw) + w_e * mean(&ae));
-                let dif = num / ((w_n + w_s) + (w_w + w_e));
-                o[i] = select(m[i], c0[i] + dif, c0[i]);
-            }
-        }
-    }
-
-    /// Step 3: red and blue guided by the full green.
-    #[inline(always)]
-    fn chroma(&self, st: &mut State, t: &Tile, c: &[f32]) {
-        let r = R_RB_LAPLACE;
-        for ty in r..t.rows - r {
-            let sp = t.span(ty, r);
-            // Laplacians over same-class samples: two steps each way.
-            let (g, v) = (cross(sp, &st.green, 2), cross(sp, c, 2));
-            let [ip, ii] = &mut st.prod;
-            let (ip, ii) = (sp.out(ip), sp.out(ii));
-            for i in 0..sp.n {
-                let lg = 4.0 * g[0][i] - ((g[1][i] + g[2][i]) + (g[3][i] + g[4][i]));
-                let lc = 4.0 * v[0][i] - ((v[1][i] + v[2][i]) + (v[3][i] + v[4][i]));
-                ip[i] = lg * lc;
-                ii[i] = lg * lg;
-            }
-        }
-        for ty in R_RB_COEF..t.rows - R_RB_COEF {
-            self.row_class_sums(st, t, c, ty);
-            self.chroma_coefficients(st, t, ty);
-        }
-        for ty in R_RB_MEAN..t.rows - R_RB_MEAN {
-            self.chroma_residuals(st, t, c, ty);
-        }
-        for ty in R_OUT..t.rows - R_OUT {
-            let sp = t.span(ty, R_OUT);
-            let m = self.mask(&st.chroma, t, ty, R_OUT, sp.n);
-            let (own_k, other_k) = if t.kind(self.phase, ty).blue {
-                (1, 0)
-            } else {
-                (0, 1)
+        let [dh, dv] = &cb.dif;
+        let [wh, wv] = &cb.weight;
+        let (ww, we) = (shifted(wh.row(ty), r, -1, n), shifted(wh.row(ty), r, 1, n));
+        let (wn, ws) = (cols(wv.row(ty - 1), r), cols(wv.row(ty + 1), r));
+        let dh = dh.row(ty);
+        let (aw, ae) = (
+            [0, 1, 2, 3, 4].map(|k| shifted(dh, r, -k, n)),
+            [0, 1, 2, 3, 4].map(|k| shifted(dh, r, k, n)),
+        );
+        let (an, as_) = (
+            [0, 1, 2, 3, 4].map(|k| cols(dv.row(ty - k), r)),
+            [0, 1, 2, 3, 4].map(|k| cols(dv.row(ty + k), r)),
+        );
+        let c0 = cols(c.row(ty), r);
+        for i in 0..n {
+            let mean = |a: &[&[f32]; 5]| {
+                let mut s = 0.0;
+                for (g, p) in gauss.iter().zip(a) {
+                    s += g * p[i];
+                }
+                s
             };
-            // Each class's tentative value plus its residuals interpolated
-            // bilinearly (they are zero away from the class's samples).
-            let own = sp.out(&mut st.own);
-            interpolate_residual(sp, &st.part[own_k], &st.res[own_k], own);
-            interpolate_residual(
-                sp,
-                &st.part[other_k],
-                &st.res[other_k],
-                sp.out(&mut st.other),
-            );
-            for (o, (m, c0)) in own.iter_mut().zip(m.iter().zip(sp.at(c, 0, 0))) {
-                *o = select(*m, *c0, *o);
-            }
+            let weight = |v: f32| 1.0 / (v * v + eps);
+            let (w_w, w_e, w_n, w_s) = (weight(ww[i]), weight(we[i]), weight(wn[i]), weight(ws[i]));
+            let num = (w_n * mean(&an) + w_s * mean(&as_)) + (w_w * mean(&aw) + w_e * mean(&ae));
+            let dif = num / ((w_n + w_s) + (w_w + w_e));
+            out[i] = select(m[i], c0[i] + dif, c0[i]);
+        }
+    }
+}
+
+/// Step 3: red and blue guided by the full green, one stage per method.
+impl Mlri {
+    /// Products of Laplacians over same-class samples (two steps each
+    /// way) at tile row `ty`.
+    #[inline(always)]
+    fn chroma_products(&self, x: &mut Chroma, green: &Ring, c: &Plane, ty: usize) {
+        let r = R_RB_LAPLACE;
+        let [ip, ii] = &mut x.prod;
+        let (ip, ii) = (cols_mut(ip.row_mut(ty), r), cols_mut(ii.row_mut(ty), r));
+        let n = ip.len();
+        let (g, v) = (cross(green, ty, r, n), cross(c, ty, r, n));
+        for i in 0..n {
+            let lg = 4.0 * g[0][i] - ((g[1][i] + g[2][i]) + (g[3][i] + g[4][i]));
+            let lc = 4.0 * v[0][i] - ((v[1][i] + v[2][i]) + (v[3][i] + v[4][i]));
+            ip[i] = lg * lc;
+            ii[i] = lg * lg;
         }
     }
 
-    /// The class sums of tile row `ty` into `st.row.sums`, from `R_RB_COEF`
-    /// on: vertical parity (same, other) by horizontal parity, each
-    /// vertical sum kept in one row buffer for its two horizontal ones.
+    /// The class sums of tile row `ty` into `x.sums`: vertical parity
+    /// (same, other) by horizontal parity, each vertical sum kept in one
+    /// row buffer for its two horizontal ones.
     #[inline(always)]
-    fn row_class_sums(&self, st: &mut State, t: &Tile, c: &[f32], ty: usize) {
-        let [ip, ii] = &st.prod;
-        let sources: [&[f32]; STATS] = [&st.green, c, ip, ii];
-        let at = t.span(ty, R_RB_LAPLACE).range().start;
-        let (wide, n) = (t.stride - 2 * R_RB_LAPLACE, t.stride - 2 * R_RB_COEF);
-        let parities = [Parity::Same, Parity::Other];
-        let Row {
-            vsum, sums, pairs, ..
-        } = &mut st.row;
-        for (src, sums) in sources.iter().zip(sums.iter_mut()) {
-            for (pair, vertical) in sums.chunks_exact_mut(2).zip(parities) {
-                let column = &mut vsum[..wide];
-                window_sum(src, at, t.stride, column, SQUARE_RADIUS, vertical);
-                let (same, other) = pair.split_at_mut(1);
-                let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
-                class_sums(vsum, SQUARE_RADIUS, same, other, pairs);
+    fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Plane, ty: usize) {
+        let Chroma {
+            prod,
+            vsum,
+            sums,
+            pairs,
+            ..
+        } = x;
+        let sources: [&dyn Rows; STATS] = [green, c, &prod[0], &prod[1]];
+        let wide = vsum.len() - 2 * R_RB_LAPLACE;
+        let n = vsum.len() - 2 * R_RB_COEF;
+        for (src, sums) in sources.into_iter().zip(sums.iter_mut()) {
+            for (pair, vertical) in sums.chunks_exact_mut(2).zip([Parity::Same, Parity::Other]) {
+                let view = across(src, ty, R_RB_LAPLACE);
+                window_sum_by(view, &mut vsum[..wide], SQUARE_RADIUS, vertical);
+                let [same, other] = pair else { unreachable!() };
+                class_sums(vsum, SQUARE_RADIUS, &mut same[..n], &mut other[..n], pairs);
             }
         }
     }
 
     /// Red and blue coefficients of tile row `ty` from its class sums.
     #[inline(always)]
-    fn chroma_coefficients(&self, st: &mut State, t: &Tile, ty: usize) {
-        let sp = t.span(ty, R_RB_COEF);
-        let m = self.mask(&st.chroma, t, ty, R_RB_COEF, sp.n);
+    fn chroma_coefficients(&self, x: &mut Chroma, m: &[u32], blue_row: bool, ty: usize) {
         let count = |v: Parity, h: Parity| {
             window(v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS), self.flat)
         };
@@ -498,15 +624,18 @@ impl Mlri {
         let (far_at_chroma, far_at_green) = (count(other, other), count(other, same));
         // The row's own chroma class (vertical parity same) and the other
         // one; each row's chroma sites share the own class's column parity.
-        let pick = |k: usize| st.row.sums.each_ref().map(|q| &q[k][..sp.n]);
+        let pick = |k: usize| x.sums.each_ref().map(|q| &q[k][..m.len()]);
         let (ss, so, os, oo) = (pick(0), pick(1), pick(2), pick(3));
-        let [ar, br, ab, bb] = &mut st.coef;
-        let (ao, bo, ax, bx) = if t.kind(self.phase, ty).blue {
-            (sp.out(ab), sp.out(bb), sp.out(ar), sp.out(br))
+        let [ar, br, ab, bb] = x
+            .coef
+            .each_mut()
+            .map(|p| cols_mut(p.row_mut(ty), R_RB_COEF));
+        let (ao, bo, ax, bx) = if blue_row {
+            (ab, bb, ar, br)
         } else {
-            (sp.out(ar), sp.out(br), sp.out(ab), sp.out(bb))
+            (ar, br, ab, bb)
         };
-        for i in 0..sp.n {
+        for i in 0..m.len() {
             let mi = m[i];
             let (s_ss, s_so, s_os, s_oo) =
                 (stats(&ss, i), stats(&so, i), stats(&os, i), stats(&oo, i));
@@ -522,28 +651,46 @@ impl Mlri {
     /// Tentative red and blue values of tile row `ty` from the box means of
     /// their coefficients, and their residuals at their own samples.
     #[inline(always)]
-    fn chroma_residuals(&self, st: &mut State, t: &Tile, c: &[f32], ty: usize) {
-        let at = t.span(ty, R_RB_COEF).range().start;
-        let sp = t.span(ty, R_RB_MEAN);
-        let wide = t.stride - 2 * R_RB_COEF;
-        let Row {
-            vsum, mean, pairs, ..
-        } = &mut st.row;
-        for (src, dst) in st.coef.iter().zip(mean.iter_mut()) {
-            let column = &mut vsum[..wide];
-            window_sum(src, at, t.stride, column, SQUARE_RADIUS, Parity::All);
-            all_sums(vsum, SQUARE_RADIUS, &mut dst[..sp.n], pairs);
+    fn chroma_residuals(
+        &self,
+        x: &mut Chroma,
+        g: &Ring,
+        c: &Plane,
+        m: &[u32],
+        blue_row: bool,
+        ty: usize,
+    ) {
+        let Chroma {
+            coef,
+            vsum,
+            mean,
+            pairs,
+            res,
+            part,
+            ..
+        } = x;
+        let wide = vsum.len() - 2 * R_RB_COEF;
+        let n = m.len();
+        for (src, dst) in coef.iter().zip(mean.iter_mut()) {
+            window_sum_by(
+                across(src, ty, R_RB_COEF),
+                &mut vsum[..wide],
+                SQUARE_RADIUS,
+                Parity::All,
+            );
+            all_sums(vsum, SQUARE_RADIUS, &mut dst[..n], pairs);
         }
         let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
-        let m = self.mask(&st.chroma, t, ty, R_RB_MEAN, sp.n);
-        let blue_row = t.kind(self.phase, ty).blue;
-        let (c0, g0) = (sp.at(c, 0, 0), sp.at(&st.green, 0, 0));
-        for (k, (res, part)) in st.res.iter_mut().zip(st.part.iter_mut()).enumerate() {
+        let (c0, g0) = (cols(c.row(ty), R_RB_MEAN), cols(g.row(ty), R_RB_MEAN));
+        for (k, (res, part)) in res.iter_mut().zip(part.iter_mut()).enumerate() {
             // Class k (0 red, 1 blue) is sampled at this row's chroma
             // sites when the row is of its kind.
             let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
-            let (a, b) = (&mean[2 * k][..sp.n], &mean[2 * k + 1][..sp.n]);
-            let (res, part) = (sp.out(res), sp.out(part));
+            let (a, b) = (&mean[2 * k][..n], &mean[2 * k + 1][..n]);
+            let (res, part) = (
+                cols_mut(res.row_mut(ty), R_RB_MEAN),
+                cols_mut(part.row_mut(ty), R_RB_MEAN),
+            );
             let inputs = a.iter().zip(b).zip(g0.iter().zip(c0)).zip(m);
             for ((res, part), (((a, b), (g, c)), m)) in res.iter_mut().zip(part).zip(inputs) {
                 let tent = scale * a * g + scale * b;
@@ -552,84 +699,195 @@ impl Mlri {
             }
         }
     }
+
+    /// The output chroma of tile row `ty`: each class's tentative value
+    /// plus its residuals interpolated bilinearly (they are zero away from
+    /// the class's samples); the row's own samples are kept.
+    #[inline(always)]
+    fn chroma_output(&self, x: &mut Chroma, c: &Plane, m: &[u32], blue_row: bool, ty: usize) {
+        let (own_k, other_k) = if blue_row { (1, 0) } else { (0, 1) };
+        let Chroma {
+            res,
+            part,
+            own,
+            other,
+            ..
+        } = x;
+        let own = cols_mut(own, R_OUT);
+        interpolate_residual(&part[own_k], &res[own_k], ty, own);
+        interpolate_residual(&part[other_k], &res[other_k], ty, cols_mut(other, R_OUT));
+        for (o, (m, c0)) in own.iter_mut().zip(m.iter().zip(cols(c.row(ty), R_OUT))) {
+            *o = select(*m, *c0, *o);
+        }
+    }
 }
 
-/// `part` plus the bilinear interpolation of the sparse residual `res`,
-/// over the span, into `out`.
+/// Tile row `ty` of `p` at the columns `r .. r + n` and two steps away
+/// from them: centre, north, south, west, east (the nearest samples of the
+/// same class).
 #[inline(always)]
-fn interpolate_residual(sp: Span, part: &[f32], res: &[f32], out: &mut [f32]) {
-    let (part, e) = (sp.at(part, 0, 0), cross(sp, res, 1));
-    let d = [(-1, -1), (-1, 1), (1, -1), (1, 1)].map(|(dy, dx)| sp.at(res, dy, dx));
-    for i in 0..sp.n {
+fn cross(p: &dyn Rows, ty: usize, r: usize, n: usize) -> [&[f32]; 5] {
+    let row = p.row(ty);
+    let (north, south) = (
+        shifted(p.row(ty - 2), r, 0, n),
+        shifted(p.row(ty + 2), r, 0, n),
+    );
+    let (west, east) = (shifted(row, r, -2, n), shifted(row, r, 2, n));
+    [shifted(row, r, 0, n), north, south, west, east]
+}
+
+/// Tile row `ty` of `part` plus the bilinear interpolation of the sparse
+/// residual `res`, over the columns `R_OUT ..`, into `out`.
+#[inline(always)]
+fn interpolate_residual(part: &Ring, res: &Ring, ty: usize, out: &mut [f32]) {
+    let (r, n) = (R_OUT, out.len());
+    let part = &part.row(ty)[r..];
+    let (up, mid, down) = (res.row(ty - 1), res.row(ty), res.row(ty + 1));
+    let side = |row, dx| shifted(row, r, dx, n);
+    let e = [
+        side(mid, 0),
+        side(up, 0),
+        side(down, 0),
+        side(mid, -1),
+        side(mid, 1),
+    ];
+    let d = [side(up, -1), side(up, 1), side(down, -1), side(down, 1)];
+    for i in 0..n {
         let edge = (e[1][i] + e[2][i]) + (e[3][i] + e[4][i]);
         let corner = (d[0][i] + d[1][i]) + (d[2][i] + d[3][i]);
         out[i] = part[i] + ((e[0][i] + 0.5 * edge) + 0.25 * corner);
     }
 }
 
-/// Plane `p` at the span and at its four neighbours `step` away: centre,
-/// north, south, west, east.
-#[inline(always)]
-fn cross(sp: Span, p: &[f32], step: isize) -> [&[f32]; 5] {
-    [
-        sp.at(p, 0, 0),
-        sp.at(p, -step, 0),
-        sp.at(p, step, 0),
-        sp.at(p, 0, -step),
-        sp.at(p, 0, step),
-    ]
-}
-
-impl TileKernel for Mlri {
+impl StreamKernel for Mlri {
     type State = State;
     const HALO: usize = R_OUT + R_OUT % 2;
+    const ROWS: usize = ROWS_PER_TILE;
 
-    fn state(&self, stride: usize, len: usize) -> State {
-        let plane = || vec![0.0f32; len];
-        // Lines run along rows (`stride` long) and columns (`len / stride`).
-        let longest = stride.max(len / stride);
-        let line = || vec![0.0f32; longest];
+    fn state(&self, stride: usize, _rows: usize) -> State {
+        let row = || vec![0.0f32; stride];
+        let ring = |from, to, back| Ring::new(stride, depth(from, to, back));
+        let rings = |from, to, back| [0; 4].map(|_| ring(from, to, back));
+        let [p0, p1, ..] = rings(R_LAPLACE, R_COEF, LINE_RADIUS);
+        let [x0, x1, ..] = rings(R_RB_LAPLACE, R_RB_COEF, SQUARE_RADIUS);
+        let [d0, d1, ..] = rings(R_DIF, R_GREEN, 4);
+        let [g0, g1, ..] = rings(R_GRAD, R_WEIGHT, 1);
+        let [w0, w1, ..] = rings(R_WEIGHT, R_GREEN, 1);
+        let [r0, r1, ..] = rings(R_RB_MEAN, R_OUT, 1);
+        let [t0, t1, ..] = rings(R_RB_MEAN, R_OUT, 0);
         State {
             line: Line {
-                guide: line(),
-                prod: [line(), line()],
-                sums: [0; STATS].map(|_| [line(), line()]),
-                coef: [0; 4].map(|_| line()),
-                mean: [0; 4].map(|_| line()),
-                res: line(),
-                part: line(),
-                pairs: line(),
+                guide: row(),
+                prod: [row(), row()],
+                sums: [0; STATS].map(|_| [row(), row()]),
+                coef: [0; 4].map(|_| row()),
+                mean: [0; 4].map(|_| row()),
+                res: row(),
+                part: row(),
+                pairs: row(),
             },
-            row: Row {
-                vsum: line(),
-                sums: [0; STATS].map(|_| [0; 4].map(|_| line())),
-                mean: [0; 4].map(|_| line()),
-                pairs: line(),
+            columns: Columns {
+                guide: ring(R_GUIDE, R_COEF, LINE_RADIUS),
+                prod: [p0, p1],
+                sums: [0; STATS].map(|_| [row(), row()]),
+                coef: rings(R_COEF, R_MEAN, LINE_RADIUS),
+                mean: [0; 4].map(|_| row()),
+                res: ring(R_MEAN, R_DIF, 1),
+                part: ring(R_MEAN, R_DIF, 0),
             },
-            across: plane(),
-            across_dif: plane(),
-            prod: [plane(), plane()],
-            coef: [0; 4].map(|_| plane()),
-            tmp: plane(),
-            res: [plane(), plane()],
-            part: [plane(), plane()],
-            dif: [plane(), plane()],
-            grad: [plane(), plane()],
-            weight: [plane(), plane()],
-            green: plane(),
-            own: plane(),
-            other: plane(),
-            chroma: chroma_masks(longest),
+            combine: Combine {
+                dif: [d0, d1],
+                grad: [g0, g1],
+                weight: [w0, w1],
+                tmp: row(),
+            },
+            // Read by the last stage, as the output's green.
+            green: ring(R_GREEN, R_OUT, 0),
+            chroma: Chroma {
+                prod: [x0, x1],
+                vsum: row(),
+                sums: [0; STATS].map(|_| [0; 4].map(|_| row())),
+                coef: rings(R_RB_COEF, R_RB_MEAN, SQUARE_RADIUS),
+                mean: [0; 4].map(|_| row()),
+                pairs: row(),
+                res: [r0, r1],
+                part: [t0, t1],
+                own: row(),
+                other: row(),
+            },
+            masks: chroma_masks(stride),
         }
     }
 
     #[inline(always)]
-    fn run<'s>(&self, st: &'s mut State, t: &Tile, c: &[f32]) -> [&'s [f32]; 3] {
-        self.green_rows(st, t, c);
-        self.green_columns(st, t, c);
-        self.combine(st, t, c);
-        self.chroma(st, t, c);
-        [&st.own, &st.green, &st.other]
+    fn stream<E: FnMut(usize, [&[f32]; 3])>(
+        &self,
+        st: &mut State,
+        t: &Tile,
+        raw: &[f32],
+        mut emit: E,
+    ) {
+        let c = Plane {
+            data: raw,
+            stride: t.stride,
+        };
+        st.fit(t.stride);
+        for j in 0..t.rows {
+            // The row a stage of reach `r` computes at step `j`, if valid.
+            let due = |r: usize| j.checked_sub(r).filter(|&ty| ty >= r);
+            let State {
+                line,
+                columns: v,
+                combine: cb,
+                green,
+                chroma: x,
+                masks,
+            } = st;
+            let mask = |ty: usize, r: usize| self.mask(masks, t, ty, r);
+            if let Some(ty) = due(R_GUIDE) {
+                self.columns_guide(v, &c, ty);
+            }
+            if let Some(ty) = due(R_LAPLACE) {
+                self.columns_products(v, &c, ty);
+            }
+            if let Some(ty) = due(R_COEF) {
+                self.columns_coefficients(v, &c, mask(ty, R_DIF), ty);
+            }
+            if let Some(ty) = due(R_MEAN) {
+                self.columns_residuals(v, &c, mask(ty, R_DIF), ty);
+            }
+            if let Some(ty) = due(R_DIF) {
+                let [dh, dv] = &mut cb.dif;
+                self.green_row(line, c.row(ty), mask(ty, 0), dh.row_mut(ty));
+                self.columns_difference(v, &c, mask(ty, R_DIF), ty, dv.row_mut(ty));
+            }
+            if let Some(ty) = due(R_GRAD) {
+                self.gradients(cb, ty);
+            }
+            if let Some(ty) = due(R_WEIGHT) {
+                self.weights(cb, ty);
+            }
+            if let Some(ty) = due(R_GREEN) {
+                let out = cols_mut(green.row_mut(ty), R_GREEN);
+                self.green(cb, &c, mask(ty, R_GREEN), ty, out);
+            }
+            if let Some(ty) = due(R_RB_LAPLACE) {
+                self.chroma_products(x, green, &c, ty);
+            }
+            let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
+            if let Some(ty) = due(R_RB_COEF) {
+                self.chroma_sums(x, green, &c, ty);
+                self.chroma_coefficients(x, mask(ty, R_RB_COEF), blue_row(ty), ty);
+            }
+            if let Some(ty) = due(R_RB_MEAN) {
+                self.chroma_residuals(x, green, &c, mask(ty, R_RB_MEAN), blue_row(ty), ty);
+            }
+            let emitted = Self::HALO..t.rows - Self::HALO;
+            if let Some(ty) = due(R_OUT).filter(|ty| emitted.contains(ty)) {
+                self.chroma_output(x, &c, mask(ty, R_OUT), blue_row(ty), ty);
+                emit(ty, [&x.own, green.row(ty), &x.other]);
+            }
+        }
     }
 }
 

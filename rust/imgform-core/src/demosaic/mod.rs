@@ -33,6 +33,7 @@ mod mlri;
 mod nearest;
 mod raisr;
 mod rcd;
+mod ring;
 mod tiled;
 mod xtrans;
 
@@ -188,7 +189,7 @@ impl Method {
             Method::RcdMenon => <ensemble::Ensemble as TileKernel>::HALO,
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
-            Method::Mlri => <mlri::Mlri as TileKernel>::HALO,
+            Method::Mlri => <mlri::Mlri as tiled::StreamKernel>::HALO,
             Method::Raisr => <raisr::Raisr<ensemble::Ensemble> as TileKernel>::HALO,
             Method::Markesteijn => markesteijn::HALO,
         }

@@ -94,6 +94,59 @@ pub(crate) trait TileKernel: Sync {
     fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3];
 }
 
+/// A method run on tiles that hands over its output row by row: what
+/// [`run_tiled`] drives. Plane kernels ([`TileKernel`]) are streams whose
+/// rows all come at the end; a method that keeps only rings of recent rows
+/// per stage (MLRI) emits each row as soon as its last stage reaches it,
+/// and can take much taller tiles, since its memory no longer grows with
+/// their height.
+pub(crate) trait StreamKernel: Sync {
+    /// Buffers, made once per rayon worker split.
+    type State;
+    /// Mirrored rows and columns needed around the output (even).
+    const HALO: usize;
+    /// Output rows per tile.
+    const ROWS: usize;
+    /// Buffers for tiles `stride` wide and `rows` tall (halo included).
+    fn state(&self, stride: usize, rows: usize) -> Self::State;
+    /// Computes the tile from the raw plane `raw`, calling `emit(ty, rows)`
+    /// once for each tile row `ty` of `HALO .. t.rows - HALO`, in order, with
+    /// that row of the row's own chroma, green and the other chroma (each
+    /// `t.stride` long).
+    fn stream<E: FnMut(usize, [&[f32]; 3])>(
+        &self,
+        st: &mut Self::State,
+        t: &Tile,
+        raw: &[f32],
+        emit: E,
+    );
+}
+
+impl<K: TileKernel> StreamKernel for K {
+    type State = K::State;
+    const HALO: usize = <K as TileKernel>::HALO;
+    const ROWS: usize = ROWS_PER_TILE;
+
+    fn state(&self, stride: usize, rows: usize) -> K::State {
+        TileKernel::state(self, stride, stride * rows)
+    }
+
+    #[inline(always)]
+    fn stream<E: FnMut(usize, [&[f32]; 3])>(
+        &self,
+        st: &mut K::State,
+        t: &Tile,
+        raw: &[f32],
+        mut emit: E,
+    ) {
+        let planes = self.run(st, t, raw);
+        let halo = <K as TileKernel>::HALO;
+        for ty in halo..t.rows - halo {
+            emit(ty, planes.map(|p| &p[ty * t.stride..(ty + 1) * t.stride]));
+        }
+    }
+}
+
 /// The smallest and largest sample of `raw`, to clamp outputs into.
 pub(super) fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
     (0..raw.height())
@@ -120,7 +173,7 @@ where
     M: Mosaic,
     O: Send,
     S: RgbSink<O>,
-    K: TileKernel,
+    K: StreamKernel,
 {
     let bounds = raw.range();
     let w = raw.width();
@@ -130,14 +183,14 @@ where
     // tile wrote, so leftovers of the previous tile never reach the output
     // (the thread-count tests compare runs with different reuse).
     let stride = w.min(COLS_PER_TILE) + 2 * K::HALO;
-    let len = stride * (ROWS_PER_TILE + 2 * K::HALO);
+    let rows = K::ROWS + 2 * K::HALO;
     let init = || Scratch {
-        plane: vec![0.0f32; len],
-        state: k.state(stride, len),
+        plane: vec![0.0f32; stride * rows],
+        state: k.state(stride, rows),
         clamped: [0, 1, 2].map(|_| vec![0.0f32; COLS_PER_TILE]),
         sink: sink.scratch(COLS_PER_TILE),
     };
-    let bands = raw.height().div_ceil(ROWS_PER_TILE);
+    let bands = raw.height().div_ceil(K::ROWS);
     let ctx = Ctx {
         raw,
         phase,
@@ -145,13 +198,13 @@ where
         sink,
         bounds,
     };
-    out.par_chunks_mut(3 * w * ROWS_PER_TILE)
+    out.par_chunks_mut(3 * w * K::ROWS)
         // Bands cost the same: a run of them per thread makes rayon call
         // `init` about once per thread instead of once per split.
         .with_min_len(bands.div_ceil(2 * rayon::current_num_threads()))
         .enumerate()
         .for_each_init(init, |scratch, (i, rows)| {
-            let y0 = i * ROWS_PER_TILE;
+            let y0 = i * K::ROWS;
             for x0 in (0..w).step_by(COLS_PER_TILE) {
                 match isa {
                     Isa::Baseline => tile(&ctx, (x0, y0), scratch, rows),
@@ -183,7 +236,7 @@ struct Scratch<S, Q> {
 /// [`tile`] compiled for AVX2; the kernels inline into it.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
+fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
     origin: (usize, usize),
     scratch: &mut Scratch<K::State, S::Scratch>,
@@ -195,7 +248,7 @@ fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
 /// The tile of output columns `x0 .. x0 + COLS_PER_TILE` of the band
 /// `rows` starting at row `y0`.
 #[inline(always)]
-fn tile<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
+fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
     (x0, y0): (usize, usize),
     scratch: &mut Scratch<K::State, S::Scratch>,
@@ -210,28 +263,30 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: TileKernel>(
         rows: n + 2 * halo,
         y0: y0 as isize - halo as isize,
     };
-    let plane = &mut scratch.plane[..t.stride * t.rows];
+    let Scratch {
+        plane,
+        state,
+        clamped,
+        sink,
+    } = scratch;
+    let plane = &mut plane[..t.stride * t.rows];
     load(raw, &t, x0 as isize - halo as isize, plane);
-    let planes = ctx.k.run(&mut scratch.state, &t, plane);
-    let Scratch { clamped, sink, .. } = scratch;
     let (lo, hi) = ctx.bounds;
-    for (i, o) in rows.chunks_exact_mut(3 * w).enumerate() {
-        let ty = halo + i;
-        let [own, green, other] = planes;
+    ctx.k.stream(state, &t, plane, |ty, [own, green, other]| {
         let rgb = if t.kind(ctx.phase, ty).blue {
             [other, green, own]
         } else {
             [own, green, other]
         };
-        let start = ty * t.stride + halo;
         for (c, src) in clamped.iter_mut().zip(rgb) {
-            for (d, s) in c[..tw].iter_mut().zip(&src[start..start + tw]) {
+            for (d, s) in c[..tw].iter_mut().zip(&src[halo..halo + tw]) {
                 *d = s.max(lo).min(hi);
             }
         }
         let rgb = [0, 1, 2].map(|c| &clamped[c][..tw]);
+        let o = &mut rows[3 * w * (ty - halo)..][..3 * w];
         ctx.sink.store(sink, rgb, &mut o[3 * x0..3 * (x0 + tw)]);
-    }
+    });
 }
 
 /// Loads the tile's raw plane: image columns `left ..` go to tile columns
