@@ -1,11 +1,13 @@
-//! Window sums over tile planes, the building block of guided filters.
+//! Window sums along a row or across the rows of a ring, the building
+//! block of guided filters.
 //!
-//! Every sum adds the two samples at `-k` and `+k` first, then accumulates
-//! those pairs from the centre outwards. Addition is commutative in IEEE
-//! arithmetic, so a mirrored image gives bit-identical mirrored sums: a
-//! running sum (add the entering sample, subtract the leaving one) is
-//! cheaper per tap but depends on the scan direction, which would break
-//! the exact flip symmetry between Bayer phases that the tests check.
+//! Every sum is a tree of additions that a mirror maps onto itself: the
+//! samples at `-k` and `+k` are added first, or two groups that are each
+//! other's mirror image. Addition is commutative in IEEE arithmetic, so a
+//! mirrored image gives bit-identical mirrored sums: a running sum (add
+//! the entering sample, subtract the leaving one) is cheaper per tap but
+//! depends on the scan direction, which would break the exact flip
+//! symmetry between Bayer phases that the tests check.
 //!
 //! Sums come in three parities along a line through a site: every sample
 //! within `radius` (`All`), only those an even number of steps away

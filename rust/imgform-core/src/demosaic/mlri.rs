@@ -96,7 +96,8 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 /// Output rows per tile: 4x the halo, so the recomputed halo rows cost
 /// ~12 % where the 128-row tiles of the plane version cost ~50 %; a
 /// 24 MP image still gives 8 tasks.
-const ROWS_PER_TILE: usize = 512;
+const ROWS_PER_TILE: usize = 256;
+const COLS_PER_TILE: usize = 768;
 
 pub(super) struct Mlri {
     pub(super) phase: Phase,
@@ -763,6 +764,7 @@ impl StreamKernel for Mlri {
     type State = State;
     const HALO: usize = R_OUT + R_OUT % 2;
     const ROWS: usize = ROWS_PER_TILE;
+    const COLS: usize = COLS_PER_TILE;
 
     fn state(&self, stride: usize, _rows: usize) -> State {
         let row = || vec![0.0f32; stride];

@@ -72,3 +72,44 @@ impl Rows for Plane<'_> {
         &self.data[ty * self.stride..(ty + 1) * self.stride]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_ring_holds_its_last_rows() {
+        let mut ring = Ring::new(4, 3);
+        for ty in 0..7 {
+            ring.row_mut(ty).fill(ty as f32);
+            for back in 0..3.min(ty + 1) {
+                assert_eq!(ring.row(ty - back), [(ty - back) as f32; 4]);
+            }
+        }
+        // A narrower tile: rows shrink, the slots stay.
+        ring.fit(2);
+        ring.row_mut(7).fill(7.0);
+        assert_eq!(ring.row(7), [7.0; 2]);
+    }
+
+    #[test]
+    #[should_panic(expected = "row 3 read")]
+    #[cfg(debug_assertions)]
+    fn reading_a_replaced_row_is_caught_in_debug_builds() {
+        let mut ring = Ring::new(4, 3);
+        for ty in 0..7 {
+            ring.row_mut(ty);
+        }
+        ring.row(3);
+    }
+
+    #[test]
+    fn a_plane_reads_its_rows() {
+        let data: Vec<f32> = (0..12).map(|v| v as f32).collect();
+        let plane = Plane {
+            data: &data,
+            stride: 4,
+        };
+        assert_eq!(plane.row(2), [8.0, 9.0, 10.0, 11.0]);
+    }
+}

@@ -10,6 +10,11 @@
 //! The halo is even, so a tile coordinate has the CFA parity of the image
 //! coordinate it stands for; mirroring without repeating the edge keeps the
 //! mosaic plausible across the border, as in the row kernels.
+//!
+//! A method may instead stream down its tile ([`StreamKernel`]), keeping a
+//! ring of recent rows per stage and handing over each output row as soon
+//! as it is done; its tiles can then be much taller, so fewer halo rows
+//! are recomputed, with memory that does not grow with their height.
 
 use super::{Isa, Mosaic, Phase, RgbSink, RowKind};
 use crate::image::{mirror, ImageView, Sample};
@@ -105,8 +110,9 @@ pub(crate) trait StreamKernel: Sync {
     type State;
     /// Mirrored rows and columns needed around the output (even).
     const HALO: usize;
-    /// Output rows per tile.
+    /// Output rows and columns per tile.
     const ROWS: usize;
+    const COLS: usize;
     /// Buffers for tiles `stride` wide and `rows` tall (halo included).
     fn state(&self, stride: usize, rows: usize) -> Self::State;
     /// Computes the tile from the raw plane `raw`, calling `emit(ty, rows)`
@@ -126,6 +132,7 @@ impl<K: TileKernel> StreamKernel for K {
     type State = K::State;
     const HALO: usize = <K as TileKernel>::HALO;
     const ROWS: usize = ROWS_PER_TILE;
+    const COLS: usize = COLS_PER_TILE;
 
     fn state(&self, stride: usize, rows: usize) -> K::State {
         TileKernel::state(self, stride, stride * rows)
@@ -182,13 +189,13 @@ where
     // page faults. Each stage only reads what earlier stages of the same
     // tile wrote, so leftovers of the previous tile never reach the output
     // (the thread-count tests compare runs with different reuse).
-    let stride = w.min(COLS_PER_TILE) + 2 * K::HALO;
+    let stride = w.min(K::COLS) + 2 * K::HALO;
     let rows = K::ROWS + 2 * K::HALO;
     let init = || Scratch {
         plane: vec![0.0f32; stride * rows],
         state: k.state(stride, rows),
-        clamped: [0, 1, 2].map(|_| vec![0.0f32; COLS_PER_TILE]),
-        sink: sink.scratch(COLS_PER_TILE),
+        clamped: [0, 1, 2].map(|_| vec![0.0f32; K::COLS]),
+        sink: sink.scratch(K::COLS),
     };
     let bands = raw.height().div_ceil(K::ROWS);
     let ctx = Ctx {
@@ -205,7 +212,7 @@ where
         .enumerate()
         .for_each_init(init, |scratch, (i, rows)| {
             let y0 = i * K::ROWS;
-            for x0 in (0..w).step_by(COLS_PER_TILE) {
+            for x0 in (0..w).step_by(K::COLS) {
                 match isa {
                     Isa::Baseline => tile(&ctx, (x0, y0), scratch, rows),
                     #[cfg(target_arch = "x86_64")]
@@ -245,7 +252,7 @@ fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     tile(ctx, origin, scratch, rows);
 }
 
-/// The tile of output columns `x0 .. x0 + COLS_PER_TILE` of the band
+/// The tile of output columns `x0 .. x0 + K::COLS` of the band
 /// `rows` starting at row `y0`.
 #[inline(always)]
 fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
@@ -257,7 +264,7 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     let (raw, halo) = (ctx.raw, K::HALO);
     let w = raw.width();
     let n = rows.len() / (3 * w);
-    let tw = COLS_PER_TILE.min(w - x0);
+    let tw = K::COLS.min(w - x0);
     let t = Tile {
         stride: tw + 2 * halo,
         rows: n + 2 * halo,
