@@ -55,7 +55,7 @@ use super::boxsum::{
     all_sums, all_sums_across, class_sums, class_sums_across, window_sum, window_sum_by, Parity,
 };
 use super::ring::{Plane, Ring, Rows};
-use super::tiled::{StreamKernel, Tile};
+use super::tiled::{Emit, StreamKernel, Tile};
 use super::{chroma_masks, select, shifted, Phase};
 
 /// Radius of the directional guided filters of the green stage.
@@ -822,13 +822,7 @@ impl StreamKernel for Mlri {
     }
 
     #[inline(always)]
-    fn stream<E: FnMut(usize, [&[f32]; 3])>(
-        &self,
-        st: &mut State,
-        t: &Tile,
-        raw: &[f32],
-        mut emit: E,
-    ) {
+    fn stream<E: Emit>(&self, st: &mut State, t: &Tile, raw: &[f32], out: &mut E) {
         let c = Plane {
             data: raw,
             stride: t.stride,
@@ -887,7 +881,7 @@ impl StreamKernel for Mlri {
             let emitted = Self::HALO..t.rows - Self::HALO;
             if let Some(ty) = due(R_OUT).filter(|ty| emitted.contains(ty)) {
                 self.chroma_output(x, &c, mask(ty, R_OUT), blue_row(ty), ty);
-                emit(ty, [&x.own, green.row(ty), &x.other]);
+                out.emit(ty, [&x.own, green.row(ty), &x.other]);
             }
         }
     }
