@@ -264,6 +264,14 @@ fn stats(q: &[&[f32]; STATS], i: usize) -> [f32; STATS] {
     [q[0][i], q[1][i], q[2][i], q[3][i]]
 }
 
+/// `(select(m, a, b), select(m, b, a))`: a pair whose roles swap at the
+/// sites `m` marks, in four bit operations where two selects take six.
+#[inline(always)]
+fn swap(m: u32, a: f32, b: f32) -> (f32, f32) {
+    let t = (a.to_bits() ^ b.to_bits()) & m;
+    (f32::from_bits(b.to_bits() ^ t), f32::from_bits(a.to_bits() ^ t))
+}
+
 /// [`select`] on each statistic.
 #[inline(always)]
 fn blend(m: u32, a: [f32; STATS], b: [f32; STATS]) -> [f32; STATS] {
@@ -357,10 +365,8 @@ fn line_residuals(
     let [ac, bc, ag, bg] = mean;
     for i in 0..res.len() {
         let (ac, bc, ag, bg) = (scale * ac[i], scale * bc[i], scale * ag[i], scale * bg[i]);
-        let own_a = select(m[i], ac, ag);
-        let own_b = select(m[i], bc, bg);
-        let far_a = select(m[i], ag, ac);
-        let far_b = select(m[i], bg, bc);
+        let (own_a, far_a) = swap(m[i], ac, ag);
+        let (own_b, far_b) = swap(m[i], bc, bg);
         res[i] = c[i] - (own_a * g[i] + own_b);
         part[i] = far_a * c[i] + far_b;
     }
@@ -390,10 +396,8 @@ impl Mlri {
         for i in 0..m.len() {
             let (a_s, b_s) = coefficients(stats(&same, i), n_same);
             let (a_o, b_o) = coefficients(stats(&other, i), n_other);
-            ac[i] = select(m[i], a_s, a_o);
-            bc[i] = select(m[i], b_s, b_o);
-            ag[i] = select(m[i], a_o, a_s);
-            bg[i] = select(m[i], b_o, b_s);
+            (ac[i], ag[i]) = swap(m[i], a_s, a_o);
+            (bc[i], bg[i]) = swap(m[i], b_s, b_o);
         }
     }
 
