@@ -186,38 +186,61 @@ pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
     }
 }
 
-/// [`class_sums`] across rows: `view(d)` gives row `d` from the centres.
-/// The same groups are added in the same order, so a column run through
-/// this gives the bits [`class_sums`] gives it as a line.
+/// One row of the pair sums `q(y) = s(y) + s(y + 2)` that [`class_sums`]
+/// shares between sites, from the rows `s(y)` and `s(y + 2)`: a method
+/// streaming down its rows keeps them in a ring for [`class_sums_across`].
+#[inline(always)]
+pub(super) fn pair_row(a: &[f32], b: &[f32], q: &mut [f32]) {
+    for ((q, a), b) in q.iter_mut().zip(a).zip(b) {
+        *q = a + b;
+    }
+}
+
+/// [`class_sums`] across rows, from the centre row `s` and the
+/// [`pair_row`]s `q(d)` of the rows `d` from it: the same groups added in
+/// the same order, so a column gives the bits it gives as a line.
 #[inline(always)]
 pub(super) fn class_sums_across<'a>(
-    view: impl Fn(isize) -> &'a [f32],
+    s: &[f32],
+    q: impl Fn(isize) -> &'a [f32],
     same: &mut [f32],
     other: &mut [f32],
 ) {
     let n = same.len();
-    let s = [-5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5].map(|d| &view(d)[..n]);
-    for i in 0..n {
-        let s = |d: usize| s[d][i];
-        same[i] = s(5) + ((s(1) + s(3)) + (s(7) + s(9)));
-        other[i] = (s(4) + s(6)) + ((s(0) + s(2)) + (s(8) + s(10)));
+    let (s, left, right) = (&s[..n], &q(-4)[..n], &q(2)[..n]);
+    for (((o, c), l), r) in same.iter_mut().zip(s).zip(left).zip(right) {
+        *o = c + (l + r);
+    }
+    let (mid, left, right) = (&q(-1)[..n], &q(-5)[..n], &q(3)[..n]);
+    for (((o, c), l), r) in other[..n].iter_mut().zip(mid).zip(left).zip(right) {
+        *o = c + (l + r);
     }
 }
 
-/// [`all_sums`] across rows, with its groups and order (see
-/// [`class_sums_across`]).
+/// One row of the quadruple sums `f(y) = (s(y) + s(y + 1)) + (s(y + 2) +
+/// s(y + 3))` of [`all_sums`], from the rows `s(y + d)`.
 #[inline(always)]
-pub(super) fn all_sums_across<'a>(view: impl Fn(isize) -> &'a [f32], out: &mut [f32]) {
+pub(super) fn quad_row<'a>(s: impl Fn(isize) -> &'a [f32], f: &mut [f32]) {
+    let n = f.len();
+    let s = [0, 1, 2, 3].map(|d| &s(d)[..n]);
+    for (i, f) in f.iter_mut().enumerate() {
+        *f = (s[0][i] + s[1][i]) + (s[2][i] + s[3][i]);
+    }
+}
+
+/// [`all_sums`] across rows, from the rows `s(d)` and the [`quad_row`]s
+/// `f(d)` `d` rows from the centre (see [`class_sums_across`]).
+#[inline(always)]
+pub(super) fn all_sums_across<'a>(
+    s: impl Fn(isize) -> &'a [f32],
+    f: impl Fn(isize) -> &'a [f32],
+    out: &mut [f32],
+) {
     let n = out.len();
-    let s = [-5, -4, -3, -2, -1, 0, 1, 2, 3, 4, 5].map(|d| &view(d)[..n]);
-    for (i, o) in out.iter_mut().enumerate() {
-        let s = |d: usize| s[d][i];
-        let (near, left, right) = (
-            s(5) + (s(4) + s(6)),
-            (s(0) + s(1)) + (s(2) + s(3)),
-            (s(7) + s(8)) + (s(9) + s(10)),
-        );
-        *o = near + (left + right);
+    let (c, l, r) = (&s(0)[..n], &s(-1)[..n], &s(1)[..n]);
+    let (fl, fr) = (&f(-5)[..n], &f(2)[..n]);
+    for i in 0..n {
+        out[i] = (c[i] + (l[i] + r[i])) + (fl[i] + fr[i]);
     }
 }
 
@@ -305,17 +328,31 @@ mod tests {
 
     #[test]
     fn sums_across_rows_give_the_bits_of_sums_along_a_line() {
-        // Column x of a plane, summed across its rows, against the same
-        // column copied out as a line.
+        // Column x of a plane, summed across its rows through pair and
+        // quadruple rows, against the same column copied out as a line.
         let (w, h) = (5, 31);
         let src = rounding(w * h);
+        let row = |y: isize| &src[y as usize * w..][..w];
+        let (mut pairs, mut quads) = (vec![0.0; h * w], vec![0.0; h * w]);
+        for y in 0..h - 2 {
+            pair_row(
+                row(y as isize),
+                row(y as isize + 2),
+                &mut pairs[y * w..][..w],
+            );
+        }
+        for y in 0..h - 3 {
+            quad_row(|d| row(y as isize + d), &mut quads[y * w..][..w]);
+        }
         let n = h - 10;
-        let view = |d: isize| &src[((5 + d) as usize) * w..];
         let (mut same, mut other, mut all) = (vec![0.0; n * w], vec![0.0; n * w], vec![0.0; n * w]);
-        for y in 0..n {
-            let row = |d: isize| &view(y as isize + d)[..w];
-            class_sums_across(row, &mut same[y * w..][..w], &mut other[y * w..][..w]);
-            all_sums_across(row, &mut all[y * w..][..w]);
+        for k in 0..n {
+            let y = (k + 5) as isize;
+            let q = |d: isize| &pairs[(y + d) as usize * w..][..w];
+            let f = |d: isize| &quads[(y + d) as usize * w..][..w];
+            let (s, o) = (&mut same[k * w..][..w], &mut other[k * w..][..w]);
+            class_sums_across(row(y), q, s, o);
+            all_sums_across(|d| row(y + d), f, &mut all[k * w..][..w]);
         }
         let mut q = vec![0.0; h + 10];
         for x in 0..w {
@@ -323,11 +360,11 @@ mod tests {
             let (mut ls, mut lo, mut la) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
             class_sums(&line, 5, &mut ls, &mut lo, &mut q);
             all_sums(&line, 5, &mut la, &mut q);
-            for y in 0..n {
-                let i = y * w + x;
-                assert_eq!(same[i].to_bits(), ls[y].to_bits(), "same ({y}, {x})");
-                assert_eq!(other[i].to_bits(), lo[y].to_bits(), "other ({y}, {x})");
-                assert_eq!(all[i].to_bits(), la[y].to_bits(), "all ({y}, {x})");
+            for k in 0..n {
+                let i = k * w + x;
+                assert_eq!(same[i].to_bits(), ls[k].to_bits(), "same ({k}, {x})");
+                assert_eq!(other[i].to_bits(), lo[k].to_bits(), "other ({k}, {x})");
+                assert_eq!(all[i].to_bits(), la[k].to_bits(), "all ({k}, {x})");
             }
         }
     }
