@@ -59,7 +59,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (55-70 MP/s at 24 MP on two cores, about 2.4x LibRaw AHD; about 2x slower than
+  (60-78 MP/s at 24 MP on two cores, about 3x LibRaw AHD; about 1.5x slower than
   ``"rcd_menon"``).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
