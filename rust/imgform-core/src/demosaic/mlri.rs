@@ -656,8 +656,9 @@ impl Mlri {
             let [vs, vo] = vsum.each_mut().map(|v| &mut v[..wide]);
             class_sums_across(cols(src.row(ty), r), across(q, ty, r), vs, vo);
             for (v, pair) in vsum.iter().zip(sums.chunks_exact_mut(2)) {
-                let [same, other] = pair else { unreachable!() };
-                class_sums(v, SQUARE_RADIUS, &mut same[..n], &mut other[..n], pairs);
+                let (same, other) = pair.split_at_mut(1);
+                let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
+                class_sums(v, SQUARE_RADIUS, same, other, pairs);
             }
         }
     }
@@ -841,14 +842,8 @@ impl StreamKernel for Mlri {
     fn state(&self, stride: usize, _rows: usize) -> State {
         let row = || vec![0.0f32; stride];
         let ring = |from, to, back| Ring::new(stride, depth(from, to, back));
+        let two = |from, to, back| [ring(from, to, back), ring(from, to, back)];
         let rings = |from, to, back| [0; 4].map(|_| ring(from, to, back));
-        let [p0, p1, ..] = rings(R_LAPLACE, R_COEF, 0);
-        let [x0, x1, ..] = rings(R_RB_LAPLACE, R_RB_COEF, 0);
-        let [d0, d1, ..] = rings(R_DIF, R_GREEN, 4);
-        let [g0, g1, ..] = rings(R_GRAD, R_WEIGHT, 1);
-        let [w0, w1, ..] = rings(R_WEIGHT, R_GREEN, 1);
-        let [r0, r1, ..] = rings(R_RB_MEAN, R_OUT, 1);
-        let [t0, t1, ..] = rings(R_RB_MEAN, R_OUT, 0);
         State {
             line: Line {
                 guide: row(),
@@ -862,7 +857,7 @@ impl StreamKernel for Mlri {
             },
             columns: Columns {
                 guide: ring(R_GUIDE, R_MEAN, 0),
-                prod: [p0, p1],
+                prod: two(R_LAPLACE, R_COEF, 0),
                 pairs: rings(PAIRS, R_COEF, LINE_RADIUS),
                 sums: [0; STATS].map(|_| [row(), row()]),
                 coef: rings(R_COEF, R_MEAN, 1),
@@ -872,15 +867,15 @@ impl StreamKernel for Mlri {
                 part: ring(R_MEAN, R_DIF, 0),
             },
             combine: Combine {
-                dif: [d0, d1],
-                grad: [g0, g1],
-                weight: [w0, w1],
+                dif: two(R_DIF, R_GREEN, 4),
+                grad: two(R_GRAD, R_WEIGHT, 1),
+                weight: two(R_WEIGHT, R_GREEN, 1),
                 tmp: row(),
             },
             // Read by the last stage, as the output's green.
             green: ring(R_GREEN, R_OUT, 0),
             chroma: Chroma {
-                prod: [x0, x1],
+                prod: two(R_RB_LAPLACE, R_RB_COEF, 0),
                 qrows: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS),
                 vsum: [row(), row()],
                 sums: [0; STATS].map(|_| [0; 4].map(|_| row())),
@@ -888,8 +883,8 @@ impl StreamKernel for Mlri {
                 quads: rings(RB_QUADS, R_RB_MEAN, SQUARE_RADIUS),
                 mean: [0; 4].map(|_| row()),
                 pairs: row(),
-                res: [r0, r1],
-                part: [t0, t1],
+                res: two(R_RB_MEAN, R_OUT, 1),
+                part: two(R_RB_MEAN, R_OUT, 0),
                 own: row(),
                 other: row(),
             },
