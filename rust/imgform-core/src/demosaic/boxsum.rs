@@ -73,9 +73,9 @@ pub(super) fn window_sum(
 /// from the centres (at least `out.len()` of them), whether they lie along
 /// a row or in the rows of a ring.
 ///
-/// The one loop behind every box of the method. Its windows (radius 5,
-/// and the 3x3 box) get a loop whose taps are known at compile time, which
-/// keeps each sum in a register.
+/// The plain window sum: the reference the shared-sum versions are tested
+/// against, and the direction weights' 3x3 box, which gets a loop whose
+/// taps are known at compile time (each sum stays in a register).
 #[inline(always)]
 pub(super) fn window_sum_by<'a>(
     view: impl Fn(isize) -> &'a [f32],
@@ -84,10 +84,7 @@ pub(super) fn window_sum_by<'a>(
     parity: Parity,
 ) {
     match (parity, radius) {
-        (Parity::All, 1) => taps(&view, out, true, [1]),
-        (Parity::All, 5) => taps(&view, out, true, [1, 2, 3, 4, 5]),
-        (Parity::Same, 5) => taps(&view, out, true, [2, 4]),
-        (Parity::Other, 5) => taps(&view, out, false, [1, 3, 5]),
+        (Parity::All, 1) => taps(&view, out, [1]),
         _ => {
             let n = out.len();
             if parity == Parity::Other {
@@ -105,16 +102,11 @@ pub(super) fn window_sum_by<'a>(
     }
 }
 
-/// [`window_sum_by`] over the mirrored pairs at `dist` (nearest first) and,
-/// if `centre`, the centre: the pairs are added in order, then the centre,
-/// so a mirrored line gives the same bits.
+/// [`window_sum_by`] over the centre and the mirrored pairs at `dist`
+/// (nearest first): the pairs are added in order, then the centre, so a
+/// mirrored line gives the same bits.
 #[inline(always)]
-fn taps<'a, const K: usize>(
-    view: &impl Fn(isize) -> &'a [f32],
-    out: &mut [f32],
-    centre: bool,
-    dist: [usize; K],
-) {
+fn taps<'a, const K: usize>(view: &impl Fn(isize) -> &'a [f32], out: &mut [f32], dist: [usize; K]) {
     let n = out.len();
     let left = dist.map(|d| &view(-(d as isize))[..n]);
     let right = dist.map(|d| &view(d as isize)[..n]);
@@ -124,7 +116,7 @@ fn taps<'a, const K: usize>(
         for k in 1..K {
             s += left[k][i] + right[k][i];
         }
-        out[i] = if centre { mid[i] + s } else { s };
+        out[i] = mid[i] + s;
     }
 }
 
