@@ -492,19 +492,6 @@ impl Mlri {
         laplace_products(gs, cs, ip, ii);
     }
 
-    /// Pair sums of the statistics, at tile row `ty` (from `R_LAPLACE`).
-    #[inline(always)]
-    fn columns_pairs(&self, v: &mut Columns, c: &Plane, ty: usize) {
-        let Columns {
-            guide, prod, pairs, ..
-        } = v;
-        let sources: [&dyn Rows; STATS] = [guide, c, &prod[0], &prod[1]];
-        for (src, q) in sources.into_iter().zip(pairs.iter_mut()) {
-            let (a, b) = (cols(src.row(ty), R_DIF), cols(src.row(ty + 2), R_DIF));
-            pair_row(a, b, cols_mut(q.row_mut(ty), R_DIF));
-        }
-    }
-
     #[inline(always)]
     fn columns_coefficients(&self, v: &mut Columns, c: &Plane, m: &[u32], ty: usize) {
         let sources: [&dyn Rows; STATS] = [&v.guide, c, &v.prod[0], &v.prod[1]];
@@ -517,14 +504,6 @@ impl Mlri {
         let other = v.sums.each_ref().map(|q| &q[1][..]);
         let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), R_DIF));
         self.line_coefficients(same, other, m, coef);
-    }
-
-    /// Quadruple sums of the coefficients, at tile row `ty` (from `R_COEF`).
-    #[inline(always)]
-    fn columns_quads(&self, v: &mut Columns, ty: usize) {
-        for (src, f) in v.coef.iter().zip(v.quads.iter_mut()) {
-            quad_row(across(src, ty, R_DIF), cols_mut(f.row_mut(ty), R_DIF));
-        }
     }
 
     #[inline(always)]
@@ -663,33 +642,6 @@ impl Mlri {
         }
     }
 
-    /// Pair sums of the statistics at tile row `ty` (from `R_RB_LAPLACE`).
-    #[inline(always)]
-    fn chroma_pairs(&self, x: &mut Chroma, green: &Ring, c: &Plane, ty: usize) {
-        let Chroma { prod, qrows, .. } = x;
-        let sources: [&dyn Rows; STATS] = [green, c, &prod[0], &prod[1]];
-        let r = R_RB_LAPLACE;
-        for (src, q) in sources.into_iter().zip(qrows.iter_mut()) {
-            pair_row(
-                cols(src.row(ty), r),
-                cols(src.row(ty + 2), r),
-                cols_mut(q.row_mut(ty), r),
-            );
-        }
-    }
-
-    /// Quadruple sums of the coefficients at tile row `ty` (from
-    /// `R_RB_COEF`).
-    #[inline(always)]
-    fn chroma_quads(&self, x: &mut Chroma, ty: usize) {
-        for (src, f) in x.coef.iter().zip(x.quads.iter_mut()) {
-            quad_row(
-                across(src, ty, R_RB_COEF),
-                cols_mut(f.row_mut(ty), R_RB_COEF),
-            );
-        }
-    }
-
     /// Red and blue coefficients of tile row `ty` from its class sums.
     #[inline(always)]
     fn chroma_coefficients(&self, x: &mut Chroma, m: &[u32], blue_row: bool, ty: usize) {
@@ -793,6 +745,25 @@ impl Mlri {
         for (o, (m, c0)) in own.iter_mut().zip(m.iter().zip(cols(c.row(ty), R_OUT))) {
             *o = select(*m, *c0, *o);
         }
+    }
+}
+
+/// Tile row `ty` of the [`pair_row`]s of the four statistics `sources`,
+/// over the columns `r ..`.
+#[inline(always)]
+fn pair_rows(sources: [&dyn Rows; STATS], pairs: &mut [Ring; STATS], ty: usize, r: usize) {
+    for (src, q) in sources.into_iter().zip(pairs.iter_mut()) {
+        let (a, b) = (cols(src.row(ty), r), cols(src.row(ty + 2), r));
+        pair_row(a, b, cols_mut(q.row_mut(ty), r));
+    }
+}
+
+/// Tile row `ty` of the [`quad_row`]s of the four coefficients `coef`,
+/// over the columns `r ..`.
+#[inline(always)]
+fn quad_rows(coef: &[Ring; 4], quads: &mut [Ring; 4], ty: usize, r: usize) {
+    for (src, f) in coef.iter().zip(quads.iter_mut()) {
+        quad_row(across(src, ty, r), cols_mut(f.row_mut(ty), r));
     }
 }
 
@@ -921,13 +892,14 @@ impl StreamKernel for Mlri {
                 self.columns_products(v, &c, ty);
             }
             if let Some(ty) = due_from(PAIRS, R_LAPLACE) {
-                self.columns_pairs(v, &c, ty);
+                let sources: [&dyn Rows; STATS] = [&v.guide, &c, &v.prod[0], &v.prod[1]];
+                pair_rows(sources, &mut v.pairs, ty, R_DIF);
             }
             if let Some(ty) = due(R_COEF) {
                 self.columns_coefficients(v, &c, mask(ty, R_DIF), ty);
             }
             if let Some(ty) = due_from(QUADS, R_COEF) {
-                self.columns_quads(v, ty);
+                quad_rows(&v.coef, &mut v.quads, ty, R_DIF);
             }
             if let Some(ty) = due(R_MEAN) {
                 self.columns_residuals(v, &c, mask(ty, R_DIF), ty);
@@ -951,7 +923,8 @@ impl StreamKernel for Mlri {
                 self.chroma_products(x, green, &c, ty);
             }
             if let Some(ty) = due_from(RB_PAIRS, R_RB_LAPLACE) {
-                self.chroma_pairs(x, green, &c, ty);
+                let sources: [&dyn Rows; STATS] = [green, &c, &x.prod[0], &x.prod[1]];
+                pair_rows(sources, &mut x.qrows, ty, R_RB_LAPLACE);
             }
             let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
             if let Some(ty) = due(R_RB_COEF) {
@@ -959,7 +932,7 @@ impl StreamKernel for Mlri {
                 self.chroma_coefficients(x, mask(ty, R_RB_COEF), blue_row(ty), ty);
             }
             if let Some(ty) = due_from(RB_QUADS, R_RB_COEF) {
-                self.chroma_quads(x, ty);
+                quad_rows(&x.coef, &mut x.quads, ty, R_RB_COEF);
             }
             if let Some(ty) = due(R_RB_MEAN) {
                 self.chroma_residuals(x, green, &c, mask(ty, R_RB_MEAN), blue_row(ty), ty);
