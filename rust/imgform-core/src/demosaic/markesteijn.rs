@@ -566,8 +566,11 @@ pub(super) fn run<T: Sample>(
                     match isa {
                         Isa::Baseline => tile(&ctx, (x0, i * ROWS), s, rows),
                         #[cfg(target_arch = "x86_64")]
-                        // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
-                        Isa::Avx2 => unsafe { tile_avx2(&ctx, (x0, i * ROWS), s, rows) },
+                        // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
+                        // with AVX2.
+                        Isa::Avx2 | Isa::Avx512 => unsafe {
+                            tile_avx2(&ctx, (x0, i * ROWS), s, rows)
+                        },
                     }
                 }
             },
@@ -879,7 +882,10 @@ mod tests {
             run(&view, &CfaPattern::xtrans(), isa, &mut out);
             out
         };
-        assert_eq!(run_with(Isa::Baseline), run_with(Isa::detect()));
+        let base = run_with(Isa::Baseline);
+        for isa in Isa::available() {
+            assert_eq!(base, run_with(isa), "{isa:?}");
+        }
     }
 
     #[test]

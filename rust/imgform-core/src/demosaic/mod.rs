@@ -467,15 +467,37 @@ pub(crate) enum Isa {
     /// x86-64 with AVX2, detected at run time.
     #[cfg(target_arch = "x86_64")]
     Avx2,
+    /// x86-64 with AVX-512 (F, BW, DQ and VL), detected at run time. The
+    /// tiled kernels run in a copy compiled for it: half the instructions
+    /// of AVX2 for the same work, which made "best" and "raisr" 3-8 %
+    /// faster on a Zen 4 core (interleaved single-thread runs; "mlri" was
+    /// unchanged). The row kernels, Markesteijn and the RAISR filter taps
+    /// keep their AVX2 code, which AVX-512 CPUs run too.
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
 }
 
 impl Isa {
+    /// The widest instruction set of this CPU that the kernels have.
     fn detect() -> Self {
+        Self::available().pop().unwrap_or(Isa::Baseline)
+    }
+
+    /// Every instruction set of this CPU that the kernels have, narrowest
+    /// first.
+    fn available() -> Vec<Self> {
+        let mut isas = vec![Isa::Baseline];
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Isa::Avx2;
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if has!("avx2") {
+                isas.push(Isa::Avx2);
+            }
+            if has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl") {
+                isas.push(Isa::Avx512);
+            }
         }
-        Isa::Baseline
+        isas
     }
 }
 
@@ -684,8 +706,8 @@ pub(crate) fn run_rows<M, O, S, I, F>(
         Isa::Baseline => band(raw, rows, y0, radius, &init, &row),
         #[cfg(target_arch = "x86_64")]
         // SAFETY: calling a function compiled for AVX2 requires a CPU with
-        // AVX2; `Isa::Avx2` is only made by `Isa::detect` after checking.
-        Isa::Avx2 => unsafe { band_avx2(raw, rows, y0, radius, &init, &row) },
+        // AVX2; `Isa::Avx2` and `Isa::Avx512` are only made on such CPUs.
+        Isa::Avx2 | Isa::Avx512 => unsafe { band_avx2(raw, rows, y0, radius, &init, &row) },
     });
 }
 

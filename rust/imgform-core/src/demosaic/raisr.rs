@@ -447,9 +447,10 @@ impl<B: TileKernel> Raisr<B> {
             // loop, which a closure chosen per row prevented.
             let (d0, d1) = match self.isa {
                 Isa::Baseline => apply(taps, rows, x),
-                // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+                // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
+                // with AVX2.
                 #[cfg(target_arch = "x86_64")]
-                Isa::Avx2 => unsafe { apply_avx2(taps, rows, x) },
+                Isa::Avx2 | Isa::Avx512 => unsafe { apply_avx2(taps, rows, x) },
             };
             if x & 1 == chroma_parity {
                 green[x] += d0;

@@ -214,6 +214,10 @@ where
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
                     Isa::Avx2 => unsafe { tile_avx2(&ctx, (x0, y0), scratch, rows) },
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `Isa::Avx512` is only made after detecting
+                    // the four AVX-512 subsets `tile_avx512` enables.
+                    Isa::Avx512 => unsafe { tile_avx512(&ctx, (x0, y0), scratch, rows) },
                 }
             }
         });
@@ -240,6 +244,19 @@ struct Scratch<S, Q> {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
+    ctx: &Ctx<'_, M, K, S>,
+    origin: (usize, usize),
+    scratch: &mut Scratch<K::State, S::Scratch>,
+    rows: &mut [O],
+) {
+    tile(ctx, origin, scratch, rows);
+}
+
+/// [`tile`] compiled for AVX-512 (see [`Isa::Avx512`]). The kernels use no
+/// fused multiply-add (Rust never contracts), so the bits are AVX2's.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
+fn tile_avx512<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
     origin: (usize, usize),
     scratch: &mut Scratch<K::State, S::Scratch>,
