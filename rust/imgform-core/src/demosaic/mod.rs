@@ -469,10 +469,10 @@ pub(crate) enum Isa {
     Avx2,
     /// x86-64 with AVX-512 (F, BW, DQ and VL), detected at run time. The
     /// tiled kernels run in a copy compiled for it: half the instructions
-    /// of AVX2 for the same work, which made "best" and "raisr" 3-8 %
-    /// faster on a Zen 4 core (interleaved single-thread runs; "mlri" was
-    /// unchanged). The row kernels, Markesteijn and the RAISR filter taps
-    /// keep their AVX2 code, which AVX-512 CPUs run too.
+    /// of AVX2 for the same work, which made "best" and "raisr" 3-10 %
+    /// faster on Zen 4 cores (interleaved runs). MLRI, which it made
+    /// slower, the row kernels, Markesteijn and the RAISR filter taps keep
+    /// their AVX2 code, which AVX-512 CPUs run too.
     #[cfg(target_arch = "x86_64")]
     Avx512,
 }

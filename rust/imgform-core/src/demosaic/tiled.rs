@@ -113,6 +113,9 @@ pub(crate) trait StreamKernel: Sync {
     /// Output rows and columns per tile.
     const ROWS: usize;
     const COLS: usize;
+    /// Whether the kernel runs in its AVX-512 copy on CPUs that have it
+    /// ([`Isa::Avx512`]), or in its AVX2 one.
+    const AVX512: bool = true;
     /// Buffers for tiles `stride` wide and `rows` tall (halo included).
     fn state(&self, stride: usize, rows: usize) -> Self::State;
     /// Computes the tile from the raw plane `raw`, handing `out` each tile
@@ -217,7 +220,12 @@ where
                     #[cfg(target_arch = "x86_64")]
                     // SAFETY: `Isa::Avx512` is only made after detecting
                     // the four AVX-512 subsets `tile_avx512` enables.
-                    Isa::Avx512 => unsafe { tile_avx512(&ctx, (x0, y0), scratch, rows) },
+                    Isa::Avx512 if K::AVX512 => unsafe {
+                        tile_avx512(&ctx, (x0, y0), scratch, rows)
+                    },
+                    #[cfg(target_arch = "x86_64")]
+                    // SAFETY: `Isa::Avx512` is only made on CPUs with AVX2.
+                    Isa::Avx512 => unsafe { tile_avx2(&ctx, (x0, y0), scratch, rows) },
                 }
             }
         });
