@@ -300,6 +300,51 @@ def test_non_contiguous_input_gives_the_same_result():
         np.testing.assert_array_equal(ig.demosaic(view, "RGGB"), ig.demosaic(raw, "RGGB"))
 
 
+@given(raw=mosaics(min_side=6), p=st.sampled_from([*BAYER, "XTRANS"]), data=st.data())
+def test_out_receives_the_result_a_new_array_would_hold(raw, p, data):
+    methods = ig.XTRANS_DEMOSAIC_METHODS if p == "XTRANS" else METHODS
+    method = data.draw(st.sampled_from(methods))
+    # Stale values in the buffer must not leak into the result.
+    out = np.full((*raw.shape, 3), 7, raw.dtype)
+    assert ig.demosaic(raw, p, method, out=out) is out
+    np.testing.assert_array_equal(out, ig.demosaic(raw, p, method))
+
+
+def test_out_can_be_reused_across_images():
+    out = np.empty((30, 40, 3), np.uint16)
+    for seed in range(3):
+        raw = random_raw(seed, 30, 40, np.uint16)
+        ig.demosaic(raw, "GRBG", "best", out=out)
+        np.testing.assert_array_equal(out, ig.demosaic(raw, "GRBG", "best"))
+
+
+def read_only(a):
+    a.flags.writeable = False
+    return a
+
+
+U16 = np.zeros((8, 10), np.uint16)
+SHARED = np.zeros((8, 10, 3), np.uint16)
+
+
+@pytest.mark.parametrize(
+    ("raw", "out", "exc", "match"),
+    [
+        (U16, np.empty((8, 10, 3), np.float32), TypeError, "dtype uint16.*dtype float32"),
+        (U16, [[0.0]], TypeError, "dtype uint16.*got an object of type list"),
+        (U16, np.empty((8, 10, 4), np.uint16), ValueError, r"shape \[8, 10, 3\], got \[8, 10, 4\]"),
+        (U16, np.empty((10, 8, 3), np.uint16), ValueError, r"shape \[8, 10, 3\]"),
+        (U16, np.empty((8, 10, 3), np.uint16, order="F"), ValueError, "C-contiguous"),
+        (U16, np.empty((8, 20, 3), np.uint16)[:, ::2], ValueError, "C-contiguous"),
+        (U16, read_only(np.empty((8, 10, 3), np.uint16)), ValueError, "not writeable"),
+        (SHARED[..., 1], SHARED, ValueError, "share no memory with the input"),
+    ],
+)
+def test_a_bad_out_names_what_is_wrong(raw, out, exc, match):
+    with pytest.raises(exc, match=match):
+        ig.demosaic(raw, "RGGB", "rcd", out=out)
+
+
 Z8 = np.zeros((4, 4), np.uint8)
 SHAPE = r"\(2, 2\) or \(6, 6\), got \(3, 3\)"
 DTYPE = "uint8, uint16 or float32"

@@ -157,7 +157,11 @@ BAYER_DEMOSAIC_METHODS: tuple[str, ...]
 XTRANS_DEMOSAIC_METHODS: tuple[str, ...]
 
 def demosaic(
-    raw: npt.NDArray[Any], pattern: str | npt.NDArray[np.int64], method: str = "bilinear"
+    raw: npt.NDArray[Any],
+    pattern: str | npt.NDArray[np.int64],
+    method: str = "bilinear",
+    *,
+    out: npt.NDArray[Any] | None = None,
 ) -> npt.NDArray[Any]: ...
 def demosaic_halo(method: str, pattern: str | npt.NDArray[np.int64]) -> int: ...
 

@@ -122,6 +122,54 @@ where
     Ok(out)
 }
 
+/// Lets `kernel` fill the caller's `out` (an `out=` argument) with the GIL
+/// released, as [`detached_into`] fills a new array: for callers that run
+/// many images of one size, whose fresh outputs cost page faults and
+/// zeroing every time.
+///
+/// `out` must be an array of `T`, exactly `shape`, C-contiguous and
+/// writeable, and share no memory with any input the caller still holds
+/// borrowed (NumPy's borrow tracking refuses the write borrow then).
+pub fn detached_into_out<'py, T, F>(
+    py: Python<'py>,
+    out: &Bound<'py, PyAny>,
+    shape: &[usize],
+    kernel: F,
+) -> PyResult<Bound<'py, PyArrayDyn<T>>>
+where
+    T: Element + Send,
+    F: Send + FnOnce(&mut [T]) -> imgform_core::Result<()>,
+{
+    let dtype = T::get_dtype(py);
+    let arr = out.downcast::<PyArrayDyn<T>>().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "out must be a numpy array of dtype {dtype}, the input's, got {}",
+            describe(out)
+        ))
+    })?;
+    if arr.shape() != shape {
+        return Err(PyValueError::new_err(format!(
+            "out must have shape {shape:?}, got {:?}",
+            arr.shape()
+        )));
+    }
+    if !arr.is_c_contiguous() {
+        return Err(PyValueError::new_err(
+            "out must be C-contiguous (a fresh np.empty array is)",
+        ));
+    }
+    let mut view = arr.try_readwrite().map_err(|e| {
+        PyValueError::new_err(format!(
+            "out must be writeable and share no memory with the input ({e})"
+        ))
+    })?;
+    let slice = view
+        .as_slice_mut()
+        .map_err(|e| PyValueError::new_err(format!("internal layout error: {e}")))?;
+    detached(py, || kernel(slice))?;
+    Ok(arr.clone())
+}
+
 /// An image of one of the sample types the kernels accept.
 pub enum AnyImage<'py> {
     U8(PyReadonlyArrayDyn<'py, u8>),

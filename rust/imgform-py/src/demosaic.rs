@@ -8,7 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{contiguous, detached_into, AnyImage};
+use crate::arrays::{contiguous, detached_into, detached_into_out, AnyImage};
 use crate::cfa::pattern_arg;
 use crate::dispatch_image;
 use crate::errors::to_pyerr;
@@ -18,6 +18,7 @@ fn demosaic_typed<'py, T: Sample + Element>(
     py: Python<'py>,
     p: &CfaPattern,
     method: Method,
+    out: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = match *arr.shape() {
         [h, w] => (h, w),
@@ -28,25 +29,30 @@ fn demosaic_typed<'py, T: Sample + Element>(
         }
     };
     let src = contiguous(&arr);
-    let out = detached_into(py, &[h, w, 3], |out| {
-        demosaic_kernel(ImageView::contiguous(&src, w, h, 1)?, p, method, out)
-    })?;
+    let kernel =
+        |out: &mut [T]| demosaic_kernel(ImageView::contiguous(&src, w, h, 1)?, p, method, out);
+    let out = match out {
+        Some(out) => detached_into_out(py, out, &[h, w, 3], kernel)?,
+        None => detached_into(py, &[h, w, 3], kernel)?,
+    };
     Ok(out.into_any())
 }
 
-/// Demosaics a mosaic (H, W) -> (H, W, 3), same dtype.
+/// Demosaics a mosaic (H, W) -> (H, W, 3), same dtype, into a new array or
+/// into `out`.
 #[pyfunction]
-#[pyo3(signature = (raw, pattern, method="bilinear"))]
+#[pyo3(signature = (raw, pattern, method="bilinear", *, out=None))]
 fn demosaic<'py>(
     py: Python<'py>,
     raw: &Bound<'py, PyAny>,
     pattern: &Bound<'py, PyAny>,
     method: &str,
+    out: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let p = pattern_arg(pattern)?;
     let method = Method::from_name_for(method, &p).map_err(to_pyerr)?;
     let img = AnyImage::extract(raw, "raw")?;
-    dispatch_image!(img, demosaic_typed(py, &p, method))
+    dispatch_image!(img, demosaic_typed(py, &p, method, out))
 }
 
 /// How far a method's output reaches into the mosaic (see `Method::halo`).
