@@ -110,12 +110,17 @@ pub(crate) trait StreamKernel: Sync {
     type State;
     /// Mirrored rows and columns needed around the output (even).
     const HALO: usize;
-    /// Output rows and columns per tile.
+    /// Output rows and columns per tile (rows: see [`StreamKernel::rows`]).
     const ROWS: usize;
     const COLS: usize;
     /// Whether the kernel runs in its AVX-512 copy on CPUs that have it
     /// ([`Isa::Avx512`]), or in its AVX2 one.
     const AVX512: bool = true;
+    /// Output rows per tile of a mosaic `height` tall on `threads`
+    /// threads (even): `ROWS`, for kernels whose memory grows with it.
+    fn rows(_height: usize, _threads: usize) -> usize {
+        Self::ROWS
+    }
     /// Buffers for tiles `stride` wide and `rows` tall (halo included).
     fn state(&self, stride: usize, rows: usize) -> Self::State;
     /// Computes the tile from the raw plane `raw`, handing `out` each tile
@@ -189,14 +194,15 @@ where
     // tile wrote, so leftovers of the previous tile never reach the output
     // (the thread-count tests compare runs with different reuse).
     let stride = w.min(K::COLS) + 2 * K::HALO;
-    let rows = K::ROWS + 2 * K::HALO;
+    let band = K::rows(raw.height(), rayon::current_num_threads());
+    let rows = band + 2 * K::HALO;
     let init = || Scratch {
         plane: vec![0.0f32; stride * rows],
         state: k.state(stride, rows),
         clamped: [0, 1, 2].map(|_| vec![0.0f32; K::COLS]),
         sink: sink.scratch(K::COLS),
     };
-    let bands = raw.height().div_ceil(K::ROWS);
+    let bands = raw.height().div_ceil(band);
     let ctx = Ctx {
         raw,
         phase,
@@ -204,13 +210,13 @@ where
         sink,
         bounds,
     };
-    out.par_chunks_mut(3 * w * K::ROWS)
+    out.par_chunks_mut(3 * w * band)
         // Bands cost the same: a run of them per thread makes rayon call
         // `init` about once per thread instead of once per split.
         .with_min_len(bands.div_ceil(2 * rayon::current_num_threads()))
         .enumerate()
         .for_each_init(init, |scratch, (i, rows)| {
-            let y0 = i * K::ROWS;
+            let y0 = i * band;
             for x0 in (0..w).step_by(K::COLS) {
                 match isa {
                     Isa::Baseline => tile(&ctx, (x0, y0), scratch, rows),
