@@ -147,8 +147,8 @@ struct Line {
     /// Residuals of each site's own class, tentative values of the other.
     res: Vec<f32>,
     part: Vec<f32>,
-    /// Pair sums of [`class_sums`].
-    pairs: Vec<f32>,
+    /// Scratch of [`class_sums`] and [`all_sums`] (their sums along the row).
+    scratch: Vec<f32>,
 }
 
 /// The green stage's vertical pass: the rows of [`Line`] as rings where
@@ -184,7 +184,7 @@ struct Chroma {
     /// Products of Laplacians.
     prod: [Ring; 2],
     /// Pair sums of the statistics across rows, as in [`Columns`].
-    qrows: [Ring; STATS],
+    pairs: [Ring; STATS],
     /// Vertical window sums over the same and the other class, the input
     /// of the horizontal ones.
     vsum: [Vec<f32>; 2],
@@ -196,8 +196,8 @@ struct Chroma {
     coef: [Ring; 4],
     quads: [Ring; 4],
     mean: [Vec<f32>; 4],
-    /// Pair sums of [`class_sums`] and [`all_sums`].
-    pairs: Vec<f32>,
+    /// Scratch of [`class_sums`] and [`all_sums`] (their sums along the row).
+    scratch: Vec<f32>,
     /// Residuals and tentative values of red and blue.
     res: [Ring; 2],
     part: [Ring; 2],
@@ -227,12 +227,12 @@ impl State {
             chroma: x,
             ..
         } = self;
-        let rows = [&mut l.guide, &mut l.res, &mut l.part, &mut l.pairs]
+        let rows = [&mut l.guide, &mut l.res, &mut l.part, &mut l.scratch]
             .into_iter()
             .chain(l.prod.iter_mut().chain(l.sums.iter_mut().flatten()))
             .chain(l.coef.iter_mut().chain(l.mean.iter_mut()))
             .chain(v.sums.iter_mut().flatten().chain(v.mean.iter_mut()))
-            .chain([&mut cb.tmp, &mut x.pairs, &mut x.own, &mut x.other])
+            .chain([&mut cb.tmp, &mut x.scratch, &mut x.own, &mut x.other])
             .chain(x.vsum.iter_mut())
             .chain(x.sums.iter_mut().flatten().chain(x.mean.iter_mut()));
         for row in rows {
@@ -244,7 +244,7 @@ impl State {
             .chain(v.pairs.iter_mut().chain(&mut v.quads))
             .chain(cb.dif.iter_mut().chain(&mut cb.grad).chain(&mut cb.weight))
             .chain(x.prod.iter_mut().chain(&mut x.coef))
-            .chain(x.qrows.iter_mut().chain(&mut x.quads))
+            .chain(x.pairs.iter_mut().chain(&mut x.quads))
             .chain(x.res.iter_mut().chain(&mut x.part));
         for ring in rings {
             ring.fit(stride);
@@ -439,14 +439,14 @@ impl Mlri {
         let sources: [&[f32]; STATS] = [&lb.guide, c, ip, ii];
         for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
             let (same, other) = (cols_mut(same, R_COEF), cols_mut(other, R_COEF));
-            class_sums(src, R_COEF, same, other, &mut lb.pairs);
+            class_sums(src, R_COEF, same, other, &mut lb.scratch);
         }
         let same = lb.sums.each_ref().map(|q| cols(&q[0], R_COEF));
         let other = lb.sums.each_ref().map(|q| cols(&q[1], R_COEF));
         let coef = lb.coef.each_mut().map(|p| cols_mut(p, R_COEF));
         self.line_coefficients(same, other, &m[R_COEF..len - R_COEF], coef);
         for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
-            all_sums(src, R_MEAN, cols_mut(dst, R_MEAN), &mut lb.pairs);
+            all_sums(src, R_MEAN, cols_mut(dst, R_MEAN), &mut lb.scratch);
         }
         let r = R_MEAN;
         let mean = lb.mean.each_ref().map(|p| cols(p, r));
@@ -622,22 +622,22 @@ impl Mlri {
     fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Plane, ty: usize) {
         let Chroma {
             prod,
-            qrows,
+            pairs,
             vsum,
             sums,
-            pairs,
+            scratch,
             ..
         } = x;
         let sources: [&dyn Rows; STATS] = [green, c, &prod[0], &prod[1]];
         let r = R_RB_LAPLACE;
         let (wide, n) = (vsum[0].len() - 2 * r, vsum[0].len() - 2 * R_RB_COEF);
-        for ((src, q), sums) in sources.into_iter().zip(&*qrows).zip(sums.iter_mut()) {
+        for ((src, q), sums) in sources.into_iter().zip(&*pairs).zip(sums.iter_mut()) {
             let [vs, vo] = vsum.each_mut().map(|v| &mut v[..wide]);
             class_sums_across(cols(src.row(ty), r), across(q, ty, r), vs, vo);
             for (v, pair) in vsum.iter().zip(sums.chunks_exact_mut(2)) {
                 let (same, other) = pair.split_at_mut(1);
                 let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
-                class_sums(v, SQUARE_RADIUS, same, other, pairs);
+                class_sums(v, SQUARE_RADIUS, same, other, scratch);
             }
         }
     }
@@ -694,7 +694,7 @@ impl Mlri {
             quads,
             vsum,
             mean,
-            pairs,
+            scratch,
             res,
             part,
             ..
@@ -704,7 +704,7 @@ impl Mlri {
         let vsum = &mut vsum[0];
         for ((src, f), dst) in coef.iter().zip(&*quads).zip(mean.iter_mut()) {
             all_sums_across(across(src, ty, r), across(f, ty, r), &mut vsum[..wide]);
-            all_sums(vsum, SQUARE_RADIUS, &mut dst[..n], pairs);
+            all_sums(vsum, SQUARE_RADIUS, &mut dst[..n], scratch);
         }
         let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
         let (c0, g0) = (cols(c.row(ty), R_RB_MEAN), cols(g.row(ty), R_RB_MEAN));
@@ -839,7 +839,7 @@ impl StreamKernel for Mlri {
                 mean: [0; 4].map(|_| row()),
                 res: row(),
                 part: row(),
-                pairs: row(),
+                scratch: row(),
             },
             columns: Columns {
                 guide: ring(R_GUIDE, R_MEAN, 0),
@@ -862,13 +862,13 @@ impl StreamKernel for Mlri {
             green: ring(R_GREEN, R_OUT, 0),
             chroma: Chroma {
                 prod: two(R_RB_LAPLACE, R_RB_COEF, 0),
-                qrows: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS),
+                pairs: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS),
                 vsum: [row(), row()],
                 sums: [0; STATS].map(|_| [0; 4].map(|_| row())),
                 coef: rings(R_RB_COEF, R_RB_MEAN, 1),
                 quads: rings(RB_QUADS, R_RB_MEAN, SQUARE_RADIUS),
                 mean: [0; 4].map(|_| row()),
-                pairs: row(),
+                scratch: row(),
                 res: two(R_RB_MEAN, R_OUT, 1),
                 part: two(R_RB_MEAN, R_OUT, 0),
                 own: row(),
@@ -939,7 +939,7 @@ impl StreamKernel for Mlri {
             }
             if let Some(ty) = due_from(RB_PAIRS, R_RB_LAPLACE) {
                 let sources: [&dyn Rows; STATS] = [green, &c, &x.prod[0], &x.prod[1]];
-                pair_rows(sources, &mut x.qrows, ty, R_RB_LAPLACE);
+                pair_rows(sources, &mut x.pairs, ty, R_RB_LAPLACE);
             }
             let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
             if let Some(ty) = due(R_RB_COEF) {
