@@ -59,8 +59,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (60-78 MP/s at 24 MP on two cores, about 3x LibRaw AHD; about 1.5x slower than
-  ``"rcd_menon"``).
+  (61-81 MP/s at 24 MP on two cores in three runs of ``benchmarks/demosaic.py``,
+  2.7-2.8x LibRaw AHD in the same runs; about 1.6x slower than ``"rcd_menon"``).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
   Transactions on Computational Imaging 3(1), 2017: per CFA position and class of
@@ -75,7 +75,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   flip-symmetric. Outputs are clamped to the range of the input mosaic. Mean CPSNR
   40.04 dB against its base's 39.63 (astronaut 37.70, coffee 36.38, chelsea 41.82,
   rocket 33.12, immunohistochemistry 42.71, retina 52.52, motorcycle_left 36.04), and
-  above its base on the held-out photographs too; 48-63 MP/s at 24 MP on two cores.
+  above its base on the held-out photographs too; 59-82 MP/s at 24 MP on two cores
+  in three runs of ``benchmarks/demosaic.py``.
   It is the most accurate method here but not ``"best"``, which must keep 100 MP/s.
 - ``"best"``: our highest-quality method at 100 MP/s or more, currently
   ``"rcd_menon"`` (``"raisr"`` is 0.4 dB better at half the speed). Mean CPSNR on
@@ -84,7 +85,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   best peers LibRaw AAHD 38.78, colour-demosaicing Menon2007 38.76, LibRaw AHD 38.27.
   Per image: astronaut 37.01, coffee 35.09, chelsea 41.31, rocket 33.16,
   immunohistochemistry 42.61, retina 52.36, motorcycle_left 35.86. Speed on a 24 MP uint16
-  mosaic, 2 cores: 100-109 MP/s on an idle machine, 5.5x LibRaw AHD in the same run.
+  mosaic, 2 cores: 105-142 MP/s in three runs of ``benchmarks/demosaic.py`` (AVX-512
+  where the CPU has it), 4.7-4.9x LibRaw AHD in the same runs.
   Zone-plate false colour is about twice Menon's alone (RCD's share), still below
   LibRaw AHD's.
 
