@@ -75,13 +75,19 @@ pub fn fixed<'py>(obj: &Bound<'py, PyAny>, shape: &[usize], name: &str) -> PyRes
             describe(obj)
         ))
     })?;
-    if arr.shape() != shape {
-        return Err(PyValueError::new_err(format!(
-            "{name} must have shape {shape:?}, got {:?}",
-            arr.shape()
-        )));
-    }
+    exact_shape(name, arr.shape(), shape)?;
     Ok(contiguous(&arr).into_owned())
+}
+
+/// The `ValueError` for an array `name` of shape `got` where exactly
+/// `shape` is accepted.
+fn exact_shape(name: &str, got: &[usize], shape: &[usize]) -> PyResult<()> {
+    if got == shape {
+        return Ok(());
+    }
+    Err(PyValueError::new_err(format!(
+        "{name} must have shape {shape:?}, got {got:?}"
+    )))
 }
 
 /// Hands a vector to NumPy without copying, shaped `shape`.
@@ -112,13 +118,7 @@ where
     F: Send + FnOnce(&mut [T]) -> imgform_core::Result<()>,
 {
     let out = PyArrayDyn::<T>::zeros(py, shape, false);
-    {
-        let mut view = out.try_readwrite()?;
-        let slice = view
-            .as_slice_mut()
-            .map_err(|e| PyValueError::new_err(format!("internal layout error: {e}")))?;
-        detached(py, || kernel(slice))?;
-    }
+    fill(py, &out, kernel)?;
     Ok(out)
 }
 
@@ -147,17 +147,23 @@ where
             describe(out)
         ))
     })?;
-    if arr.shape() != shape {
-        return Err(PyValueError::new_err(format!(
-            "out must have shape {shape:?}, got {:?}",
-            arr.shape()
-        )));
-    }
+    exact_shape("out", arr.shape(), shape)?;
     if !arr.is_c_contiguous() {
         return Err(PyValueError::new_err(
             "out must be C-contiguous (a fresh np.empty array is)",
         ));
     }
+    fill(py, arr, kernel)?;
+    Ok(arr.clone())
+}
+
+/// Runs `kernel` on the memory of the C-contiguous `arr` with the GIL
+/// released. Only a caller's `out` can fail the write borrow.
+fn fill<T, F>(py: Python<'_>, arr: &Bound<'_, PyArrayDyn<T>>, kernel: F) -> PyResult<()>
+where
+    T: Element + Send,
+    F: Send + FnOnce(&mut [T]) -> imgform_core::Result<()>,
+{
     let mut view = arr.try_readwrite().map_err(|e| {
         PyValueError::new_err(format!(
             "out must be writeable and share no memory with the input ({e})"
@@ -166,8 +172,7 @@ where
     let slice = view
         .as_slice_mut()
         .map_err(|e| PyValueError::new_err(format!("internal layout error: {e}")))?;
-    detached(py, || kernel(slice))?;
-    Ok(arr.clone())
+    detached(py, || kernel(slice))
 }
 
 /// An image of one of the sample types the kernels accept.
