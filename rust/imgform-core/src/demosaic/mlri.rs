@@ -809,9 +809,10 @@ impl StreamKernel for Mlri {
     const HALO: usize = R_OUT + R_OUT % 2;
     const ROWS: usize = ROWS_PER_TILE;
     const COLS: usize = COLS_PER_TILE;
-    /// Its AVX-512 copy ran 4 % slower than the AVX2 one at 24 MP on two
-    /// Zen 4 cores (interleaved runs): its rings are read at every offset,
-    /// so most 64-byte loads straddle two cache lines.
+    /// Its AVX-512 copy ran 3-4 % slower than the AVX2 one at 24 MP on two
+    /// Zen 4 cores (interleaved runs, with 512- and with 1000-row tiles).
+    /// Likely cause, not verified: its rings are read at every offset, so
+    /// most 64-byte loads straddle two cache lines.
     const AVX512: bool = false;
 
     /// Its memory hardly grows with the tile's height (only the raw plane
