@@ -15,6 +15,8 @@
 //! (`Other`: the neighbouring class). Guided filters over sparse CFA
 //! samples need the class sums; their coefficients then need the full box.
 
+use super::select;
+
 /// Which samples of a window a sum keeps, by their distance to the centre.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Parity {
@@ -209,6 +211,27 @@ pub(super) fn class_sums_across<'a>(
     }
 }
 
+/// [`class_sums_across`] keeping one class per column: the same-class sum
+/// where `m` is set, the other-class sum elsewhere (same groups, same
+/// bits). A square window over the samples of one CFA class reads one
+/// class of rows in one class of columns, so it needs no more.
+#[inline(always)]
+pub(super) fn class_sum_across_by_column<'a>(
+    s: &[f32],
+    q: impl Fn(isize) -> &'a [f32],
+    m: &[u32],
+    out: &mut [f32],
+) {
+    let n = out.len();
+    let (s, left, right) = (&s[..n], &q(-4)[..n], &q(2)[..n]);
+    let (mid, far_left, far_right) = (&q(-1)[..n], &q(-5)[..n], &q(3)[..n]);
+    for i in 0..n {
+        let same = s[i] + (left[i] + right[i]);
+        let other = mid[i] + (far_left[i] + far_right[i]);
+        out[i] = select(m[i], same, other);
+    }
+}
+
 /// One row of the quadruple sums `f(y) = (s(y) + s(y + 1)) + (s(y + 2) +
 /// s(y + 3))` of [`all_sums`], from the rows `s(y + d)`.
 #[inline(always)]
@@ -338,12 +361,18 @@ mod tests {
         }
         let n = h - 10;
         let (mut same, mut other, mut all) = (vec![0.0; n * w], vec![0.0; n * w], vec![0.0; n * w]);
+        // Odd columns keep the same class, even ones the other.
+        let odd: Vec<u32> = (0..w)
+            .map(|x| if x % 2 == 1 { u32::MAX } else { 0 })
+            .collect();
+        let mut by_column = vec![0.0; n * w];
         for k in 0..n {
             let y = (k + 5) as isize;
             let q = |d: isize| &pairs[(y + d) as usize * w..][..w];
             let f = |d: isize| &quads[(y + d) as usize * w..][..w];
             let (s, o) = (&mut same[k * w..][..w], &mut other[k * w..][..w]);
             class_sums_across(row(y), q, s, o);
+            class_sum_across_by_column(row(y), q, &odd, &mut by_column[k * w..][..w]);
             all_sums_across(|d| row(y + d), f, &mut all[k * w..][..w]);
         }
         let mut q = vec![0.0; h + 10];
@@ -357,6 +386,12 @@ mod tests {
                 assert_eq!(same[i].to_bits(), ls[k].to_bits(), "same ({k}, {x})");
                 assert_eq!(other[i].to_bits(), lo[k].to_bits(), "other ({k}, {x})");
                 assert_eq!(all[i].to_bits(), la[k].to_bits(), "all ({k}, {x})");
+                let kept = if x % 2 == 1 { ls[k] } else { lo[k] };
+                assert_eq!(
+                    by_column[i].to_bits(),
+                    kept.to_bits(),
+                    "by column ({k}, {x})"
+                );
             }
         }
     }

@@ -54,8 +54,8 @@
 //! that hold it (7 % fewer instructions than summing 11 rows per window).
 
 use super::boxsum::{
-    all_sums, all_sums_across, class_sums, class_sums_across, pair_row, quad_row, window_sum,
-    window_sum_by, Parity,
+    all_sums, all_sums_across, class_sum_across_by_column, class_sums, class_sums_across, pair_row,
+    quad_row, window_sum, window_sum_by, Parity,
 };
 use super::ring::{Plane, Ring, Rows};
 use super::tiled::{Emit, StreamKernel, Tile};
@@ -185,12 +185,13 @@ struct Chroma {
     prod: [Ring; 2],
     /// Pair sums of the statistics across rows, as in [`Columns`].
     pairs: [Ring; STATS],
-    /// Vertical window sums over the same and the other class, the input
-    /// of the horizontal ones.
-    vsum: [Vec<f32>; 2],
-    /// Class sums of the statistics: vertical parity (same, other) by
-    /// horizontal parity (same, other).
-    sums: [[Vec<f32>; 4]; STATS],
+    /// Vertical window sums of each column's class: the row's own chroma
+    /// in its columns, the other chroma in the others. The input of the
+    /// horizontal sums, and scratch of the coefficients' means.
+    vsum: Vec<f32>,
+    /// Class sums of the statistics along the row over `vsum`: the same
+    /// column class as the site, and the other one.
+    sums: [[Vec<f32>; 2]; STATS],
     /// Guided-filter coefficients (a, b) of red, then blue, their
     /// quadruple sums across rows and their box sums.
     coef: [Ring; 4],
@@ -233,7 +234,7 @@ impl State {
             .chain(l.coef.iter_mut().chain(l.mean.iter_mut()))
             .chain(v.sums.iter_mut().flatten().chain(v.mean.iter_mut()))
             .chain([&mut cb.tmp, &mut x.scratch, &mut x.own, &mut x.other])
-            .chain(x.vsum.iter_mut())
+            .chain([&mut x.vsum])
             .chain(x.sums.iter_mut().flatten().chain(x.mean.iter_mut()));
         for row in rows {
             row.resize(stride, 0.0);
@@ -615,11 +616,14 @@ impl Mlri {
         }
     }
 
-    /// The class sums of tile row `ty` into `x.sums`: vertical parity
-    /// (same, other) by horizontal parity, each vertical sum kept in one
-    /// row buffer for its two horizontal ones.
+    /// The class sums of tile row `ty` into `x.sums`. The own chroma's
+    /// samples lie in the row's class of rows and the chroma sites' columns
+    /// (`m`), the other chroma's in the other rows and columns: a vertical
+    /// sum per column over the class of rows its column calls for, then
+    /// the same- and other-column sums along the row, give both at every
+    /// site, half the sums of all four parities.
     #[inline(always)]
-    fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Plane, ty: usize) {
+    fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Plane, m: &[u32], ty: usize) {
         let Chroma {
             prod,
             pairs,
@@ -630,15 +634,17 @@ impl Mlri {
         } = x;
         let sources: [&dyn Rows; STATS] = [green, c, &prod[0], &prod[1]];
         let r = R_RB_LAPLACE;
-        let (wide, n) = (vsum[0].len() - 2 * r, vsum[0].len() - 2 * R_RB_COEF);
-        for ((src, q), sums) in sources.into_iter().zip(&*pairs).zip(sums.iter_mut()) {
-            let [vs, vo] = vsum.each_mut().map(|v| &mut v[..wide]);
-            class_sums_across(cols(src.row(ty), r), across(q, ty, r), vs, vo);
-            for (v, pair) in vsum.iter().zip(sums.chunks_exact_mut(2)) {
-                let (same, other) = pair.split_at_mut(1);
-                let (same, other) = (&mut same[0][..n], &mut other[0][..n]);
-                class_sums(v, SQUARE_RADIUS, same, other, scratch);
-            }
+        let n = vsum.len() - 2 * R_RB_COEF;
+        for ((src, q), [same, other]) in sources.into_iter().zip(&*pairs).zip(sums.iter_mut()) {
+            let v = &mut vsum[..m.len()];
+            class_sum_across_by_column(cols(src.row(ty), r), across(q, ty, r), m, v);
+            class_sums(
+                vsum,
+                SQUARE_RADIUS,
+                &mut same[..n],
+                &mut other[..n],
+                scratch,
+            );
         }
     }
 
@@ -651,10 +657,8 @@ impl Mlri {
         let (same, other) = (Parity::Same, Parity::Other);
         let (own_at_chroma, own_at_green) = (count(same, same), count(same, other));
         let (far_at_chroma, far_at_green) = (count(other, other), count(other, same));
-        // The row's own chroma class (vertical parity same) and the other
-        // one; each row's chroma sites share the own class's column parity.
         let pick = |k: usize| x.sums.each_ref().map(|q| &q[k][..m.len()]);
-        let (ss, so, os, oo) = (pick(0), pick(1), pick(2), pick(3));
+        let (same_col, other_col) = (pick(0), pick(1));
         let [ar, br, ab, bb] = x
             .coef
             .each_mut()
@@ -666,10 +670,9 @@ impl Mlri {
         };
         for i in 0..m.len() {
             let mi = m[i];
-            let (s_ss, s_so, s_os, s_oo) =
-                (stats(&ss, i), stats(&so, i), stats(&os, i), stats(&oo, i));
-            let own = blend(mi, s_ss, s_so);
-            let far = blend(mi, s_oo, s_os);
+            // The own chroma lies in the chroma sites' columns.
+            let (s, o) = (stats(&same_col, i), stats(&other_col, i));
+            let (own, far) = (blend(mi, s, o), blend(mi, o, s));
             let own_n = select_window(mi, own_at_chroma, own_at_green);
             let far_n = select_window(mi, far_at_chroma, far_at_green);
             (ao[i], bo[i]) = coefficients(own, own_n);
@@ -700,8 +703,7 @@ impl Mlri {
             ..
         } = x;
         let r = R_RB_COEF;
-        let (wide, n) = (vsum[0].len() - 2 * r, m.len());
-        let vsum = &mut vsum[0];
+        let (wide, n) = (vsum.len() - 2 * r, m.len());
         for ((src, f), dst) in coef.iter().zip(&*quads).zip(mean.iter_mut()) {
             all_sums_across(across(src, ty, r), across(f, ty, r), &mut vsum[..wide]);
             all_sums(vsum, SQUARE_RADIUS, &mut dst[..n], scratch);
@@ -864,8 +866,8 @@ impl StreamKernel for Mlri {
             chroma: Chroma {
                 prod: two(R_RB_LAPLACE, R_RB_COEF, 0),
                 pairs: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS),
-                vsum: [row(), row()],
-                sums: [0; STATS].map(|_| [0; 4].map(|_| row())),
+                vsum: row(),
+                sums: [0; STATS].map(|_| [row(), row()]),
                 coef: rings(R_RB_COEF, R_RB_MEAN, 1),
                 quads: rings(RB_QUADS, R_RB_MEAN, SQUARE_RADIUS),
                 mean: [0; 4].map(|_| row()),
@@ -944,7 +946,7 @@ impl StreamKernel for Mlri {
             }
             let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
             if let Some(ty) = due(R_RB_COEF) {
-                self.chroma_sums(x, green, &c, ty);
+                self.chroma_sums(x, green, &c, mask(ty, R_RB_LAPLACE), ty);
                 self.chroma_coefficients(x, mask(ty, R_RB_COEF), blue_row(ty), ty);
             }
             if let Some(ty) = due_from(RB_QUADS, R_RB_COEF) {
