@@ -156,23 +156,17 @@ pub(super) fn class_sums(
 }
 
 /// The 11-sample sums along a line (step 1) around `at + i` into
-/// `out[i]`, through the pair sums `d(y) = src(y) + src(y + 1)` and
-/// quadruple sums `f(y) = d(y) + d(y + 2)` kept in `f`:
-/// `out(x) = (src(x) + (src(x - 1) + src(x + 1))) + (f(x - 5) + f(x + 2))`,
-/// 6 additions where [`window_sum`] needs 10; a mirror swaps the members of
-/// every inner sum, so a mirrored line still gives the same bits.
+/// `out[i]`, through the quadruple sums `f(y) = (src(y) + src(y + 1)) +
+/// (src(y + 2) + src(y + 3))` ([`quad_row`]) kept in `f`:
+/// `out(x) = (src(x) + (src(x - 1) + src(x + 1))) + (f(x - 5) + f(x + 2))`.
+/// Two passes, where keeping the pairs first took three; a mirror swaps
+/// the members of every inner sum, so a mirrored line still gives the same
+/// bits.
 #[inline(always)]
 pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
     let n = out.len();
-    // f[j] = d(at - 5 + j) for j < n + 9, then f(at - 5 + j) for j < n + 7.
-    let f = &mut f[..n + 9];
-    let (a, b) = (&src[at - 5..][..n + 9], &src[at - 4..][..n + 9]);
-    for ((f, a), b) in f.iter_mut().zip(a).zip(b) {
-        *f = a + b;
-    }
-    for j in 0..n + 7 {
-        f[j] += f[j + 2];
-    }
+    // f[j] = f(at - 5 + j) for j < n + 7.
+    quad_row(|d| &src[(at as isize - 5 + d) as usize..], &mut f[..n + 7]);
     let (c, l, r) = (&src[at..][..n], &src[at - 1..][..n], &src[at + 1..][..n]);
     let (fl, fr) = (&f[..n], &f[7..7 + n]);
     for i in 0..n {
