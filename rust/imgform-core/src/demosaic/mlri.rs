@@ -132,14 +132,18 @@ impl Mlri {
 /// The four statistics a guided filter sums over its window: guide,
 /// input, Laplacian products and squared guide Laplacians.
 const STATS: usize = 4;
+/// The statistics the green stage sums itself: all but the guide's, which
+/// [`guide_sums`] derives from the input's.
+const SUMMED: usize = STATS - 1;
 
 /// Buffers of one row of the green stage's horizontal pass.
 struct Line {
     /// The guide, and the products of Laplacians (`L(I) L(p)`, `L(I)^2`).
     guide: Vec<f32>,
     prod: [Vec<f32>; 2],
-    /// Window sums of the statistics over the same and the other class.
-    sums: [[Vec<f32>; 2]; STATS],
+    /// Window sums of the [`SUMMED`] statistics over the same and the
+    /// other class.
+    sums: [[Vec<f32>; 2]; SUMMED],
     /// Coefficients (a, b) of the chroma and the green class, then their
     /// window sums.
     coef: [Vec<f32>; 4],
@@ -159,8 +163,8 @@ struct Line {
 struct Columns {
     guide: Ring,
     prod: [Ring; 2],
-    pairs: [Ring; STATS],
-    sums: [[Vec<f32>; 2]; STATS],
+    pairs: [Ring; SUMMED],
+    sums: [[Vec<f32>; 2]; SUMMED],
     coef: [Ring; 4],
     quads: [Ring; 4],
     mean: [Vec<f32>; 4],
@@ -282,6 +286,18 @@ fn stats(q: &[&[f32]; STATS], i: usize) -> [f32; STATS] {
     [q[0][i], q[1][i], q[2][i], q[3][i]]
 }
 
+/// The guide's sums over the same and the other class of a line from the
+/// input's, `outer5` and `outer6` being the sums of the input's two samples
+/// 5 and 6 steps away. The guide is the midpoint of each site's two
+/// neighbours, so its same-class sites average the other class (the
+/// outermost samples count half) and its other-class sites the same class
+/// (with half of the two beyond the window). Exact on integer data, and a
+/// quarter of the green stage's sums saved.
+#[inline(always)]
+fn guide_sums(same: f32, other: f32, outer5: f32, outer6: f32) -> (f32, f32) {
+    (other - 0.5 * outer5, same + 0.5 * outer6)
+}
+
 /// `(select(m, a, b), select(m, b, a))`: a pair whose roles swap at the
 /// sites `m` marks, in four bit operations where two selects take six.
 #[inline(always)]
@@ -401,12 +417,15 @@ impl Mlri {
     }
 
     /// Coefficients of the chroma and the green class of a line, from the
-    /// window sums over its same and other class, at the sites `m` covers.
+    /// window sums over its same and other class of the [`SUMMED`]
+    /// statistics and the input `outer` 5 and 6 steps away (before, after),
+    /// at the sites `m` covers.
     #[inline(always)]
     fn line_coefficients(
         &self,
-        same: [&[f32]; STATS],
-        other: [&[f32]; STATS],
+        same: [&[f32]; SUMMED],
+        other: [&[f32]; SUMMED],
+        outer: [&[f32]; 4],
         m: &[u32],
         [ac, bc, ag, bg]: [&mut [f32]; 4],
     ) {
@@ -414,9 +433,18 @@ impl Mlri {
             window(Parity::Same.count(LINE_RADIUS), self.flat),
             window(Parity::Other.count(LINE_RADIUS), self.flat),
         );
-        for i in 0..m.len() {
-            let (a_s, b_s) = coefficients(stats(&same, i), n_same);
-            let (a_o, b_o) = coefficients(stats(&other, i), n_other);
+        let n = m.len();
+        let [before5, after5, before6, after6] = outer.map(|o| &o[..n]);
+        let [sp, sip, sii] = same.map(|q| &q[..n]);
+        let [op, oip, oii] = other.map(|q| &q[..n]);
+        for i in 0..n {
+            let (sp, sip, sii) = (sp[i], sip[i], sii[i]);
+            let (op, oip, oii) = (op[i], oip[i], oii[i]);
+            let outer5 = before5[i] + after5[i];
+            let outer6 = before6[i] + after6[i];
+            let (si, oi) = guide_sums(sp, op, outer5, outer6);
+            let (a_s, b_s) = coefficients([si, sp, sip, sii], n_same);
+            let (a_o, b_o) = coefficients([oi, op, oip, oii], n_other);
             (ac[i], ag[i]) = swap(m[i], a_s, a_o);
             (bc[i], bg[i]) = swap(m[i], b_s, b_o);
         }
@@ -437,15 +465,17 @@ impl Mlri {
         let (ip, ii) = (cols_mut(ip, r), cols_mut(ii, r));
         laplace_products([g(0), g(-2), g(2)], [v(0), v(-2), v(2)], ip, ii);
         let [ip, ii] = &lb.prod;
-        let sources: [&[f32]; STATS] = [&lb.guide, c, ip, ii];
+        let sources: [&[f32]; SUMMED] = [c, ip, ii];
         for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
             let (same, other) = (cols_mut(same, R_COEF), cols_mut(other, R_COEF));
             class_sums(src, R_COEF, same, other, &mut lb.scratch);
         }
         let same = lb.sums.each_ref().map(|q| cols(&q[0], R_COEF));
         let other = lb.sums.each_ref().map(|q| cols(&q[1], R_COEF));
+        let n = len - 2 * R_COEF;
+        let outer = [-5, 5, -6, 6].map(|k| shifted(c, R_COEF, k, n));
         let coef = lb.coef.each_mut().map(|p| cols_mut(p, R_COEF));
-        self.line_coefficients(same, other, &m[R_COEF..len - R_COEF], coef);
+        self.line_coefficients(same, other, outer, &m[R_COEF..len - R_COEF], coef);
         for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
             all_sums(src, R_MEAN, cols_mut(dst, R_MEAN), &mut lb.scratch);
         }
@@ -495,7 +525,7 @@ impl Mlri {
 
     #[inline(always)]
     fn columns_coefficients(&self, v: &mut Columns, c: &Plane, m: &[u32], ty: usize) {
-        let sources: [&dyn Rows; STATS] = [&v.guide, c, &v.prod[0], &v.prod[1]];
+        let sources: [&dyn Rows; SUMMED] = [c, &v.prod[0], &v.prod[1]];
         let n = m.len();
         for ((src, q), [same, other]) in sources.into_iter().zip(&v.pairs).zip(&mut v.sums) {
             let s = cols(src.row(ty), R_DIF);
@@ -503,8 +533,9 @@ impl Mlri {
         }
         let same = v.sums.each_ref().map(|q| &q[0][..]);
         let other = v.sums.each_ref().map(|q| &q[1][..]);
+        let outer = [-5, 5, -6, 6].map(|d| &c.row((ty as isize + d) as usize)[R_DIF..]);
         let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), R_DIF));
-        self.line_coefficients(same, other, m, coef);
+        self.line_coefficients(same, other, outer, m, coef);
     }
 
     #[inline(always)]
@@ -750,10 +781,10 @@ impl Mlri {
     }
 }
 
-/// Tile row `ty` of the [`pair_row`]s of the four statistics `sources`,
-/// over the columns `r ..`.
+/// Tile row `ty` of the [`pair_row`]s of the statistics `sources`, over
+/// the columns `r ..`.
 #[inline(always)]
-fn pair_rows(sources: [&dyn Rows; STATS], pairs: &mut [Ring; STATS], ty: usize, r: usize) {
+fn pair_rows<const K: usize>(sources: [&dyn Rows; K], pairs: &mut [Ring; K], ty: usize, r: usize) {
     for (src, q) in sources.into_iter().zip(pairs.iter_mut()) {
         let (a, b) = (cols(src.row(ty), r), cols(src.row(ty + 2), r));
         pair_row(a, b, cols_mut(q.row_mut(ty), r));
@@ -837,7 +868,7 @@ impl StreamKernel for Mlri {
             line: Line {
                 guide: row(),
                 prod: [row(), row()],
-                sums: [0; STATS].map(|_| [row(), row()]),
+                sums: [0; SUMMED].map(|_| [row(), row()]),
                 coef: [0; 4].map(|_| row()),
                 mean: [0; 4].map(|_| row()),
                 res: row(),
@@ -847,8 +878,8 @@ impl StreamKernel for Mlri {
             columns: Columns {
                 guide: ring(R_GUIDE, R_MEAN, 0),
                 prod: two(R_LAPLACE, R_COEF, 0),
-                pairs: rings(PAIRS, R_COEF, LINE_RADIUS),
-                sums: [0; STATS].map(|_| [row(), row()]),
+                pairs: [0; SUMMED].map(|_| ring(PAIRS, R_COEF, LINE_RADIUS)),
+                sums: [0; SUMMED].map(|_| [row(), row()]),
                 coef: rings(R_COEF, R_MEAN, 1),
                 quads: rings(QUADS, R_MEAN, LINE_RADIUS),
                 mean: [0; 4].map(|_| row()),
@@ -910,7 +941,7 @@ impl StreamKernel for Mlri {
                 self.columns_products(v, &c, ty);
             }
             if let Some(ty) = due_from(PAIRS, R_LAPLACE) {
-                let sources: [&dyn Rows; STATS] = [&v.guide, &c, &v.prod[0], &v.prod[1]];
+                let sources: [&dyn Rows; SUMMED] = [&c, &v.prod[0], &v.prod[1]];
                 pair_rows(sources, &mut v.pairs, ty, R_DIF);
             }
             if let Some(ty) = due(R_COEF) {
