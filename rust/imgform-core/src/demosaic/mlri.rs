@@ -309,17 +309,6 @@ fn swap(m: u32, a: f32, b: f32) -> (f32, f32) {
     )
 }
 
-/// [`select`] on each statistic.
-#[inline(always)]
-fn blend(m: u32, a: [f32; STATS], b: [f32; STATS]) -> [f32; STATS] {
-    [
-        select(m, a[0], b[0]),
-        select(m, a[1], b[1]),
-        select(m, a[2], b[2]),
-        select(m, a[3], b[3]),
-    ]
-}
-
 /// The weights of a one-sided Gaussian of sigma 1 over distances 0..=4,
 /// normalised to sum to one.
 fn half_gaussian() -> [f32; 5] {
@@ -701,13 +690,15 @@ impl Mlri {
         };
         for i in 0..m.len() {
             let mi = m[i];
-            // The own chroma lies in the chroma sites' columns.
-            let (s, o) = (stats(&same_col, i), stats(&other_col, i));
-            let (own, far) = (blend(mi, s, o), blend(mi, o, s));
-            let own_n = select_window(mi, own_at_chroma, own_at_green);
-            let far_n = select_window(mi, far_at_chroma, far_at_green);
-            (ao[i], bo[i]) = coefficients(own, own_n);
-            (ax[i], bx[i]) = coefficients(far, far_n);
+            // The own chroma lies in the chroma sites' columns: the
+            // same-column sums are its own at chroma sites, the other
+            // chroma's at green ones.
+            let same_n = select_window(mi, own_at_chroma, far_at_green);
+            let other_n = select_window(mi, far_at_chroma, own_at_green);
+            let (a_s, b_s) = coefficients(stats(&same_col, i), same_n);
+            let (a_o, b_o) = coefficients(stats(&other_col, i), other_n);
+            (ao[i], ax[i]) = swap(mi, a_s, a_o);
+            (bo[i], bx[i]) = swap(mi, b_s, b_o);
         }
     }
 
