@@ -1031,6 +1031,45 @@ mod tests {
         assert_eq!((a, b), (0.0, 2.0));
     }
 
+    #[test]
+    fn guide_sums_are_the_sums_of_the_midpoints() {
+        // Integer samples, as from u8 / u16 mosaics: the derived sums must be
+        // the direct ones to the bit; float samples to rounding.
+        let len = 40;
+        let lines = [
+            (0..len)
+                .map(|i| ((i * 7919) % 4099) as f32)
+                .collect::<Vec<_>>(),
+            (0..len)
+                .map(|i| (0.37 * i as f32).sin() * 0.8 + 1.0)
+                .collect(),
+        ];
+        for (k, c) in lines.iter().enumerate() {
+            let mut guide = vec![0.0; len];
+            midpoints(&c[..len - 2], &c[2..], &mut guide[1..len - 1]);
+            let (at, n) = (7, len - 14);
+            let sums = |src: &[f32]| {
+                let (mut same, mut other, mut q) = (vec![0.0; n], vec![0.0; n], vec![0.0; len]);
+                class_sums(src, at, &mut same, &mut other, &mut q);
+                (same, other)
+            };
+            let ((gs, go), (cs, co)) = (sums(&guide), sums(c));
+            for i in 0..n {
+                let x = at + i;
+                let (outer5, outer6) = (c[x - 5] + c[x + 5], c[x - 6] + c[x + 6]);
+                let (s, o) = guide_sums(cs[i], co[i], outer5, outer6);
+                if k == 0 {
+                    assert_eq!((s, o), (gs[i], go[i]), "at {x}");
+                } else {
+                    assert!(
+                        (s - gs[i]).abs() < 1e-5 && (o - go[i]).abs() < 1e-5,
+                        "at {x}"
+                    );
+                }
+            }
+        }
+    }
+
     /// The RMS error of `method` over the interior of a textured image
     /// whose red and blue are affine functions of green.
     fn affine_colour_error(method: Method) -> f32 {
