@@ -174,6 +174,36 @@ pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
     }
 }
 
+/// The samples of a line that the windows of radius 5 around its `n`
+/// sites from `at` on read: `n + 10` of them, from `at - 5` on.
+#[inline(always)]
+pub(super) fn line_taps(src: &[f32], at: usize, n: usize) -> &[f32] {
+    &src[at - 5..at + n + 5]
+}
+
+/// [`class_sums`] of site `i` of a line cut by [`line_taps`]: the same
+/// groups added in the same order, so the same bits, in the loop that uses
+/// them (no pass storing the pairs).
+#[inline(always)]
+pub(super) fn class_sums_at(t: &[f32], i: usize) -> (f32, f32) {
+    let t = &t[i..i + 11];
+    let same = t[5] + ((t[1] + t[3]) + (t[7] + t[9]));
+    let other = (t[4] + t[6]) + ((t[0] + t[2]) + (t[8] + t[10]));
+    (same, other)
+}
+
+/// [`all_sums`] of site `i` of a line cut by [`line_taps`], with its bits
+/// (see [`class_sums_at`]).
+#[inline(always)]
+pub(super) fn all_sums_at(t: &[f32], i: usize) -> f32 {
+    let t = &t[i..i + 11];
+    let (left, right) = (
+        (t[0] + t[1]) + (t[2] + t[3]),
+        (t[7] + t[8]) + (t[9] + t[10]),
+    );
+    (t[5] + (t[4] + t[6])) + (left + right)
+}
+
 /// One row of the pair sums `q(y) = s(y) + s(y + 2)` that [`class_sums`]
 /// shares between sites, from the rows `s(y)` and `s(y + 2)`: a method
 /// streaming down its rows keeps them in a ring for [`class_sums_across`].
@@ -387,6 +417,25 @@ mod tests {
                     "by column ({k}, {x})"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn sums_at_a_site_give_the_bits_of_the_row_passes() {
+        let src = rounding(64);
+        let (at, n) = (7, 48);
+        let (mut same, mut other, mut all) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut q = vec![0.0; n + 10];
+        class_sums(&src, at, &mut same, &mut other, &mut q);
+        all_sums(&src, at, &mut all, &mut q);
+        let t = line_taps(&src, at, n);
+        for i in 0..n {
+            let (s, o) = class_sums_at(t, i);
+            assert_eq!(
+                (s.to_bits(), o.to_bits()),
+                (same[i].to_bits(), other[i].to_bits())
+            );
+            assert_eq!(all_sums_at(t, i).to_bits(), all[i].to_bits(), "at {i}");
         }
     }
 

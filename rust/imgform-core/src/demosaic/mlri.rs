@@ -54,8 +54,9 @@
 //! that hold it (7 % fewer instructions than summing 11 rows per window).
 
 use super::boxsum::{
-    all_sums, all_sums_across, class_sum_across_by_column, class_sums, class_sums_across, pair_row,
-    quad_row, window_sum, window_sum_by, Parity,
+    all_sums, all_sums_across, all_sums_at, class_sum_across_by_column, class_sums,
+    class_sums_across, class_sums_at, line_taps, pair_row, quad_row, window_sum, window_sum_by,
+    Parity,
 };
 use super::ring::{Plane, Ring, Rows};
 use super::tiled::{Emit, StreamKernel, Tile};
@@ -141,18 +142,15 @@ struct Line {
     /// The guide, and the products of Laplacians (`L(I) L(p)`, `L(I)^2`).
     guide: Vec<f32>,
     prod: [Vec<f32>; 2],
-    /// Window sums of the [`SUMMED`] statistics over the same and the
-    /// other class.
-    sums: [[Vec<f32>; 2]; SUMMED],
-    /// Coefficients (a, b) of the chroma and the green class, then their
-    /// window sums.
+    /// Coefficients (a, b) of the chroma and the green class. Their window
+    /// sums, like those of the statistics, are taken in the loops that use
+    /// them ([`ClassesAlong`], [`MeansAlong`]): a row is in the first-level
+    /// cache, so reading 11 samples costs less than storing and reloading
+    /// partial sums.
     coef: [Vec<f32>; 4],
-    mean: [Vec<f32>; 4],
     /// Residuals of each site's own class, tentative values of the other.
     res: Vec<f32>,
     part: Vec<f32>,
-    /// Scratch of [`class_sums`] and [`all_sums`] (their sums along the row).
-    scratch: Vec<f32>,
 }
 
 /// The green stage's vertical pass: the rows of [`Line`] as rings where
@@ -232,10 +230,9 @@ impl State {
             chroma: x,
             ..
         } = self;
-        let rows = [&mut l.guide, &mut l.res, &mut l.part, &mut l.scratch]
+        let rows = [&mut l.guide, &mut l.res, &mut l.part]
             .into_iter()
-            .chain(l.prod.iter_mut().chain(l.sums.iter_mut().flatten()))
-            .chain(l.coef.iter_mut().chain(l.mean.iter_mut()))
+            .chain(l.prod.iter_mut().chain(l.coef.iter_mut()))
             .chain(v.sums.iter_mut().flatten().chain(v.mean.iter_mut()))
             .chain([&mut cb.tmp, &mut x.scratch, &mut x.own, &mut x.other])
             .chain([&mut x.vsum])
@@ -376,21 +373,76 @@ fn difference(part: &[f32], (rm, rp): (&[f32], &[f32]), c: &[f32], m: &[u32], ou
     }
 }
 
+/// Window sums at the sites of a line, site by site.
+trait SiteSums<const K: usize> {
+    fn at(&self, i: usize) -> [f32; K];
+}
+
+/// Sums stored by an earlier pass, a row per sum.
+struct Stored<'a, const K: usize>([&'a [f32]; K]);
+
+impl<const K: usize> SiteSums<K> for Stored<'_, K> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> [f32; K] {
+        let mut out = [0.0; K];
+        for (o, row) in out.iter_mut().zip(self.0) {
+            *o = row[i];
+        }
+        out
+    }
+}
+
+/// The same-class sums then the other-class sums of three statistics,
+/// taken in the loop that uses them from lines cut by [`line_taps`].
+struct ClassesAlong<'a>([&'a [f32]; SUMMED]);
+
+impl SiteSums<{ 2 * SUMMED }> for ClassesAlong<'_> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> [f32; 2 * SUMMED] {
+        let [a, b, c] = self.0;
+        let ((sa, oa), (sb, ob), (sc, oc)) = (
+            class_sums_at(a, i),
+            class_sums_at(b, i),
+            class_sums_at(c, i),
+        );
+        [sa, sb, sc, oa, ob, oc]
+    }
+}
+
+/// The whole-window sums of four rows, taken in the loop that uses them
+/// from lines cut by [`line_taps`].
+struct MeansAlong<'a>([&'a [f32]; 4]);
+
+impl SiteSums<4> for MeansAlong<'_> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> [f32; 4] {
+        let [a, b, c, d] = self.0;
+        [
+            all_sums_at(a, i),
+            all_sums_at(b, i),
+            all_sums_at(c, i),
+            all_sums_at(d, i),
+        ]
+    }
+}
+
 /// The residual of each site's own class on a line, and the tentative
 /// value of the line's other class there (guided by the sample itself),
 /// from the window sums `mean` of the coefficients.
 #[inline(always)]
 fn line_residuals(
-    mean: [&[f32]; 4],
+    mean: impl SiteSums<4>,
     (c, g): (&[f32], &[f32]),
     m: &[u32],
     res: &mut [f32],
     part: &mut [f32],
 ) {
     let scale = 1.0 / Parity::All.count(LINE_RADIUS) as f32;
-    let [ac, bc, ag, bg] = mean;
-    for i in 0..res.len() {
-        let (ac, bc, ag, bg) = (scale * ac[i], scale * bc[i], scale * ag[i], scale * bg[i]);
+    let n = m.len();
+    let (c, g, res, part) = (&c[..n], &g[..n], &mut res[..n], &mut part[..n]);
+    for i in 0..n {
+        let [ac, bc, ag, bg] = mean.at(i);
+        let (ac, bc, ag, bg) = (scale * ac, scale * bc, scale * ag, scale * bg);
         let (own_a, far_a) = swap(m[i], ac, ag);
         let (own_b, far_b) = swap(m[i], bc, bg);
         res[i] = c[i] - (own_a * g[i] + own_b);
@@ -407,13 +459,12 @@ impl Mlri {
 
     /// Coefficients of the chroma and the green class of a line, from the
     /// window sums over its same and other class of the [`SUMMED`]
-    /// statistics and the input `outer` 5 and 6 steps away (before, after),
-    /// at the sites `m` covers.
+    /// statistics (in the order of [`ClassesAlong`]) and the input `outer`
+    /// 5 and 6 steps away (before, after), at the sites `m` covers.
     #[inline(always)]
     fn line_coefficients(
         &self,
-        same: [&[f32]; SUMMED],
-        other: [&[f32]; SUMMED],
+        sums: impl SiteSums<{ 2 * SUMMED }>,
         outer: [&[f32]; 4],
         m: &[u32],
         [ac, bc, ag, bg]: [&mut [f32]; 4],
@@ -424,11 +475,9 @@ impl Mlri {
         );
         let n = m.len();
         let [before5, after5, before6, after6] = outer.map(|o| &o[..n]);
-        let [sp, sip, sii] = same.map(|q| &q[..n]);
-        let [op, oip, oii] = other.map(|q| &q[..n]);
+        let (ac, bc, ag, bg) = (&mut ac[..n], &mut bc[..n], &mut ag[..n], &mut bg[..n]);
         for i in 0..n {
-            let (sp, sip, sii) = (sp[i], sip[i], sii[i]);
-            let (op, oip, oii) = (op[i], oip[i], oii[i]);
+            let [sp, sip, sii, op, oip, oii] = sums.at(i);
             let outer5 = before5[i] + after5[i];
             let outer6 = before6[i] + after6[i];
             let (si, oi) = guide_sums(sp, op, outer5, outer6);
@@ -454,28 +503,28 @@ impl Mlri {
         let (ip, ii) = (cols_mut(ip, r), cols_mut(ii, r));
         laplace_products([g(0), g(-2), g(2)], [v(0), v(-2), v(2)], ip, ii);
         let [ip, ii] = &lb.prod;
-        let sources: [&[f32]; SUMMED] = [c, ip, ii];
-        for (src, [same, other]) in sources.iter().zip(lb.sums.iter_mut()) {
-            let (same, other) = (cols_mut(same, R_COEF), cols_mut(other, R_COEF));
-            class_sums(src, R_COEF, same, other, &mut lb.scratch);
-        }
-        let same = lb.sums.each_ref().map(|q| cols(&q[0], R_COEF));
-        let other = lb.sums.each_ref().map(|q| cols(&q[1], R_COEF));
         let n = len - 2 * R_COEF;
+        let (tc, tp, ti) = (
+            line_taps(c, R_COEF, n),
+            line_taps(ip, R_COEF, n),
+            line_taps(ii, R_COEF, n),
+        );
+        let sums = ClassesAlong([tc, tp, ti]);
         let outer = [-5, 5, -6, 6].map(|k| shifted(c, R_COEF, k, n));
         let coef = lb.coef.each_mut().map(|p| cols_mut(p, R_COEF));
-        self.line_coefficients(same, other, outer, &m[R_COEF..len - R_COEF], coef);
-        for (src, dst) in lb.coef.iter().zip(lb.mean.iter_mut()) {
-            all_sums(src, R_MEAN, cols_mut(dst, R_MEAN), &mut lb.scratch);
-        }
+        self.line_coefficients(sums, outer, &m[R_COEF..][..n], coef);
         let r = R_MEAN;
-        let mean = lb.mean.each_ref().map(|p| cols(p, r));
+        let n = len - 2 * r;
+        let [t0, t1, t2, t3] = &lb.coef;
+        let (t0, t1) = (line_taps(t0, r, n), line_taps(t1, r, n));
+        let (t2, t3) = (line_taps(t2, r, n), line_taps(t3, r, n));
+        let mean = MeansAlong([t0, t1, t2, t3]);
         let (res, part) = (cols_mut(&mut lb.res, r), cols_mut(&mut lb.part, r));
         line_residuals(
             mean,
             (cols(c, r), cols(&lb.guide, r)),
-            &m[r..len - r],
-            res,
+            &m[r..][..n],
+            &mut res[..n],
             part,
         );
         let (r, n) = (R_DIF, len - 2 * R_DIF);
@@ -520,11 +569,12 @@ impl Mlri {
             let s = cols(src.row(ty), R_DIF);
             class_sums_across(s, across(q, ty, R_DIF), &mut same[..n], &mut other[..n]);
         }
-        let same = v.sums.each_ref().map(|q| &q[0][..]);
-        let other = v.sums.each_ref().map(|q| &q[1][..]);
+        let [[s0, o0], [s1, o1], [s2, o2]] =
+            v.sums.each_ref().map(|q| q.each_ref().map(|r| &r[..n]));
+        let sums = Stored([s0, s1, s2, o0, o1, o2]);
         let outer = [-5, 5, -6, 6].map(|d| &c.row((ty as isize + d) as usize)[R_DIF..]);
         let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), R_DIF));
-        self.line_coefficients(same, other, outer, m, coef);
+        self.line_coefficients(sums, outer, m, coef);
     }
 
     #[inline(always)]
@@ -533,7 +583,9 @@ impl Mlri {
             let (s, f) = (across(src, ty, R_DIF), across(f, ty, R_DIF));
             all_sums_across(s, f, &mut dst[..m.len()]);
         }
-        let mean = v.mean.each_ref().map(|p| &p[..]);
+        let n = m.len();
+        let [m0, m1, m2, m3] = v.mean.each_ref().map(|p| &p[..n]);
+        let mean = Stored([m0, m1, m2, m3]);
         let inputs = (cols(c.row(ty), R_DIF), cols(v.guide.row(ty), R_DIF));
         let res = cols_mut(v.res.row_mut(ty), R_DIF);
         let part = cols_mut(v.part.row_mut(ty), R_DIF);
@@ -859,12 +911,9 @@ impl StreamKernel for Mlri {
             line: Line {
                 guide: row(),
                 prod: [row(), row()],
-                sums: [0; SUMMED].map(|_| [row(), row()]),
                 coef: [0; 4].map(|_| row()),
-                mean: [0; 4].map(|_| row()),
                 res: row(),
                 part: row(),
-                scratch: row(),
             },
             columns: Columns {
                 guide: ring(R_GUIDE, R_MEAN, 0),
