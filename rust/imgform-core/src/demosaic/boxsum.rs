@@ -122,58 +122,6 @@ fn taps<'a, const K: usize>(view: &impl Fn(isize) -> &'a [f32], out: &mut [f32],
     }
 }
 
-/// The same-class and other-class sums of radius 5 along a line (step 1)
-/// around `at + i`, into `same[i]` and `other[i]`, through the pair sums
-/// `q(y) = src(y) + src(y + 2)` of neighbours of one class kept in `q`:
-/// `same(x) = src(x) + (q(x - 4) + q(x + 2))` and
-/// `other(x) = q(x - 1) + (q(x - 5) + q(x + 3))`, 5 additions for both
-/// where [`window_sum`] needs 9. Each inner sum adds a pair that a mirror
-/// swaps, so a mirrored line still gives the same bits.
-#[inline(always)]
-pub(super) fn class_sums(
-    src: &[f32],
-    at: usize,
-    same: &mut [f32],
-    other: &mut [f32],
-    q: &mut [f32],
-) {
-    let n = same.len();
-    // q[j] = q(at - 5 + j), for j in 0 .. n + 8.
-    let m = n + 8;
-    let (a, b) = (&src[at - 5..][..m], &src[at - 3..][..m]);
-    for ((q, a), b) in q[..m].iter_mut().zip(a).zip(b) {
-        *q = a + b;
-    }
-    let q = |d: usize| &q[d..d + n];
-    let (c, left, right) = (&src[at..at + n], q(1), q(7));
-    for (((o, c), l), r) in same.iter_mut().zip(c).zip(left).zip(right) {
-        *o = c + (l + r);
-    }
-    let (mid, left, right) = (q(4), q(0), q(8));
-    for (((o, c), l), r) in other[..n].iter_mut().zip(mid).zip(left).zip(right) {
-        *o = c + (l + r);
-    }
-}
-
-/// The 11-sample sums along a line (step 1) around `at + i` into
-/// `out[i]`, through the quadruple sums `f(y) = (src(y) + src(y + 1)) +
-/// (src(y + 2) + src(y + 3))` ([`quad_row`]) kept in `f`:
-/// `out(x) = (src(x) + (src(x - 1) + src(x + 1))) + (f(x - 5) + f(x + 2))`.
-/// Two passes, where keeping the pairs first took three; a mirror swaps
-/// the members of every inner sum, so a mirrored line still gives the same
-/// bits.
-#[inline(always)]
-pub(super) fn all_sums(src: &[f32], at: usize, out: &mut [f32], f: &mut [f32]) {
-    let n = out.len();
-    // f[j] = f(at - 5 + j) for j < n + 7.
-    quad_row(|d| &src[(at as isize - 5 + d) as usize..], &mut f[..n + 7]);
-    let (c, l, r) = (&src[at..][..n], &src[at - 1..][..n], &src[at + 1..][..n]);
-    let (fl, fr) = (&f[..n], &f[7..7 + n]);
-    for i in 0..n {
-        out[i] = (c[i] + (l[i] + r[i])) + (fl[i] + fr[i]);
-    }
-}
-
 /// The samples of a line that the windows of radius 5 around its `n`
 /// sites from `at` on read: `n + 10` of them, from `at - 5` on.
 #[inline(always)]
@@ -181,9 +129,14 @@ pub(super) fn line_taps(src: &[f32], at: usize, n: usize) -> &[f32] {
     &src[at - 5..at + n + 5]
 }
 
-/// [`class_sums`] of site `i` of a line cut by [`line_taps`]: the same
-/// groups added in the same order, so the same bits, in the loop that uses
-/// them (no pass storing the pairs).
+/// The same-class and other-class sums of radius 5 along a line at site
+/// `i` of a line cut by [`line_taps`]: with the pair sums `q(y) = v(y) +
+/// v(y + 2)` of neighbours of one class, `same(x) = v(x) + (q(x - 4) +
+/// q(x + 2))` and `other(x) = q(x - 1) + (q(x - 5) + q(x + 3))`. Each inner
+/// sum adds a pair that a mirror swaps, so a mirrored line gives the same
+/// bits, and the versions across rows ([`class_sums_across`]) the bits of
+/// this one. Taken in the loop that uses them: a row is in the first-level
+/// cache, where 11 loads cost less than a pass storing the pairs.
 #[inline(always)]
 pub(super) fn class_sums_at(t: &[f32], i: usize) -> (f32, f32) {
     let t = &t[i..i + 11];
@@ -192,8 +145,10 @@ pub(super) fn class_sums_at(t: &[f32], i: usize) -> (f32, f32) {
     (same, other)
 }
 
-/// [`all_sums`] of site `i` of a line cut by [`line_taps`], with its bits
-/// (see [`class_sums_at`]).
+/// The 11-sample sum at site `i` of a line cut by [`line_taps`], with the
+/// quadruple sums `f(y) = (v(y) + v(y + 1)) + (v(y + 2) + v(y + 3))`:
+/// `(v(x) + (v(x - 1) + v(x + 1))) + (f(x - 5) + f(x + 2))`, mirror
+/// symmetric as [`class_sums_at`] is, and the bits of [`all_sums_across`].
 #[inline(always)]
 pub(super) fn all_sums_at(t: &[f32], i: usize) -> f32 {
     let t = &t[i..i + 11];
@@ -204,7 +159,7 @@ pub(super) fn all_sums_at(t: &[f32], i: usize) -> f32 {
     (t[5] + (t[4] + t[6])) + (left + right)
 }
 
-/// One row of the pair sums `q(y) = s(y) + s(y + 2)` that [`class_sums`]
+/// One row of the pair sums `q(y) = s(y) + s(y + 2)` that [`class_sums_at`]
 /// shares between sites, from the rows `s(y)` and `s(y + 2)`: a method
 /// streaming down its rows keeps them in a ring for [`class_sums_across`].
 #[inline(always)]
@@ -214,7 +169,7 @@ pub(super) fn pair_row(a: &[f32], b: &[f32], q: &mut [f32]) {
     }
 }
 
-/// [`class_sums`] across rows, from the centre row `s` and the
+/// [`class_sums_at`] across rows, from the centre row `s` and the
 /// [`pair_row`]s `q(d)` of the rows `d` from it: the same groups added in
 /// the same order, so a column gives the bits it gives as a line.
 #[inline(always)]
@@ -257,7 +212,7 @@ pub(super) fn class_sum_across_by_column<'a>(
 }
 
 /// One row of the quadruple sums `f(y) = (s(y) + s(y + 1)) + (s(y + 2) +
-/// s(y + 3))` of [`all_sums`], from the rows `s(y + d)`.
+/// s(y + 3))` of [`all_sums_at`], from the rows `s(y + d)`.
 #[inline(always)]
 pub(super) fn quad_row<'a>(s: impl Fn(isize) -> &'a [f32], f: &mut [f32]) {
     let n = f.len();
@@ -267,7 +222,7 @@ pub(super) fn quad_row<'a>(s: impl Fn(isize) -> &'a [f32], f: &mut [f32]) {
     }
 }
 
-/// [`all_sums`] across rows, from the rows `s(d)` and the [`quad_row`]s
+/// [`all_sums_at`] across rows, from the rows `s(d)` and the [`quad_row`]s
 /// `f(d)` `d` rows from the centre (see [`class_sums_across`]).
 #[inline(always)]
 pub(super) fn all_sums_across<'a>(
@@ -286,6 +241,18 @@ pub(super) fn all_sums_across<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`class_sums_at`] over the `n` sites of a line from `at` on.
+    fn class_sums(src: &[f32], at: usize, n: usize) -> (Vec<f32>, Vec<f32>) {
+        let t = line_taps(src, at, n);
+        (0..n).map(|i| class_sums_at(t, i)).unzip()
+    }
+
+    /// [`all_sums_at`] over the `n` sites of a line from `at` on.
+    fn all_sums(src: &[f32], at: usize, n: usize) -> Vec<f32> {
+        let t = line_taps(src, at, n);
+        (0..n).map(|i| all_sums_at(t, i)).collect()
+    }
 
     /// A plane of distinct, irregular values.
     fn plane(len: usize) -> Vec<f32> {
@@ -345,8 +312,7 @@ mod tests {
     #[test]
     fn class_sums_match_the_window_sums() {
         let src = plane(64);
-        let (mut same, mut other, mut q) = (vec![0.0; 40], vec![0.0; 40], vec![0.0; 48]);
-        class_sums(&src, 8, &mut same, &mut other, &mut q);
+        let (same, other) = class_sums(&src, 8, 40);
         let (mut want_same, mut want_other) = (vec![0.0; 40], vec![0.0; 40]);
         window_sum(&src, 8, 1, &mut want_same, 5, Parity::Same);
         window_sum(&src, 8, 1, &mut want_other, 5, Parity::Other);
@@ -358,8 +324,7 @@ mod tests {
     #[test]
     fn all_sums_match_the_window_sum() {
         let src = plane(64);
-        let (mut out, mut f) = (vec![0.0; 40], vec![0.0; 50]);
-        all_sums(&src, 8, &mut out, &mut f);
+        let out = all_sums(&src, 8, 40);
         let mut want = vec![0.0; 40];
         window_sum(&src, 8, 1, &mut want, 5, Parity::All);
         assert_eq!(out, want);
@@ -399,12 +364,9 @@ mod tests {
             class_sum_across_by_column(row(y), q, &odd, &mut by_column[k * w..][..w]);
             all_sums_across(|d| row(y + d), f, &mut all[k * w..][..w]);
         }
-        let mut q = vec![0.0; h + 10];
         for x in 0..w {
             let line: Vec<f32> = (0..h).map(|y| src[y * w + x]).collect();
-            let (mut ls, mut lo, mut la) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-            class_sums(&line, 5, &mut ls, &mut lo, &mut q);
-            all_sums(&line, 5, &mut la, &mut q);
+            let ((ls, lo), la) = (class_sums(&line, 5, n), all_sums(&line, 5, n));
             for k in 0..n {
                 let i = k * w + x;
                 assert_eq!(same[i].to_bits(), ls[k].to_bits(), "same ({k}, {x})");
@@ -421,40 +383,20 @@ mod tests {
     }
 
     #[test]
-    fn sums_at_a_site_give_the_bits_of_the_row_passes() {
-        let src = rounding(64);
-        let (at, n) = (7, 48);
-        let (mut same, mut other, mut all) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut q = vec![0.0; n + 10];
-        class_sums(&src, at, &mut same, &mut other, &mut q);
-        all_sums(&src, at, &mut all, &mut q);
-        let t = line_taps(&src, at, n);
-        for i in 0..n {
-            let (s, o) = class_sums_at(t, i);
-            assert_eq!(
-                (s.to_bits(), o.to_bits()),
-                (same[i].to_bits(), other[i].to_bits())
-            );
-            assert_eq!(all_sums_at(t, i).to_bits(), all[i].to_bits(), "at {i}");
-        }
-    }
-
-    #[test]
     fn sums_are_exactly_mirror_symmetric() {
         let w = 21;
         let src = rounding(w);
         let flipped: Vec<f32> = src.iter().rev().copied().collect();
         let n = w - 10;
-        let mut q = vec![0.0; w];
-        for kind in 0..4 {
+        for kind in 0..5 {
             let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
-            let mut other = vec![0.0; n];
             for (src, out) in [(&src, &mut a), (&flipped, &mut b)] {
                 match kind {
                     0 => window_sum(src, 5, 1, out, 5, Parity::All),
                     1 => window_sum(src, 5, 1, out, 5, Parity::Other),
-                    2 => class_sums(src, 5, out, &mut other, &mut q),
-                    _ => all_sums(src, 5, out, &mut q),
+                    2 => *out = class_sums(src, 5, n).0,
+                    3 => *out = class_sums(src, 5, n).1,
+                    _ => *out = all_sums(src, 5, n),
                 }
             }
             for x in 0..n {

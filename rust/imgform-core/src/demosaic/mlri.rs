@@ -54,9 +54,8 @@
 //! that hold it (7 % fewer instructions than summing 11 rows per window).
 
 use super::boxsum::{
-    all_sums, all_sums_across, all_sums_at, class_sum_across_by_column, class_sums,
-    class_sums_across, class_sums_at, line_taps, pair_row, quad_row, window_sum, window_sum_by,
-    Parity,
+    all_sums_across, all_sums_at, class_sum_across_by_column, class_sums_across, class_sums_at,
+    line_taps, pair_row, quad_row, window_sum, window_sum_by, Parity,
 };
 use super::ring::{Plane, Ring, Rows};
 use super::tiled::{Emit, StreamKernel, Tile};
@@ -144,7 +143,7 @@ struct Line {
     prod: [Vec<f32>; 2],
     /// Coefficients (a, b) of the chroma and the green class. Their window
     /// sums, like those of the statistics, are taken in the loops that use
-    /// them ([`ClassesAlong`], [`MeansAlong`]): a row is in the first-level
+    /// them ([`ClassesAlong`], [`BoxesAlong`]): a row is in the first-level
     /// cache, so reading 11 samples costs less than storing and reloading
     /// partial sums.
     coef: [Vec<f32>; 4],
@@ -187,20 +186,16 @@ struct Chroma {
     prod: [Ring; 2],
     /// Pair sums of the statistics across rows, as in [`Columns`].
     pairs: [Ring; STATS],
-    /// Vertical window sums of each column's class: the row's own chroma
-    /// in its columns, the other chroma in the others. The input of the
-    /// horizontal sums, and scratch of the coefficients' means.
-    vsum: Vec<f32>,
-    /// Class sums of the statistics along the row over `vsum`: the same
-    /// column class as the site, and the other one.
-    sums: [[Vec<f32>; 2]; STATS],
-    /// Guided-filter coefficients (a, b) of red, then blue, their
-    /// quadruple sums across rows and their box sums.
+    /// Vertical window sums of each statistic over each column's class:
+    /// the row's own chroma in its columns, the other chroma in the others.
+    /// The coefficients' loop sums them along the row ([`ClassesAlong`]),
+    /// and the residuals' loop the vertical box sums of the coefficients
+    /// that later take their place.
+    vsum: [Vec<f32>; STATS],
+    /// Guided-filter coefficients (a, b) of red, then blue, and their
+    /// quadruple sums across rows.
     coef: [Ring; 4],
     quads: [Ring; 4],
-    mean: [Vec<f32>; 4],
-    /// Scratch of [`class_sums`] and [`all_sums`] (their sums along the row).
-    scratch: Vec<f32>,
     /// Residuals and tentative values of red and blue.
     res: [Ring; 2],
     part: [Ring; 2],
@@ -234,9 +229,8 @@ impl State {
             .into_iter()
             .chain(l.prod.iter_mut().chain(l.coef.iter_mut()))
             .chain(v.sums.iter_mut().flatten().chain(v.mean.iter_mut()))
-            .chain([&mut cb.tmp, &mut x.scratch, &mut x.own, &mut x.other])
-            .chain([&mut x.vsum])
-            .chain(x.sums.iter_mut().flatten().chain(x.mean.iter_mut()));
+            .chain([&mut cb.tmp, &mut x.own, &mut x.other])
+            .chain(x.vsum.iter_mut());
         for row in rows {
             row.resize(stride, 0.0);
         }
@@ -275,12 +269,6 @@ fn window(n: usize, flat: f32) -> (f32, f32) {
 #[inline(always)]
 fn select_window(m: u32, a: (f32, f32), b: (f32, f32)) -> (f32, f32) {
     (select(m, a.0, b.0), select(m, a.1, b.1))
-}
-
-/// The statistics of sample `i` from one slice per statistic.
-#[inline(always)]
-fn stats(q: &[&[f32]; STATS], i: usize) -> [f32; STATS] {
-    [q[0][i], q[1][i], q[2][i], q[3][i]]
 }
 
 /// The guide's sums over the same and the other class of a line from the
@@ -373,15 +361,37 @@ fn difference(part: &[f32], (rm, rp): (&[f32], &[f32]), c: &[f32], m: &[u32], ou
     }
 }
 
-/// Window sums at the sites of a line, site by site.
-trait SiteSums<const K: usize> {
+/// Window sums over the same and the other class at the sites of a line,
+/// site by site, of `K` statistics.
+trait ClassSums<const K: usize> {
+    fn at(&self, i: usize) -> ([f32; K], [f32; K]);
+}
+
+/// Window sums over the whole window at the sites of a line, site by site,
+/// of `K` rows.
+trait BoxSums<const K: usize> {
     fn at(&self, i: usize) -> [f32; K];
 }
 
-/// Sums stored by an earlier pass, a row per sum.
+/// Class sums stored by an earlier pass: rows of same-class sums, then of
+/// other-class sums.
+struct StoredClasses<'a, const K: usize>([&'a [f32]; K], [&'a [f32]; K]);
+
+impl<const K: usize> ClassSums<K> for StoredClasses<'_, K> {
+    #[inline(always)]
+    fn at(&self, i: usize) -> ([f32; K], [f32; K]) {
+        let (mut same, mut other) = ([0.0; K], [0.0; K]);
+        for k in 0..K {
+            (same[k], other[k]) = (self.0[k][i], self.1[k][i]);
+        }
+        (same, other)
+    }
+}
+
+/// Box sums stored by an earlier pass, a row per sum.
 struct Stored<'a, const K: usize>([&'a [f32]; K]);
 
-impl<const K: usize> SiteSums<K> for Stored<'_, K> {
+impl<const K: usize> BoxSums<K> for Stored<'_, K> {
     #[inline(always)]
     fn at(&self, i: usize) -> [f32; K] {
         let mut out = [0.0; K];
@@ -392,37 +402,33 @@ impl<const K: usize> SiteSums<K> for Stored<'_, K> {
     }
 }
 
-/// The same-class sums then the other-class sums of three statistics,
-/// taken in the loop that uses them from lines cut by [`line_taps`].
-struct ClassesAlong<'a>([&'a [f32]; SUMMED]);
+/// Class sums taken in the loop that uses them, from lines cut by
+/// [`line_taps`]: a row is in the first-level cache, so reading 11 samples
+/// costs less than a pass storing partial sums and reloading them.
+struct ClassesAlong<'a, const K: usize>([&'a [f32]; K]);
 
-impl SiteSums<{ 2 * SUMMED }> for ClassesAlong<'_> {
+impl<const K: usize> ClassSums<K> for ClassesAlong<'_, K> {
     #[inline(always)]
-    fn at(&self, i: usize) -> [f32; 2 * SUMMED] {
-        let [a, b, c] = self.0;
-        let ((sa, oa), (sb, ob), (sc, oc)) = (
-            class_sums_at(a, i),
-            class_sums_at(b, i),
-            class_sums_at(c, i),
-        );
-        [sa, sb, sc, oa, ob, oc]
+    fn at(&self, i: usize) -> ([f32; K], [f32; K]) {
+        let (mut same, mut other) = ([0.0; K], [0.0; K]);
+        for k in 0..K {
+            (same[k], other[k]) = class_sums_at(self.0[k], i);
+        }
+        (same, other)
     }
 }
 
-/// The whole-window sums of four rows, taken in the loop that uses them
-/// from lines cut by [`line_taps`].
-struct MeansAlong<'a>([&'a [f32]; 4]);
+/// Box sums taken in the loop that uses them (see [`ClassesAlong`]).
+struct BoxesAlong<'a, const K: usize>([&'a [f32]; K]);
 
-impl SiteSums<4> for MeansAlong<'_> {
+impl<const K: usize> BoxSums<K> for BoxesAlong<'_, K> {
     #[inline(always)]
-    fn at(&self, i: usize) -> [f32; 4] {
-        let [a, b, c, d] = self.0;
-        [
-            all_sums_at(a, i),
-            all_sums_at(b, i),
-            all_sums_at(c, i),
-            all_sums_at(d, i),
-        ]
+    fn at(&self, i: usize) -> [f32; K] {
+        let mut out = [0.0; K];
+        for (o, t) in out.iter_mut().zip(self.0) {
+            *o = all_sums_at(t, i);
+        }
+        out
     }
 }
 
@@ -431,7 +437,7 @@ impl SiteSums<4> for MeansAlong<'_> {
 /// from the window sums `mean` of the coefficients.
 #[inline(always)]
 fn line_residuals(
-    mean: impl SiteSums<4>,
+    mean: impl BoxSums<4>,
     (c, g): (&[f32], &[f32]),
     m: &[u32],
     res: &mut [f32],
@@ -464,7 +470,7 @@ impl Mlri {
     #[inline(always)]
     fn line_coefficients(
         &self,
-        sums: impl SiteSums<{ 2 * SUMMED }>,
+        sums: impl ClassSums<SUMMED>,
         outer: [&[f32]; 4],
         m: &[u32],
         [ac, bc, ag, bg]: [&mut [f32]; 4],
@@ -477,7 +483,7 @@ impl Mlri {
         let [before5, after5, before6, after6] = outer.map(|o| &o[..n]);
         let (ac, bc, ag, bg) = (&mut ac[..n], &mut bc[..n], &mut ag[..n], &mut bg[..n]);
         for i in 0..n {
-            let [sp, sip, sii, op, oip, oii] = sums.at(i);
+            let ([sp, sip, sii], [op, oip, oii]) = sums.at(i);
             let outer5 = before5[i] + after5[i];
             let outer6 = before6[i] + after6[i];
             let (si, oi) = guide_sums(sp, op, outer5, outer6);
@@ -518,7 +524,7 @@ impl Mlri {
         let [t0, t1, t2, t3] = &lb.coef;
         let (t0, t1) = (line_taps(t0, r, n), line_taps(t1, r, n));
         let (t2, t3) = (line_taps(t2, r, n), line_taps(t3, r, n));
-        let mean = MeansAlong([t0, t1, t2, t3]);
+        let mean = BoxesAlong([t0, t1, t2, t3]);
         let (res, part) = (cols_mut(&mut lb.res, r), cols_mut(&mut lb.part, r));
         line_residuals(
             mean,
@@ -571,7 +577,7 @@ impl Mlri {
         }
         let [[s0, o0], [s1, o1], [s2, o2]] =
             v.sums.each_ref().map(|q| q.each_ref().map(|r| &r[..n]));
-        let sums = Stored([s0, s1, s2, o0, o1, o2]);
+        let sums = StoredClasses([s0, s1, s2], [o0, o1, o2]);
         let outer = [-5, 5, -6, 6].map(|d| &c.row((ty as isize + d) as usize)[R_DIF..]);
         let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), R_DIF));
         self.line_coefficients(sums, outer, m, coef);
@@ -688,34 +694,26 @@ impl Mlri {
         }
     }
 
-    /// The class sums of tile row `ty` into `x.sums`. The own chroma's
-    /// samples lie in the row's class of rows and the chroma sites' columns
-    /// (`m`), the other chroma's in the other rows and columns: a vertical
-    /// sum per column over the class of rows its column calls for, then
-    /// the same- and other-column sums along the row, give both at every
-    /// site, half the sums of all four parities.
+    /// The vertical class sums of tile row `ty` into `x.vsum`. The own
+    /// chroma's samples lie in the row's class of rows and the chroma
+    /// sites' columns (`m`), the other chroma's in the other rows and
+    /// columns: a vertical sum per column over the class of rows its column
+    /// calls for, then the same- and other-column sums along the row (in
+    /// [`Self::chroma_coefficients`]), give both at every site, half the
+    /// sums of all four parities.
     #[inline(always)]
     fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Plane, m: &[u32], ty: usize) {
         let Chroma {
-            prod,
-            pairs,
-            vsum,
-            sums,
-            scratch,
-            ..
+            prod, pairs, vsum, ..
         } = x;
         let sources: [&dyn Rows; STATS] = [green, c, &prod[0], &prod[1]];
         let r = R_RB_LAPLACE;
-        let n = vsum.len() - 2 * R_RB_COEF;
-        for ((src, q), [same, other]) in sources.into_iter().zip(&*pairs).zip(sums.iter_mut()) {
-            let v = &mut vsum[..m.len()];
-            class_sum_across_by_column(cols(src.row(ty), r), across(q, ty, r), m, v);
-            class_sums(
-                vsum,
-                SQUARE_RADIUS,
-                &mut same[..n],
-                &mut other[..n],
-                scratch,
+        for ((src, q), v) in sources.into_iter().zip(&*pairs).zip(vsum.iter_mut()) {
+            class_sum_across_by_column(
+                cols(src.row(ty), r),
+                across(q, ty, r),
+                m,
+                &mut v[..m.len()],
             );
         }
     }
@@ -723,14 +721,20 @@ impl Mlri {
     /// Red and blue coefficients of tile row `ty` from its class sums.
     #[inline(always)]
     fn chroma_coefficients(&self, x: &mut Chroma, m: &[u32], blue_row: bool, ty: usize) {
-        let count = |v: Parity, h: Parity| {
-            window(v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS), self.flat)
-        };
-        let (same, other) = (Parity::Same, Parity::Other);
-        let (own_at_chroma, own_at_green) = (count(same, same), count(same, other));
-        let (far_at_chroma, far_at_green) = (count(other, other), count(other, same));
-        let pick = |k: usize| x.sums.each_ref().map(|q| &q[k][..m.len()]);
-        let (same_col, other_col) = (pick(0), pick(1));
+        let n = m.len();
+        // Taps cut here, not by a closure, so that the compiler sees their
+        // lengths and drops the bounds checks that would keep the loop
+        // scalar.
+        let [v0, v1, v2, v3] = &x.vsum;
+        let (v0, v1) = (
+            line_taps(v0, SQUARE_RADIUS, n),
+            line_taps(v1, SQUARE_RADIUS, n),
+        );
+        let (v2, v3) = (
+            line_taps(v2, SQUARE_RADIUS, n),
+            line_taps(v3, SQUARE_RADIUS, n),
+        );
+        let sums = ClassesAlong([v0, v1, v2, v3]);
         let [ar, br, ab, bb] = x
             .coef
             .each_mut()
@@ -740,15 +744,40 @@ impl Mlri {
         } else {
             (ar, br, ab, bb)
         };
-        for i in 0..m.len() {
+        self.chroma_coefficient_row(&sums, m, ao, bo, ax, bx);
+    }
+
+    /// [`Self::chroma_coefficients`] of one row into the coefficients of
+    /// the row's own chroma (`ao`, `bo`) and of the other one (`ax`, `bx`).
+    /// Its own function so that the compiler knows its outputs apart.
+    #[inline(always)]
+    fn chroma_coefficient_row(
+        &self,
+        sums: &ClassesAlong<'_, STATS>,
+        m: &[u32],
+        ao: &mut [f32],
+        bo: &mut [f32],
+        ax: &mut [f32],
+        bx: &mut [f32],
+    ) {
+        let count = |v: Parity, h: Parity| {
+            window(v.count(SQUARE_RADIUS) * h.count(SQUARE_RADIUS), self.flat)
+        };
+        let (same, other) = (Parity::Same, Parity::Other);
+        let (own_at_chroma, own_at_green) = (count(same, same), count(same, other));
+        let (far_at_chroma, far_at_green) = (count(other, other), count(other, same));
+        let n = m.len();
+        let (ao, bo, ax, bx) = (&mut ao[..n], &mut bo[..n], &mut ax[..n], &mut bx[..n]);
+        for i in 0..n {
             let mi = m[i];
             // The own chroma lies in the chroma sites' columns: the
             // same-column sums are its own at chroma sites, the other
             // chroma's at green ones.
             let same_n = select_window(mi, own_at_chroma, far_at_green);
             let other_n = select_window(mi, far_at_chroma, own_at_green);
-            let (a_s, b_s) = coefficients(stats(&same_col, i), same_n);
-            let (a_o, b_o) = coefficients(stats(&other_col, i), other_n);
+            let (same, other) = sums.at(i);
+            let (a_s, b_s) = coefficients(same, same_n);
+            let (a_o, b_o) = coefficients(other, other_n);
             (ao[i], ax[i]) = swap(mi, a_s, a_o);
             (bo[i], bx[i]) = swap(mi, b_s, b_o);
         }
@@ -770,34 +799,39 @@ impl Mlri {
             coef,
             quads,
             vsum,
-            mean,
-            scratch,
             res,
             part,
             ..
         } = x;
         let r = R_RB_COEF;
-        let (wide, n) = (vsum.len() - 2 * r, m.len());
-        for ((src, f), dst) in coef.iter().zip(&*quads).zip(mean.iter_mut()) {
-            all_sums_across(across(src, ty, r), across(f, ty, r), &mut vsum[..wide]);
-            all_sums(vsum, SQUARE_RADIUS, &mut dst[..n], scratch);
+        let n = m.len();
+        for ((src, f), v) in coef.iter().zip(&*quads).zip(vsum.iter_mut()) {
+            all_sums_across(
+                across(src, ty, r),
+                across(f, ty, r),
+                &mut v[..n + 2 * SQUARE_RADIUS],
+            );
         }
         let scale = 1.0 / (Parity::All.count(SQUARE_RADIUS).pow(2)) as f32;
-        let (c0, g0) = (cols(c.row(ty), R_RB_MEAN), cols(g.row(ty), R_RB_MEAN));
+        let (c0, g0) = (&c.row(ty)[R_RB_MEAN..][..n], &g.row(ty)[R_RB_MEAN..][..n]);
         for (k, (res, part)) in res.iter_mut().zip(part.iter_mut()).enumerate() {
             // Class k (0 red, 1 blue) is sampled at this row's chroma
             // sites when the row is of its kind.
             let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
-            let (a, b) = (&mean[2 * k][..n], &mean[2 * k + 1][..n]);
+            let (a, b) = (&vsum[2 * k], &vsum[2 * k + 1]);
+            let mean = BoxesAlong([
+                line_taps(a, SQUARE_RADIUS, n),
+                line_taps(b, SQUARE_RADIUS, n),
+            ]);
             let (res, part) = (
-                cols_mut(res.row_mut(ty), R_RB_MEAN),
-                cols_mut(part.row_mut(ty), R_RB_MEAN),
+                &mut res.row_mut(ty)[R_RB_MEAN..][..n],
+                &mut part.row_mut(ty)[R_RB_MEAN..][..n],
             );
-            let inputs = a.iter().zip(b).zip(g0.iter().zip(c0)).zip(m);
-            for ((res, part), (((a, b), (g, c)), m)) in res.iter_mut().zip(part).zip(inputs) {
-                let tent = scale * a * g + scale * b;
-                *part = tent;
-                *res = select(m & sampled, c - tent, 0.0);
+            for i in 0..n {
+                let [a, b] = mean.at(i);
+                let tent = scale * a * g0[i] + scale * b;
+                part[i] = tent;
+                res[i] = select(m[i] & sampled, c0[i] - tent, 0.0);
             }
         }
     }
@@ -937,12 +971,9 @@ impl StreamKernel for Mlri {
             chroma: Chroma {
                 prod: two(R_RB_LAPLACE, R_RB_COEF, 0),
                 pairs: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS),
-                vsum: row(),
-                sums: [0; STATS].map(|_| [row(), row()]),
+                vsum: [0; STATS].map(|_| row()),
                 coef: rings(R_RB_COEF, R_RB_MEAN, 1),
                 quads: rings(RB_QUADS, R_RB_MEAN, SQUARE_RADIUS),
-                mean: [0; 4].map(|_| row()),
-                scratch: row(),
                 res: two(R_RB_MEAN, R_OUT, 1),
                 part: two(R_RB_MEAN, R_OUT, 0),
                 own: row(),
@@ -1097,23 +1128,16 @@ mod tests {
             let mut guide = vec![0.0; len];
             midpoints(&c[..len - 2], &c[2..], &mut guide[1..len - 1]);
             let (at, n) = (7, len - 14);
-            let sums = |src: &[f32]| {
-                let (mut same, mut other, mut q) = (vec![0.0; n], vec![0.0; n], vec![0.0; len]);
-                class_sums(src, at, &mut same, &mut other, &mut q);
-                (same, other)
-            };
-            let ((gs, go), (cs, co)) = (sums(&guide), sums(c));
+            let (tg, tc) = (line_taps(&guide, at, n), line_taps(c, at, n));
             for i in 0..n {
                 let x = at + i;
+                let ((gs, go), (cs, co)) = (class_sums_at(tg, i), class_sums_at(tc, i));
                 let (outer5, outer6) = (c[x - 5] + c[x + 5], c[x - 6] + c[x + 6]);
-                let (s, o) = guide_sums(cs[i], co[i], outer5, outer6);
+                let (s, o) = guide_sums(cs, co, outer5, outer6);
                 if k == 0 {
-                    assert_eq!((s, o), (gs[i], go[i]), "at {x}");
+                    assert_eq!((s, o), (gs, go), "at {x}");
                 } else {
-                    assert!(
-                        (s - gs[i]).abs() < 1e-5 && (o - go[i]).abs() < 1e-5,
-                        "at {x}"
-                    );
+                    assert!((s - gs).abs() < 1e-5 && (o - go).abs() < 1e-5, "at {x}");
                 }
             }
         }
