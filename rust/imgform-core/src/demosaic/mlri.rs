@@ -148,7 +148,7 @@ struct Line {
     prod: [Vec<f32>; 2],
     /// Coefficients (a, b) of the chroma and the green class. Their window
     /// sums, like those of the statistics, are taken in the loops that use
-    /// them ([`ClassesAlong`], [`BoxesAlong`]): a row is in the first-level
+    /// them ([`ClassesAlong`], [`Boxes`]): a row is in the first-level
     /// cache, so reading 11 samples costs less than storing and reloading
     /// partial sums.
     coef: [Vec<f32>; 4],
@@ -379,12 +379,6 @@ trait ClassSums<const K: usize> {
     fn at(&self, i: usize) -> ([f32; K], [f32; K]);
 }
 
-/// Window sums over the whole window at the sites of a line, site by site,
-/// of `K` rows.
-trait BoxSums<const K: usize> {
-    fn at(&self, i: usize) -> [f32; K];
-}
-
 /// Class sums stored by an earlier pass: rows of same-class sums, then of
 /// other-class sums.
 struct StoredClasses<'a, const K: usize>([&'a [f32]; K], [&'a [f32]; K]);
@@ -397,20 +391,6 @@ impl<const K: usize> ClassSums<K> for StoredClasses<'_, K> {
             (same[k], other[k]) = (self.0[k][i], self.1[k][i]);
         }
         (same, other)
-    }
-}
-
-/// Box sums stored by an earlier pass, a row per sum.
-struct Stored<'a, const K: usize>([&'a [f32]; K]);
-
-impl<const K: usize> BoxSums<K> for Stored<'_, K> {
-    #[inline(always)]
-    fn at(&self, i: usize) -> [f32; K] {
-        let mut out = [0.0; K];
-        for (o, row) in out.iter_mut().zip(self.0) {
-            *o = row[i];
-        }
-        out
     }
 }
 
@@ -430,15 +410,18 @@ impl<const K: usize> ClassSums<K> for ClassesAlong<'_, K> {
     }
 }
 
-/// Box sums taken in the loop that uses them (see [`ClassesAlong`]).
-struct BoxesAlong<'a, const K: usize>([&'a [f32]; K]);
+/// Whole-window sums of `K` rows at the sites of a line, site by site:
+/// stored by an earlier pass (`ALONG` false, a row per sum), or taken in
+/// the loop that uses them from lines cut by [`line_taps`] (see
+/// [`ClassesAlong`]).
+struct Boxes<'a, const K: usize, const ALONG: bool>([&'a [f32]; K]);
 
-impl<const K: usize> BoxSums<K> for BoxesAlong<'_, K> {
+impl<const K: usize, const ALONG: bool> Boxes<'_, K, ALONG> {
     #[inline(always)]
     fn at(&self, i: usize) -> [f32; K] {
         let mut out = [0.0; K];
         for (o, t) in out.iter_mut().zip(self.0) {
-            *o = all_sums_at(t, i);
+            *o = if ALONG { all_sums_at(t, i) } else { t[i] };
         }
         out
     }
@@ -448,8 +431,8 @@ impl<const K: usize> BoxSums<K> for BoxesAlong<'_, K> {
 /// value of the line's other class there (guided by the sample itself),
 /// from the window sums `mean` of the coefficients.
 #[inline(always)]
-fn line_residuals(
-    mean: impl BoxSums<4>,
+fn line_residuals<const ALONG: bool>(
+    mean: Boxes<'_, 4, ALONG>,
     (c, g): (&[f32], &[f32]),
     m: &[u32],
     res: &mut [f32],
@@ -536,7 +519,7 @@ impl Mlri {
         let [t0, t1, t2, t3] = &lb.coef;
         let (t0, t1) = (line_taps(t0, r, n), line_taps(t1, r, n));
         let (t2, t3) = (line_taps(t2, r, n), line_taps(t3, r, n));
-        let mean = BoxesAlong([t0, t1, t2, t3]);
+        let mean = Boxes::<4, true>([t0, t1, t2, t3]);
         let (res, part) = (cols_mut(&mut lb.res, r), cols_mut(&mut lb.part, r));
         line_residuals(
             mean,
@@ -603,7 +586,7 @@ impl Mlri {
         }
         let n = m.len();
         let [m0, m1, m2, m3] = v.mean.each_ref().map(|p| &p[..n]);
-        let mean = Stored([m0, m1, m2, m3]);
+        let mean = Boxes::<4, false>([m0, m1, m2, m3]);
         let inputs = (cols(c.row(ty), R_DIF), cols(v.guide.row(ty), R_DIF));
         let res = cols_mut(v.res.row_mut(ty), R_DIF);
         let part = cols_mut(v.part.row_mut(ty), R_DIF);
@@ -831,7 +814,7 @@ impl Mlri {
             // sites when the row is of its kind.
             let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
             let (a, b) = (&vsum[2 * k], &vsum[2 * k + 1]);
-            let mean = BoxesAlong([
+            let mean = Boxes::<2, true>([
                 line_taps(a, SQUARE_RADIUS, n),
                 line_taps(b, SQUARE_RADIUS, n),
             ]);
