@@ -134,7 +134,7 @@ pub(super) fn line_taps(src: &[f32], at: usize, n: usize) -> &[f32] {
 /// v(y + 2)` of neighbours of one class, `same(x) = v(x) + (q(x - 4) +
 /// q(x + 2))` and `other(x) = q(x - 1) + (q(x - 5) + q(x + 3))`. Each inner
 /// sum adds a pair that a mirror swaps, so a mirrored line gives the same
-/// bits, and the versions across rows ([`class_sums_across`]) the bits of
+/// bits, and the versions across rows ([`class_sums_across_at`]) the bits of
 /// this one. Taken in the loop that uses them: a row is in the first-level
 /// cache, where 11 loads cost less than a pass storing the pairs.
 #[inline(always)]
@@ -161,7 +161,7 @@ pub(super) fn all_sums_at(t: &[f32], i: usize) -> f32 {
 
 /// One row of the pair sums `q(y) = s(y) + s(y + 2)` that [`class_sums_at`]
 /// shares between sites, from the rows `s(y)` and `s(y + 2)`: a method
-/// streaming down its rows keeps them in a ring for [`class_sums_across`].
+/// streaming down its rows keeps them in a ring for [`class_sums_across_at`].
 #[inline(always)]
 pub(super) fn pair_row(a: &[f32], b: &[f32], q: &mut [f32]) {
     for ((q, a), b) in q.iter_mut().zip(a).zip(b) {
@@ -169,28 +169,39 @@ pub(super) fn pair_row(a: &[f32], b: &[f32], q: &mut [f32]) {
     }
 }
 
-/// [`class_sums_at`] across rows, from the centre row `s` and the
-/// [`pair_row`]s `q(d)` of the rows `d` from it: the same groups added in
-/// the same order, so a column gives the bits it gives as a line.
+/// The rows [`class_sums_across_at`] reads for the centre row `s`: `s`
+/// and the [`pair_row`]s `q(d)` of the rows `d` from it (4 and 2 for the
+/// same class, 1, 5 and 3 for the other), `n` long.
 #[inline(always)]
-pub(super) fn class_sums_across<'a>(
-    s: &[f32],
+pub(super) fn pair_taps<'a>(
+    s: &'a [f32],
     q: impl Fn(isize) -> &'a [f32],
-    same: &mut [f32],
-    other: &mut [f32],
-) {
-    let n = same.len();
-    let (s, left, right) = (&s[..n], &q(-4)[..n], &q(2)[..n]);
-    for (((o, c), l), r) in same.iter_mut().zip(s).zip(left).zip(right) {
-        *o = c + (l + r);
-    }
-    let (mid, left, right) = (&q(-1)[..n], &q(-5)[..n], &q(3)[..n]);
-    for (((o, c), l), r) in other[..n].iter_mut().zip(mid).zip(left).zip(right) {
-        *o = c + (l + r);
-    }
+    n: usize,
+) -> [&'a [f32]; 6] {
+    [
+        &s[..n],
+        &q(-4)[..n],
+        &q(2)[..n],
+        &q(-1)[..n],
+        &q(-5)[..n],
+        &q(3)[..n],
+    ]
 }
 
-/// [`class_sums_across`] keeping one class per column: the same-class sum
+/// [`class_sums_at`] across rows at column `i` of rows cut by
+/// [`pair_taps`]: the same groups added in the same order, so a column
+/// gives the bits it gives as a line. Taken in the loop that uses them, as
+/// along a row: stored first, they cost a pass and a reload.
+#[inline(always)]
+pub(super) fn class_sums_across_at(t: &[&[f32]; 6], i: usize) -> (f32, f32) {
+    let [s, left, right, mid, far_left, far_right] = t;
+    (
+        s[i] + (left[i] + right[i]),
+        mid[i] + (far_left[i] + far_right[i]),
+    )
+}
+
+/// [`class_sums_across_at`] keeping one class per column, over a row: the same-class sum
 /// where `m` is set, the other-class sum elsewhere (same groups, same
 /// bits). A square window over the samples of one CFA class reads one
 /// class of rows in one class of columns, so it needs no more.
@@ -222,19 +233,35 @@ pub(super) fn quad_row<'a>(s: impl Fn(isize) -> &'a [f32], f: &mut [f32]) {
     }
 }
 
-/// [`all_sums_at`] across rows, from the rows `s(d)` and the [`quad_row`]s
-/// `f(d)` `d` rows from the centre (see [`class_sums_across`]).
+/// The rows [`all_sums_across_at`] reads: the rows `s(d)` 0, -1 and 1
+/// from the centre and the [`quad_row`]s `f(d)` -5 and 2, `n` long.
+#[inline(always)]
+pub(super) fn quad_taps<'a>(
+    s: impl Fn(isize) -> &'a [f32],
+    f: impl Fn(isize) -> &'a [f32],
+    n: usize,
+) -> [&'a [f32]; 5] {
+    [&s(0)[..n], &s(-1)[..n], &s(1)[..n], &f(-5)[..n], &f(2)[..n]]
+}
+
+/// [`all_sums_at`] across rows at column `i` of rows cut by [`quad_taps`]
+/// (see [`class_sums_across_at`]).
+#[inline(always)]
+pub(super) fn all_sums_across_at(t: &[&[f32]; 5], i: usize) -> f32 {
+    let [c, l, r, fl, fr] = t;
+    (c[i] + (l[i] + r[i])) + (fl[i] + fr[i])
+}
+
+/// [`all_sums_across_at`] over a row, into `out`.
 #[inline(always)]
 pub(super) fn all_sums_across<'a>(
     s: impl Fn(isize) -> &'a [f32],
     f: impl Fn(isize) -> &'a [f32],
     out: &mut [f32],
 ) {
-    let n = out.len();
-    let (c, l, r) = (&s(0)[..n], &s(-1)[..n], &s(1)[..n]);
-    let (fl, fr) = (&f(-5)[..n], &f(2)[..n]);
-    for i in 0..n {
-        out[i] = (c[i] + (l[i] + r[i])) + (fl[i] + fr[i]);
+    let t = quad_taps(s, f, out.len());
+    for (i, o) in out.iter_mut().enumerate() {
+        *o = all_sums_across_at(&t, i);
     }
 }
 
@@ -359,8 +386,10 @@ mod tests {
             let y = (k + 5) as isize;
             let q = |d: isize| &pairs[(y + d) as usize * w..][..w];
             let f = |d: isize| &quads[(y + d) as usize * w..][..w];
-            let (s, o) = (&mut same[k * w..][..w], &mut other[k * w..][..w]);
-            class_sums_across(row(y), q, s, o);
+            let t = pair_taps(row(y), q, w);
+            for x in 0..w {
+                (same[k * w + x], other[k * w + x]) = class_sums_across_at(&t, x);
+            }
             class_sum_across_by_column(row(y), q, &odd, &mut by_column[k * w..][..w]);
             all_sums_across(|d| row(y + d), f, &mut all[k * w..][..w]);
         }
