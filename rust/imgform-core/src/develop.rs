@@ -14,8 +14,8 @@
 //! Integer outputs demosaic in `u16` units (16 bits hold a 14-bit sensor
 //! with WB gains of up to 4x without loss, as in LibRaw); float outputs
 //! in `f32`. For every Bayer method but nearest the whole development is
-//! one pass: the demosaic loads its tiles or rows through [`Prepared`] and
-//! stores them through [`Finish`], so nothing full-size exists but the raw
+//! one pass: the demosaic loads its tiles or rows through `Prepared` and
+//! stores them through `Finish`, so nothing full-size exists but the raw
 //! and the output, and each pixel is finished while it is still in cache
 //! (a third pass over 144 MB cost about a fifth of the time at 24 MP). The
 //! others (nearest, X-Trans) prepare a mosaic image, demosaic it and finish

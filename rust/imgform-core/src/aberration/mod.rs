@@ -16,7 +16,7 @@
 //!   error it is the Airy pattern, with a small one its peak drops as
 //!   Marechal's `exp(-(2 pi sigma)^2)`.
 //! - [`convolve`]: the PSF applied to an image, directly for small kernels,
-//!   by overlap-save FFT tiles ([`fft_tiles`]) for large ones.
+//!   by overlap-save FFT tiles (`fft_tiles`) for large ones.
 
 pub mod convolve;
 mod fft_tiles;
