@@ -201,23 +201,21 @@ pub(super) fn class_sums_across_at(t: &[&[f32]; 6], i: usize) -> (f32, f32) {
     )
 }
 
-/// [`class_sums_across_at`] keeping one class per column, over a row: the same-class sum
-/// where `m` is set, the other-class sum elsewhere (same groups, same
-/// bits). A square window over the samples of one CFA class reads one
-/// class of rows in one class of columns, so it needs no more.
+/// [`class_sums_across_at`] over a row, keeping one class per column: the
+/// same-class sum where `m` is set, the other-class sum elsewhere. A square
+/// window over the samples of one CFA class reads one class of rows in one
+/// class of columns, so it needs no more.
 #[inline(always)]
 pub(super) fn class_sum_across_by_column<'a>(
-    s: &[f32],
+    s: &'a [f32],
     q: impl Fn(isize) -> &'a [f32],
     m: &[u32],
     out: &mut [f32],
 ) {
     let n = out.len();
-    let (s, left, right) = (&s[..n], &q(-4)[..n], &q(2)[..n]);
-    let (mid, far_left, far_right) = (&q(-1)[..n], &q(-5)[..n], &q(3)[..n]);
+    let (t, m) = (pair_taps(s, q, n), &m[..n]);
     for i in 0..n {
-        let same = s[i] + (left[i] + right[i]);
-        let other = mid[i] + (far_left[i] + far_right[i]);
+        let (same, other) = class_sums_across_at(&t, i);
         out[i] = select(m[i], same, other);
     }
 }
