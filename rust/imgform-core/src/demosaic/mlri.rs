@@ -97,6 +97,12 @@ const R_RB_LAPLACE: usize = R_GREEN + 2;
 const R_RB_COEF: usize = R_RB_LAPLACE + SQUARE_RADIUS;
 const R_RB_MEAN: usize = R_RB_COEF + SQUARE_RADIUS;
 const R_OUT: usize = R_RB_MEAN + 1;
+/// First column of the vertical pass of step 1. Its filters are
+/// column-local, so it may start anywhere left of the columns later stages
+/// read of it (`R_GRAD` on); a multiple of 8 puts its 32-byte loads on
+/// 32-byte boundaries of rows that start on 64-byte ones ([`Ring`]), and
+/// loads that straddle two cache lines cost two.
+const V_COLS: usize = 8;
 /// Lags of the pair and quadruple sums across rows: they need rows 2 and 3
 /// further down than the row they are for.
 const PAIRS: usize = R_LAPLACE + 2;
@@ -561,22 +567,22 @@ impl Mlri {
 }
 
 /// The vertical pass of step 1, one stage per method: each computes tile
-/// row `ty` over the columns `R_DIF ..` whose lines step 1 needs.
+/// row `ty` over the columns `V_COLS ..` whose lines step 1 needs.
 impl Mlri {
     #[inline(always)]
     fn columns_guide(&self, v: &mut Columns, c: &Plane, ty: usize) {
-        let (a, b) = (cols(c.row(ty - 1), R_DIF), cols(c.row(ty + 1), R_DIF));
-        midpoints(a, b, cols_mut(v.guide.row_mut(ty), R_DIF));
+        let (a, b) = (cols(c.row(ty - 1), V_COLS), cols(c.row(ty + 1), V_COLS));
+        midpoints(a, b, cols_mut(v.guide.row_mut(ty), V_COLS));
     }
 
     #[inline(always)]
     fn columns_products(&self, v: &mut Columns, c: &Plane, ty: usize) {
-        let g = |y: usize| cols(v.guide.row(y), R_DIF);
-        let s = |y: usize| cols(c.row(y), R_DIF);
+        let g = |y: usize| cols(v.guide.row(y), V_COLS);
+        let s = |y: usize| cols(c.row(y), V_COLS);
         let [ip, ii] = &mut v.prod;
         let (ip, ii) = (
-            cols_mut(ip.row_mut(ty), R_DIF),
-            cols_mut(ii.row_mut(ty), R_DIF),
+            cols_mut(ip.row_mut(ty), V_COLS),
+            cols_mut(ii.row_mut(ty), V_COLS),
         );
         let (gs, cs) = ([g(ty), g(ty - 2), g(ty + 2)], [s(ty), s(ty - 2), s(ty + 2)]);
         laplace_products(gs, cs, ip, ii);
@@ -588,12 +594,12 @@ impl Mlri {
         let [q0, q1, q2] = &v.pairs;
         let [p0, p1] = &v.prod;
         let sums = ClassesAcross([
-            pair_taps(cols(c.row(ty), R_DIF), across(q0, ty, R_DIF), n),
-            pair_taps(cols(p0.row(ty), R_DIF), across(q1, ty, R_DIF), n),
-            pair_taps(cols(p1.row(ty), R_DIF), across(q2, ty, R_DIF), n),
+            pair_taps(cols(c.row(ty), V_COLS), across(q0, ty, V_COLS), n),
+            pair_taps(cols(p0.row(ty), V_COLS), across(q1, ty, V_COLS), n),
+            pair_taps(cols(p1.row(ty), V_COLS), across(q2, ty, V_COLS), n),
         ]);
-        let outer = [-5, 5, -6, 6].map(|d| &c.row((ty as isize + d) as usize)[R_DIF..]);
-        let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), R_DIF));
+        let outer = [-5, 5, -6, 6].map(|d| &c.row((ty as isize + d) as usize)[V_COLS..]);
+        let coef = v.coef.each_mut().map(|p| cols_mut(p.row_mut(ty), V_COLS));
         self.line_coefficients(sums, outer, m, coef);
     }
 
@@ -603,25 +609,31 @@ impl Mlri {
         let [a0, a1, a2, a3] = &v.coef;
         let [f0, f1, f2, f3] = &v.quads;
         let mean = BoxesAcross([
-            quad_taps(across(a0, ty, R_DIF), across(f0, ty, R_DIF), n),
-            quad_taps(across(a1, ty, R_DIF), across(f1, ty, R_DIF), n),
-            quad_taps(across(a2, ty, R_DIF), across(f2, ty, R_DIF), n),
-            quad_taps(across(a3, ty, R_DIF), across(f3, ty, R_DIF), n),
+            quad_taps(across(a0, ty, V_COLS), across(f0, ty, V_COLS), n),
+            quad_taps(across(a1, ty, V_COLS), across(f1, ty, V_COLS), n),
+            quad_taps(across(a2, ty, V_COLS), across(f2, ty, V_COLS), n),
+            quad_taps(across(a3, ty, V_COLS), across(f3, ty, V_COLS), n),
         ]);
-        let inputs = (cols(c.row(ty), R_DIF), cols(v.guide.row(ty), R_DIF));
-        let res = cols_mut(v.res.row_mut(ty), R_DIF);
-        let part = cols_mut(v.part.row_mut(ty), R_DIF);
+        let inputs = (cols(c.row(ty), V_COLS), cols(v.guide.row(ty), V_COLS));
+        let res = cols_mut(v.res.row_mut(ty), V_COLS);
+        let part = cols_mut(v.part.row_mut(ty), V_COLS);
         line_residuals(mean, inputs, m, res, part);
     }
 
     #[inline(always)]
     fn columns_difference(&self, v: &Columns, c: &Plane, m: &[u32], ty: usize, out: &mut [f32]) {
         let near = (
-            cols(v.res.row(ty - 1), R_DIF),
-            cols(v.res.row(ty + 1), R_DIF),
+            cols(v.res.row(ty - 1), V_COLS),
+            cols(v.res.row(ty + 1), V_COLS),
         );
-        let part = cols(v.part.row(ty), R_DIF);
-        difference(part, near, cols(c.row(ty), R_DIF), m, cols_mut(out, R_DIF));
+        let part = cols(v.part.row(ty), V_COLS);
+        difference(
+            part,
+            near,
+            cols(c.row(ty), V_COLS),
+            m,
+            cols_mut(out, V_COLS),
+        );
     }
 }
 
@@ -1027,21 +1039,21 @@ impl StreamKernel for Mlri {
             }
             if let Some(ty) = due_from(PAIRS, R_LAPLACE) {
                 let sources: [&dyn Rows; SUMMED] = [&c, &v.prod[0], &v.prod[1]];
-                pair_rows(sources, &mut v.pairs, ty, R_DIF);
+                pair_rows(sources, &mut v.pairs, ty, V_COLS);
             }
             if let Some(ty) = due(R_COEF) {
-                self.columns_coefficients(v, &c, mask(ty, R_DIF), ty);
+                self.columns_coefficients(v, &c, mask(ty, V_COLS), ty);
             }
             if let Some(ty) = due_from(QUADS, R_COEF) {
-                quad_rows(&v.coef, &mut v.quads, ty, R_DIF);
+                quad_rows(&v.coef, &mut v.quads, ty, V_COLS);
             }
             if let Some(ty) = due(R_MEAN) {
-                self.columns_residuals(v, &c, mask(ty, R_DIF), ty);
+                self.columns_residuals(v, &c, mask(ty, V_COLS), ty);
             }
             if let Some(ty) = due(R_DIF) {
                 let [dh, dv] = &mut cb.dif;
                 self.green_row(line, c.row(ty), mask(ty, 0), dh.row_mut(ty));
-                self.columns_difference(v, &c, mask(ty, R_DIF), ty, dv.row_mut(ty));
+                self.columns_difference(v, &c, mask(ty, V_COLS), ty, dv.row_mut(ty));
             }
             if let Some(ty) = due(R_GRAD) {
                 self.gradients(cb, ty);

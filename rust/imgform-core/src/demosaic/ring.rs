@@ -9,10 +9,24 @@ pub(super) trait Rows {
     fn row(&self, ty: usize) -> &[f32];
 }
 
+/// Floats a buffer needs beyond its length for [`cache_aligned`].
+pub(super) const ALIGN_PAD: usize = 15;
+
+/// `buf` from its first cache-line (64-byte) boundary on, at most
+/// [`ALIGN_PAD`] floats in. Rows of a multiple of 16 floats then all start
+/// on a line, and 32-byte loads at multiples of 8 floats never straddle two
+/// lines (a straddling load costs two).
+pub(super) fn cache_aligned(buf: &mut [f32]) -> &mut [f32] {
+    let skip = buf.as_ptr().align_offset(64).min(ALIGN_PAD);
+    &mut buf[skip..]
+}
+
 /// The last `depth` rows written of a plane: row `ty` lives in slot
 /// `ty % depth` until row `ty + depth` replaces it.
 pub(super) struct Ring {
     data: Vec<f32>,
+    /// Where the first slot starts in `data`: on a cache line.
+    first: usize,
     stride: usize,
     depth: usize,
     /// The newest row written, to check in debug builds that a read row
@@ -22,8 +36,11 @@ pub(super) struct Ring {
 
 impl Ring {
     pub(super) fn new(stride: usize, depth: usize) -> Self {
+        let mut data = vec![0.0; stride * depth + ALIGN_PAD];
+        let first = data.len() - cache_aligned(&mut data).len();
         Self {
-            data: vec![0.0; stride * depth],
+            data,
+            first,
             stride,
             depth,
             newest: 0,
@@ -33,7 +50,10 @@ impl Ring {
     /// Makes rows `stride` long, at most as long as the ring was made for:
     /// a row of tiles ends with a narrower one.
     pub(super) fn fit(&mut self, stride: usize) {
-        assert!(stride * self.depth <= self.data.len(), "a ring grew");
+        assert!(
+            self.first + stride * self.depth <= self.data.len(),
+            "a ring grew"
+        );
         self.stride = stride;
     }
 
@@ -41,7 +61,7 @@ impl Ring {
     #[inline(always)]
     pub(super) fn row_mut(&mut self, ty: usize) -> &mut [f32] {
         self.newest = ty;
-        let start = (ty % self.depth) * self.stride;
+        let start = self.first + (ty % self.depth) * self.stride;
         &mut self.data[start..start + self.stride]
     }
 }
@@ -55,7 +75,7 @@ impl Rows for Ring {
             self.depth,
             self.newest
         );
-        let start = (ty % self.depth) * self.stride;
+        let start = self.first + (ty % self.depth) * self.stride;
         &self.data[start..start + self.stride]
     }
 }
@@ -101,6 +121,20 @@ mod tests {
             ring.row_mut(ty);
         }
         ring.row(3);
+    }
+
+    #[test]
+    fn rows_of_a_multiple_of_16_floats_start_on_cache_lines() {
+        let mut ring = Ring::new(48, 5);
+        for ty in 0..5 {
+            assert_eq!(ring.row_mut(ty).as_ptr() as usize % 64, 0, "row {ty}");
+        }
+        let mut buf = vec![0.0f32; 100 + ALIGN_PAD];
+        for skip in 0..4 {
+            let part = cache_aligned(&mut buf[skip..]);
+            assert_eq!(part.as_ptr() as usize % 64, 0);
+            assert!(part.len() >= 100 - skip);
+        }
     }
 
     #[test]

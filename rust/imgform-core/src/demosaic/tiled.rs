@@ -16,6 +16,7 @@
 //! as it is done; its tiles can then be much taller, so fewer halo rows
 //! are recomputed, with memory that does not grow with their height.
 
+use super::ring::{cache_aligned, ALIGN_PAD};
 use super::{Isa, Mosaic, Phase, RgbSink, RowKind};
 use crate::image::{mirror, ImageView, Sample};
 use rayon::prelude::*;
@@ -197,7 +198,7 @@ where
     let band = K::rows(raw.height(), rayon::current_num_threads());
     let rows = band + 2 * K::HALO;
     let init = || Scratch {
-        plane: vec![0.0f32; stride * rows],
+        plane: vec![0.0f32; stride * rows + ALIGN_PAD],
         state: k.state(stride, rows),
         clamped: [0, 1, 2].map(|_| vec![0.0f32; K::COLS]),
         sink: sink.scratch(K::COLS),
@@ -303,7 +304,7 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
         clamped,
         sink,
     } = scratch;
-    let plane = &mut plane[..t.stride * t.rows];
+    let plane = &mut cache_aligned(plane)[..t.stride * t.rows];
     load(raw, &t, x0 as isize - halo as isize, plane);
     let mut store = Store {
         ctx,
