@@ -53,12 +53,12 @@
 //! rows, are rings of their own, each row summed once for all the windows
 //! that hold it (7 % fewer instructions than summing 11 rows per window);
 //! the green stage's loops that need the window sums add the groups
-//! themselves ([`ClassesAcross`], [`BoxesAcross`]). Along a row there are
+//! themselves ([`ClassTaps`], [`BoxTaps`]). Along a row there are
 //! no groups: the row is in the first-level cache, so the loop that needs
 //! a window's sums reads its 11 samples ([`class_sums_at`],
 //! [`all_sums_at`]) rather than a pass storing partial sums first; what
 //! the compiler must see for such loops to vectorise is said where they
-//! are built ([`ClassSums`]).
+//! are built ([`ClassTaps`]).
 
 use super::boxsum::{
     all_sums_across, all_sums_across_at, all_sums_at, class_sum_across_by_column,
@@ -157,7 +157,7 @@ struct Line {
     prod: [Vec<f32>; 2],
     /// Coefficients (a, b) of the chroma and the green class. Their window
     /// sums, like those of the statistics, are taken in the loops that use
-    /// them ([`ClassesAlong`], [`BoxesAlong`]): a row is in the first-level
+    /// them ([`ClassTaps`], [`BoxTaps`]): a row is in the first-level
     /// cache, so reading 11 samples costs less than storing and reloading
     /// partial sums.
     coef: [Vec<f32>; 4],
@@ -200,7 +200,7 @@ struct Chroma {
     pairs: [Ring; STATS],
     /// Vertical window sums of each statistic over each column's class:
     /// the row's own chroma in its columns, the other chroma in the others.
-    /// The coefficients' loop sums them along the row ([`ClassesAlong`]),
+    /// The coefficients' loop sums them along the row ([`ClassTaps`]),
     /// and the residuals' loop the vertical box sums of the coefficients
     /// that later take their place.
     vsum: [Vec<f32>; STATS],
@@ -372,8 +372,9 @@ fn difference(part: &[f32], (rm, rp): (&[f32], &[f32]), c: &[f32], m: &[u32], ou
     }
 }
 
-/// Window sums over the same and the other class at the sites of a line,
-/// site by site, of `K` statistics.
+/// Where a statistic's window sums over the same and the other class are
+/// read at the sites of a line: a line cut by [`line_taps`] (along a row),
+/// or a centre row and its pair sums cut by [`pair_taps`] (across rows).
 ///
 /// Traits with inlined methods, not closures: in a kernel this large the
 /// compiler stops inlining closures (and `array::map`), and a call left in
@@ -381,73 +382,74 @@ fn difference(part: &[f32], (rm, rp): (&[f32], &[f32]), c: &[f32], m: &[u32], ou
 /// scalar (measured: 1.5-3x slower). For the same reason the loops that
 /// take these sums cut their taps by direct calls, and get their outputs as
 /// separate `&mut` arguments ([`Mlri::chroma_coefficient_row`]).
-trait ClassSums<const K: usize> {
-    fn at(&self, i: usize) -> ([f32; K], [f32; K]);
+trait ClassTaps {
+    fn at(&self, i: usize) -> (f32, f32);
 }
 
-/// Class sums across rows taken in the loop that uses them, from rows cut
-/// by [`pair_taps`]. With [`BoxesAcross`], about 3 % less time at 24 MP on
-/// two threads than passes storing the sums first (interleaved runs, same
-/// bits), and three fewer buffers.
-struct ClassesAcross<'a, const K: usize>([[&'a [f32]; 6]; K]);
+/// Along a row the sums are taken in the loop that uses them: a row is in
+/// the first-level cache, so reading 11 samples costs less than a pass
+/// storing partial sums and reloading them.
+impl ClassTaps for &[f32] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> (f32, f32) {
+        class_sums_at(self, i)
+    }
+}
 
-impl<const K: usize> ClassSums<K> for ClassesAcross<'_, K> {
+/// Across rows the loop adds the stored pair sums itself: about 3 % less
+/// time at 24 MP on two threads than passes storing the class sums first
+/// (interleaved runs, same bits), and fewer buffers.
+impl ClassTaps for [&[f32]; 6] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> (f32, f32) {
+        class_sums_across_at(self, i)
+    }
+}
+
+/// Where a plane's whole-window sums are read: a line cut by
+/// [`line_taps`], or rows and quadruple sums cut by [`quad_taps`] (see
+/// [`ClassTaps`]).
+trait BoxTaps {
+    fn at(&self, i: usize) -> f32;
+}
+
+impl BoxTaps for &[f32] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> f32 {
+        all_sums_at(self, i)
+    }
+}
+
+impl BoxTaps for [&[f32]; 5] {
+    #[inline(always)]
+    fn at(&self, i: usize) -> f32 {
+        all_sums_across_at(self, i)
+    }
+}
+
+/// Same- and other-class window sums of `K` statistics, site by site.
+struct Classes<T, const K: usize>([T; K]);
+
+impl<T: ClassTaps, const K: usize> Classes<T, K> {
     #[inline(always)]
     fn at(&self, i: usize) -> ([f32; K], [f32; K]) {
         let (mut same, mut other) = ([0.0; K], [0.0; K]);
         for k in 0..K {
-            (same[k], other[k]) = class_sums_across_at(&self.0[k], i);
+            (same[k], other[k]) = self.0[k].at(i);
         }
         (same, other)
     }
 }
 
-/// Class sums taken in the loop that uses them, from lines cut by
-/// [`line_taps`]: a row is in the first-level cache, so reading 11 samples
-/// costs less than a pass storing partial sums and reloading them.
-struct ClassesAlong<'a, const K: usize>([&'a [f32]; K]);
+/// Whole-window sums of `K` planes, site by site.
+struct Boxes<T, const K: usize>([T; K]);
 
-impl<const K: usize> ClassSums<K> for ClassesAlong<'_, K> {
-    #[inline(always)]
-    fn at(&self, i: usize) -> ([f32; K], [f32; K]) {
-        let (mut same, mut other) = ([0.0; K], [0.0; K]);
-        for k in 0..K {
-            (same[k], other[k]) = class_sums_at(self.0[k], i);
-        }
-        (same, other)
-    }
-}
-
-/// Whole-window sums of `K` rows at the sites of a line, site by site.
-trait BoxSums<const K: usize> {
-    fn at(&self, i: usize) -> [f32; K];
-}
-
-/// Box sums taken in the loop that uses them from lines cut by
-/// [`line_taps`] (see [`ClassesAlong`]).
-struct BoxesAlong<'a, const K: usize>([&'a [f32]; K]);
-
-impl<const K: usize> BoxSums<K> for BoxesAlong<'_, K> {
-    #[inline(always)]
-    fn at(&self, i: usize) -> [f32; K] {
-        let mut out = [0.0; K];
-        for (o, t) in out.iter_mut().zip(self.0) {
-            *o = all_sums_at(t, i);
-        }
-        out
-    }
-}
-
-/// Box sums across rows taken in the loop that uses them from rows cut by
-/// [`quad_taps`] (see [`ClassesAcross`]).
-struct BoxesAcross<'a, const K: usize>([[&'a [f32]; 5]; K]);
-
-impl<const K: usize> BoxSums<K> for BoxesAcross<'_, K> {
+impl<T: BoxTaps, const K: usize> Boxes<T, K> {
     #[inline(always)]
     fn at(&self, i: usize) -> [f32; K] {
         let mut out = [0.0; K];
         for (o, t) in out.iter_mut().zip(&self.0) {
-            *o = all_sums_across_at(t, i);
+            *o = t.at(i);
         }
         out
     }
@@ -458,7 +460,7 @@ impl<const K: usize> BoxSums<K> for BoxesAcross<'_, K> {
 /// from the window sums `mean` of the coefficients.
 #[inline(always)]
 fn line_residuals(
-    mean: impl BoxSums<4>,
+    mean: Boxes<impl BoxTaps, 4>,
     (c, g): (&[f32], &[f32]),
     m: &[u32],
     res: &mut [f32],
@@ -486,12 +488,12 @@ impl Mlri {
 
     /// Coefficients of the chroma and the green class of a line, from the
     /// window sums over its same and other class of the [`SUMMED`]
-    /// statistics (in the order of [`ClassesAlong`]) and the input `outer`
+    /// statistics (in the order of [`STATS`], less the guide) and the input `outer`
     /// 5 and 6 steps away (before, after), at the sites `m` covers.
     #[inline(always)]
     fn line_coefficients(
         &self,
-        sums: impl ClassSums<SUMMED>,
+        sums: Classes<impl ClassTaps, SUMMED>,
         outer: [&[f32]; 4],
         m: &[u32],
         [ac, bc, ag, bg]: [&mut [f32]; 4],
@@ -536,7 +538,7 @@ impl Mlri {
             line_taps(ip, R_COEF, n),
             line_taps(ii, R_COEF, n),
         );
-        let sums = ClassesAlong([tc, tp, ti]);
+        let sums = Classes([tc, tp, ti]);
         let outer = [-5, 5, -6, 6].map(|k| shifted(c, R_COEF, k, n));
         let coef = lb.coef.each_mut().map(|p| cols_mut(p, R_COEF));
         self.line_coefficients(sums, outer, &m[R_COEF..][..n], coef);
@@ -545,7 +547,7 @@ impl Mlri {
         let [t0, t1, t2, t3] = &lb.coef;
         let (t0, t1) = (line_taps(t0, r, n), line_taps(t1, r, n));
         let (t2, t3) = (line_taps(t2, r, n), line_taps(t3, r, n));
-        let mean = BoxesAlong([t0, t1, t2, t3]);
+        let mean = Boxes([t0, t1, t2, t3]);
         let (res, part) = (cols_mut(&mut lb.res, r), cols_mut(&mut lb.part, r));
         line_residuals(
             mean,
@@ -593,7 +595,7 @@ impl Mlri {
         let n = m.len();
         let [q0, q1, q2] = &v.pairs;
         let [p0, p1] = &v.prod;
-        let sums = ClassesAcross([
+        let sums = Classes([
             pair_taps(cols(c.row(ty), V_COLS), across(q0, ty, V_COLS), n),
             pair_taps(cols(p0.row(ty), V_COLS), across(q1, ty, V_COLS), n),
             pair_taps(cols(p1.row(ty), V_COLS), across(q2, ty, V_COLS), n),
@@ -608,7 +610,7 @@ impl Mlri {
         let n = m.len();
         let [a0, a1, a2, a3] = &v.coef;
         let [f0, f1, f2, f3] = &v.quads;
-        let mean = BoxesAcross([
+        let mean = Boxes([
             quad_taps(across(a0, ty, V_COLS), across(f0, ty, V_COLS), n),
             quad_taps(across(a1, ty, V_COLS), across(f1, ty, V_COLS), n),
             quad_taps(across(a2, ty, V_COLS), across(f2, ty, V_COLS), n),
@@ -762,7 +764,7 @@ impl Mlri {
             line_taps(v2, SQUARE_RADIUS, n),
             line_taps(v3, SQUARE_RADIUS, n),
         );
-        let sums = ClassesAlong([v0, v1, v2, v3]);
+        let sums = Classes([v0, v1, v2, v3]);
         let [ar, br, ab, bb] = x
             .coef
             .each_mut()
@@ -781,7 +783,7 @@ impl Mlri {
     #[inline(always)]
     fn chroma_coefficient_row(
         &self,
-        sums: &ClassesAlong<'_, STATS>,
+        sums: &Classes<&[f32], STATS>,
         m: &[u32],
         ao: &mut [f32],
         bo: &mut [f32],
@@ -847,7 +849,7 @@ impl Mlri {
             // sites when the row is of its kind.
             let sampled = if (k == 1) == blue_row { u32::MAX } else { 0 };
             let (a, b) = (&vsum[2 * k], &vsum[2 * k + 1]);
-            let mean = BoxesAlong([
+            let mean = Boxes([
                 line_taps(a, SQUARE_RADIUS, n),
                 line_taps(b, SQUARE_RADIUS, n),
             ]);
