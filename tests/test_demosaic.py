@@ -158,10 +158,10 @@ def test_methods_commute_with_the_flips_between_phases(raw, p, method, vertical,
 
 @pytest.mark.parametrize("method", CLAMPED)
 def test_tile_seams_do_not_show(method):
-    # The multi-stage methods work in tiles of 384 columns counted from the
-    # left; flipping a wide mosaic moves every seam, so equal results mean
-    # the seams leave no trace.
-    raw = random_raw(3, 30, 1001, np.uint16)
+    # The multi-stage methods work in tiles of 384 columns (mlri 2048)
+    # counted from the left; flipping a wide mosaic moves every seam, so
+    # equal results mean the seams leave no trace.
+    raw = random_raw(3, 30, 2101, np.uint16)
     q = flipped_pattern("GRBG", raw.shape, False, True)
     flipped_first = ig.demosaic(np.ascontiguousarray(raw[:, ::-1]), q, method)
     np.testing.assert_array_equal(flipped_first, ig.demosaic(raw, "GRBG", method)[:, ::-1])

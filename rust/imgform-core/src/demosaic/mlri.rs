@@ -44,7 +44,7 @@
 //! out of memory. A tile streams down its rows: each stage computes one row
 //! per step, as many rows behind the raw data as its reach, and keeps its
 //! output in a [`Ring`] just deep enough for the stages that read it, so
-//! every buffer stays in the core's cache and tiles can be tall (a
+//! every buffer stays in cache (a few MB per tile) and tiles can be tall (a
 //! haloed tile recomputes its 64 halo rows). Columns need no transposes:
 //! across rows, a vertical filter is the same arithmetic, sample by sample,
 //! as a horizontal one along a row, and sums keep the groups of their line
@@ -118,11 +118,15 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 
 /// Output rows per tile, at least (see [`StreamKernel::rows`]): the recomputed halo
 /// rows cost ~12 % where the 128-row tiles of the plane version cost ~50 %.
-/// Output columns per tile: the rings of 832-value rows
-/// (~1 MB) measured faster than those of 448 (best of 5 runs at 24 MP,
-/// 0.59 s of CPU against 0.67 for 256 x 384 tiles).
+/// Output columns per tile: wide tiles recompute fewer halo columns. At
+/// 24 MP on two Zen 2 cores (512 KB of L2 each) 2048 columns beat 768 by
+/// 5-15 % at every quantile of 8 interleaved runs, though their rings (281
+/// rows of 2112 values, ~2.4 MB) no longer fit in L2; likely cause, not
+/// verified: long rows keep the prefetchers ahead. 3072 columns were no
+/// better, whole 6000-column rows worse, and 448 slower than 768 in earlier
+/// runs on Zen 4.
 const ROWS_PER_TILE: usize = 512;
-const COLS_PER_TILE: usize = 768;
+const COLS_PER_TILE: usize = 2048;
 
 pub(super) struct Mlri {
     pub(super) phase: Phase,
