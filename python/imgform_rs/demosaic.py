@@ -59,9 +59,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (75-93 MP/s at 24 MP on two cores in runs of ``benchmarks/demosaic.py`` on
-  2026-11-24 and 25, 3.05-3.12x LibRaw AHD in the same runs; about 1.5x slower than
-  ``"rcd_menon"``).
+  (60-93 MP/s at 24 MP on two cores in runs of ``benchmarks/demosaic.py`` on
+  2026-11-24 and 25, 3.05-3.88x LibRaw AHD in the same runs; about 1.2-1.5x slower
+  than ``"rcd_menon"``).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
   Transactions on Computational Imaging 3(1), 2017: per CFA position and class of
