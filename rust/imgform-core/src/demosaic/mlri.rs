@@ -44,8 +44,8 @@
 //! out of memory. A tile streams down its rows: each stage computes one row
 //! per step, as many rows behind the raw data as its reach, and keeps its
 //! output in a [`Ring`] just deep enough for the stages that read it, so
-//! every buffer stays in cache (a few MB per tile) and tiles can be tall (a
-//! haloed tile recomputes its 64 halo rows). Columns need no transposes:
+//! the rings stay small (~2.4 MB a thread) whatever the tile's height, and
+//! tiles can be tall (a haloed tile recomputes its 64 halo rows). Columns need no transposes:
 //! across rows, a vertical filter is the same arithmetic, sample by sample,
 //! as a horizontal one along a row, and sums keep the groups of their line
 //! versions ([`class_sums_across_at`]), so the green stage's columns give the
