@@ -40,6 +40,28 @@ def measure(name: str, fn: Callable[[], object], repeat: int = 5) -> Timing:
     return Timing(name, min(times), statistics.median(times))
 
 
+def measure_rounds(calls: dict[str, tuple[Callable[[], object], int]]) -> dict[str, Timing]:
+    """Times each call `repeat` times, like `measure`, but in rounds: round
+    k runs every call that still has a run due, one after the other. On a
+    VM whose speed drifts by tens of percent within minutes, timing each
+    call in one block lets the drift land on a single call and skew its
+    ratio to the others; rounds spread it over all of them."""
+    for fn, _ in calls.values():
+        fn()
+    times: dict[str, list[float]] = {name: [] for name in calls}
+    gc.disable()
+    try:
+        for k in range(max(repeat for _, repeat in calls.values())):
+            for name, (fn, repeat) in calls.items():
+                if k < repeat:
+                    start = time.perf_counter()
+                    fn()
+                    times[name].append(time.perf_counter() - start)
+    finally:
+        gc.enable()
+    return {name: Timing(name, min(t), statistics.median(t)) for name, t in times.items()}
+
+
 def table(headers: list[str], rows: list[list[str]]) -> str:
     """A Markdown table, columns padded for reading in a terminal too."""
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(headers)]

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _bench import measure, table
+from _bench import measure, measure_rounds, table
 
 import imgform_rs as ig
 from imgform_rs.dng import write_dng
@@ -134,15 +134,13 @@ def speed_mosaic(pattern: str = "RGGB") -> np.ndarray:
 
 def speed(tmp: Path) -> None:
     raw = speed_mosaic()
-    rows: list[list[str]] = []
-    results: dict[str, float] = {}
+    calls: dict[str, tuple[Callable[[], object], int]] = {}
+    meta: dict[str, tuple[float, str]] = {}
+    handles = []
 
     def add(name: str, fn: Callable[[], object], mp: float, repeat: int, note: str = ""):
-        t = measure(name, fn, repeat=repeat)
-        results[name] = t.best
-        ms = [f"{t.best * 1e3:.1f}", f"{t.median * 1e3:.1f}"]
-        rows.append([name, *ms, f"{mp / t.best:.0f}", note])
-        return t
+        calls[name] = (fn, repeat)
+        meta[name] = (mp, note)
 
     for m in ig.BAYER_DEMOSAIC_METHODS:
         add(f"ours {m}", lambda m=m: ig.demosaic(raw, "RGGB", m), MP, 7)
@@ -168,10 +166,10 @@ def speed(tmp: Path) -> None:
             handle, develop = libraw_develop(path, algo)
             if develop is None:
                 continue
+            handles.append(handle)
             # As many runs as ours get (nearly): best of 2 would favour us
             # on this VM, whose speed swings between runs.
             add(f"LibRaw {algo}", develop, MP, 5, "postprocess, file decoded")
-            handle.close()
     if cd is not None:
         crop = raw[: CROP[0], : CROP[1]].astype(np.float64) / (2**14 - 1)
         mp = crop.size / 1e6
@@ -182,8 +180,18 @@ def speed(tmp: Path) -> None:
         ]:
             reps = 1 if name == "Menon2007" else 2
             add(f"colour {name}", lambda fn=fn: fn(crop, "RGGB"), mp, reps, "1 MP crop, scaled")
+    # Interleaved rounds, so that the VM's drift cannot favour ours or a peer.
+    timings = measure_rounds(calls)
+    for handle in handles:
+        handle.close()
+    results = {name: t.best for name, t in timings.items()}
+    rows = []
+    for name, t in timings.items():
+        mp, note = meta[name]
+        ms = [f"{t.best * 1e3:.1f}", f"{t.median * 1e3:.1f}"]
+        rows.append([name, *ms, f"{mp / t.best:.0f}", note])
     print(f"\n## Speed: {W}x{H} ({MP:.0f} MP) uint16 RGGB, {os.cpu_count()} cores")
-    print("best of N; MP/s at the best time\n")
+    print("best of N, timed in interleaved rounds; MP/s at the best time\n")
     print(table(["method", "best ms", "median ms", "MP/s", "note"], rows))
     ratios = []
     for ours in ig.BAYER_DEMOSAIC_METHODS:
