@@ -27,21 +27,12 @@ class Timing:
 
 
 def measure(name: str, fn: Callable[[], object], repeat: int = 5) -> Timing:
-    fn()
-    times = []
-    gc.disable()
-    try:
-        for _ in range(repeat):
-            start = time.perf_counter()
-            fn()
-            times.append(time.perf_counter() - start)
-    finally:
-        gc.enable()
-    return Timing(name, min(times), statistics.median(times))
+    """One call, timed `repeat` times after a warm-up run."""
+    return measure_rounds({name: (fn, repeat)})[name]
 
 
 def measure_rounds(calls: dict[str, tuple[Callable[[], object], int]]) -> dict[str, Timing]:
-    """Times each call `repeat` times, like `measure`, but in rounds: round
+    """Times each call `repeat` times after a warm-up run, in rounds: round
     k runs every call that still has a run due, one after the other. On a
     VM whose speed drifts by tens of percent within minutes, timing each
     call in one block lets the drift land on a single call and skew its
