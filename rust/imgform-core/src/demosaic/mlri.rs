@@ -45,20 +45,21 @@
 //! per step, as many rows behind the raw data as its reach, and keeps its
 //! output in a [`Ring`] just deep enough for the stages that read it, so
 //! the rings stay small (~2.4 MB a thread) whatever the tile's height, and
-//! tiles can be tall (a haloed tile recomputes its 64 halo rows). Columns need no transposes:
-//! across rows, a vertical filter is the same arithmetic, sample by sample,
-//! as a horizontal one along a row, and sums keep the groups of their line
-//! versions ([`class_sums_across_at`]), so the green stage's columns give the
-//! bits of a line-by-line run. Those groups, pair and quadruple sums of
-//! rows, are rings of their own, each row summed once for all the windows
-//! that hold it (7 % fewer instructions than summing 11 rows per window);
-//! the green stage's loops that need the window sums add the groups
-//! themselves ([`ClassTaps`], [`BoxTaps`]). Along a row there are
-//! no groups: the row is in the first-level cache, so the loop that needs
-//! a window's sums reads its 11 samples ([`class_sums_at`],
-//! [`all_sums_at`]) rather than a pass storing partial sums first; what
-//! the compiler must see for such loops to vectorise is said where they
-//! are built ([`ClassTaps`]).
+//! tiles can be tall (a haloed tile recomputes its 64 halo rows). Columns
+//! need no transposes: across rows, a vertical filter is the same
+//! arithmetic, sample by sample, as a horizontal one along a row, and sums
+//! keep the groups of their line versions ([`class_sums_across_at`]), so
+//! the green stage's columns give the bits of a line-by-line run (running
+//! the row code on transposed 8-column strips gave those bits 25-40 %
+//! slower). Those groups, pair and quadruple sums of rows, are rings of
+//! their own, each row summed once for all the windows that hold it (7 %
+//! fewer instructions than summing 11 rows per window); the green stage's
+//! loops that need the window sums add the groups themselves
+//! ([`ClassTaps`], [`BoxTaps`]). Along a row there are no groups: the row
+//! is in the first-level cache, so the loop that needs a window's sums
+//! reads its 11 samples ([`class_sums_at`], [`all_sums_at`]) rather than a
+//! pass storing partial sums first; what the compiler must see for such
+//! loops to vectorise is said where they are built ([`ClassTaps`]).
 
 use super::boxsum::{
     all_sums_across, all_sums_across_at, all_sums_at, class_sum_across_by_column,
