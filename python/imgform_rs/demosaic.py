@@ -60,7 +60,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
   (55-93 MP/s at 24 MP on two cores in runs of ``benchmarks/demosaic.py`` on
-  2026-11-24 and 25, 3.05-3.88x LibRaw AHD in the same runs; about 1.2-1.5x slower
+  2026-11-24 to 26, 2.9-3.9x LibRaw AHD in the same runs; about 1.2-1.5x slower
   than ``"rcd_menon"``).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
@@ -77,17 +77,18 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   40.04 dB against its base's 39.63 (astronaut 37.70, coffee 36.38, chelsea 41.82,
   rocket 33.12, immunohistochemistry 42.71, retina 52.52, motorcycle_left 36.04), and
   above its base on the held-out photographs too; 59-82 MP/s at 24 MP on two cores
-  in three runs of ``benchmarks/demosaic.py``.
+  in runs of ``benchmarks/demosaic.py`` on 2026-11-23 to 26.
   It is the most accurate method here but not ``"best"``, which must keep 100 MP/s.
-- ``"best"``: our highest-quality method at 100 MP/s or more, currently
+- ``"best"``: our highest-quality method meant to keep 100 MP/s, currently
   ``"rcd_menon"`` (``"raisr"`` is 0.4 dB better at half the speed). Mean CPSNR on
   the seven scikit-image images of ``benchmarks/demosaic.py`` (8-bit protocol,
   RGGB, 10 px crop): 39.63 dB, against ``"menon2007"`` 38.76, ``"rcd"`` 38.68 and the
   best peers LibRaw AAHD 38.78, colour-demosaicing Menon2007 38.76, LibRaw AHD 38.27.
   Per image: astronaut 37.01, coffee 35.09, chelsea 41.31, rocket 33.16,
   immunohistochemistry 42.61, retina 52.36, motorcycle_left 35.86. Speed on a 24 MP uint16
-  mosaic, 2 cores: 105-142 MP/s in three runs of ``benchmarks/demosaic.py`` (AVX-512
-  where the CPU has it), 4.7-4.9x LibRaw AHD in the same runs.
+  mosaic, 2 cores: 88-142 MP/s in runs of ``benchmarks/demosaic.py`` on 2026-11-23
+  to 26 (AVX-512 where the CPU has it; under 100 only on the slowest VM), 3.7-4.9x
+  LibRaw AHD in the same runs (119 MP/s and 4.15x in the latest).
   Zone-plate false colour is about twice Menon's alone (RCD's share), still below
   LibRaw AHD's.
 
