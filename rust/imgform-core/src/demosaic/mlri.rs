@@ -45,7 +45,10 @@
 //! per step, as many rows behind the raw data as its reach, and keeps its
 //! output in a [`Ring`] just deep enough for the stages that read it, so
 //! the rings stay small (~2.4 MB a thread) whatever the tile's height, and
-//! tiles can be tall (a haloed tile recomputes its 64 halo rows). Columns
+//! tiles can be tall (a haloed tile recomputes its 64 halo rows). The
+//! green stage's vertical pass alone sweeps the tile first, leaving one
+//! plane of its colour difference ([`Mlri::columns_pass`]): that was
+//! faster than running its stages in the same steps as the rest. Columns
 //! need no transposes: across rows, a vertical filter is the same
 //! arithmetic, sample by sample, as a horizontal one along a row, and sums
 //! keep the groups of their line versions ([`class_sums_across_at`]), so
@@ -111,6 +114,25 @@ const QUADS: usize = R_COEF + 3;
 const RB_PAIRS: usize = R_RB_LAPLACE + 2;
 const RB_QUADS: usize = R_RB_COEF + 3;
 
+/// Step `j` of a sweep down a tile, one row of raw data further each step.
+#[derive(Clone, Copy)]
+struct Step(usize);
+
+impl Step {
+    /// The row a stage computes at this step, `lag` rows behind the raw
+    /// data, if it is one of its rows (from `first` on).
+    #[inline(always)]
+    fn due_from(self, lag: usize, first: usize) -> Option<usize> {
+        self.0.checked_sub(lag).filter(|&ty| ty >= first)
+    }
+
+    /// [`Step::due_from`] for a stage of reach `r`, which lags `r` rows.
+    #[inline(always)]
+    fn due(self, r: usize) -> Option<usize> {
+        self.due_from(r, r)
+    }
+}
+
 /// Ring depth for a stage computing row `j - from` at step `j` whose last
 /// reader computes row `j - to`, reading `back` rows above it.
 const fn depth(from: usize, to: usize, back: usize) -> usize {
@@ -128,6 +150,10 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 /// runs on Zen 4.
 const ROWS_PER_TILE: usize = 512;
 const COLS_PER_TILE: usize = 2048;
+/// Output rows per tile, at most: the vertical green pass keeps a whole
+/// tile plane ([`Mlri::columns_pass`]), so this bounds its memory (17 MB a
+/// thread) on tall mosaics, at 3 % of rows recomputed as halo.
+const MAX_ROWS_PER_TILE: usize = 2048;
 
 pub(super) struct Mlri {
     pub(super) phase: Phase,
@@ -642,6 +668,49 @@ impl Mlri {
             cols_mut(out, V_COLS),
         );
     }
+
+    /// The vertical pass of step 1 down the whole tile, into the plane
+    /// `combine.dif[1]` that the stream then reads. A sweep of its own:
+    /// at 24 MP on two threads it took 8-15 % less time than the same
+    /// stages inside the stream's steps (interleaved runs, Intel VM, same
+    /// bits), where splitting the stream further (a green plane, then red
+    /// and blue) gained nothing more, and 64-column strips of this sweep
+    /// (rings in the first-level cache) were slower. Likely cause, not
+    /// verified: a step touching fewer rings keeps more of them in cache.
+    #[inline(always)]
+    fn columns_pass(&self, st: &mut State, t: &Tile, c: &Plane) {
+        let State {
+            columns: v,
+            combine: cb,
+            masks,
+            ..
+        } = st;
+        let mask = |ty: usize| self.mask(masks, t, ty, V_COLS);
+        for j in (0..t.rows).map(Step) {
+            if let Some(ty) = j.due(R_GUIDE) {
+                self.columns_guide(v, c, ty);
+            }
+            if let Some(ty) = j.due(R_LAPLACE) {
+                self.columns_products(v, c, ty);
+            }
+            if let Some(ty) = j.due_from(PAIRS, R_LAPLACE) {
+                let sources: [&dyn Rows; SUMMED] = [c, &v.prod[0], &v.prod[1]];
+                pair_rows(sources, &mut v.pairs, ty, V_COLS);
+            }
+            if let Some(ty) = j.due(R_COEF) {
+                self.columns_coefficients(v, c, mask(ty), ty);
+            }
+            if let Some(ty) = j.due_from(QUADS, R_COEF) {
+                quad_rows(&v.coef, &mut v.quads, ty, V_COLS);
+            }
+            if let Some(ty) = j.due(R_MEAN) {
+                self.columns_residuals(v, c, mask(ty), ty);
+            }
+            if let Some(ty) = j.due(R_DIF) {
+                self.columns_difference(v, c, mask(ty), ty, cb.dif[1].row_mut(ty));
+            }
+        }
+    }
 }
 
 impl Mlri {
@@ -960,18 +1029,19 @@ impl StreamKernel for Mlri {
     /// most 64-byte loads straddle two cache lines.
     const AVX512: bool = false;
 
-    /// Its memory hardly grows with the tile's height (only the raw plane
-    /// does), so tiles are as tall as two per thread allow: at 24 MP on two
+    /// Its memory grows little with the tile's height (the raw plane and
+    /// the vertical difference do), so tiles are as tall as two per thread
+    /// allow, up to [`MAX_ROWS_PER_TILE`]: at 24 MP on two
     /// threads, 1000-row tiles recompute 6 % of their rows as halo where
     /// 512-row ones recompute 12 %.
     fn rows(height: usize, threads: usize) -> usize {
         height
             .div_ceil(2 * threads)
             .next_multiple_of(2)
-            .max(ROWS_PER_TILE)
+            .clamp(ROWS_PER_TILE, MAX_ROWS_PER_TILE)
     }
 
-    fn state(&self, stride: usize, _rows: usize) -> State {
+    fn state(&self, stride: usize, rows: usize) -> State {
         let row = || vec![0.0f32; stride];
         let ring = |from, to, back| Ring::new(stride, depth(from, to, back));
         let two = |from, to, back| [ring(from, to, back), ring(from, to, back)];
@@ -994,7 +1064,8 @@ impl StreamKernel for Mlri {
                 part: ring(R_MEAN, R_DIF, 0),
             },
             combine: Combine {
-                dif: two(R_DIF, R_GREEN, 4),
+                // The vertical difference is a plane: a ring as deep as the tile.
+                dif: [ring(R_DIF, R_GREEN, 4), Ring::new(stride, rows)],
                 grad: two(R_GRAD, R_WEIGHT, 1),
                 weight: two(R_WEIGHT, R_GREEN, 1),
                 tmp: row(),
@@ -1023,75 +1094,50 @@ impl StreamKernel for Mlri {
             stride: t.stride,
         };
         st.fit(t.stride);
-        for j in 0..t.rows {
-            // The row a stage computes at step `j`, `lag` rows behind the
-            // raw data, if it is one of its rows (from `first` on).
-            let due_from = |lag: usize, first: usize| j.checked_sub(lag).filter(|&ty| ty >= first);
-            // A stage of reach `r` lags `r` rows.
-            let due = |r: usize| due_from(r, r);
+        self.columns_pass(st, t, &c);
+        for j in (0..t.rows).map(Step) {
             let State {
                 line,
-                columns: v,
                 combine: cb,
                 green,
                 chroma: x,
                 masks,
+                ..
             } = st;
             let mask = |ty: usize, r: usize| self.mask(masks, t, ty, r);
-            if let Some(ty) = due(R_GUIDE) {
-                self.columns_guide(v, &c, ty);
+            if let Some(ty) = j.due(R_DIF) {
+                self.green_row(line, c.row(ty), mask(ty, 0), cb.dif[0].row_mut(ty));
             }
-            if let Some(ty) = due(R_LAPLACE) {
-                self.columns_products(v, &c, ty);
-            }
-            if let Some(ty) = due_from(PAIRS, R_LAPLACE) {
-                let sources: [&dyn Rows; SUMMED] = [&c, &v.prod[0], &v.prod[1]];
-                pair_rows(sources, &mut v.pairs, ty, V_COLS);
-            }
-            if let Some(ty) = due(R_COEF) {
-                self.columns_coefficients(v, &c, mask(ty, V_COLS), ty);
-            }
-            if let Some(ty) = due_from(QUADS, R_COEF) {
-                quad_rows(&v.coef, &mut v.quads, ty, V_COLS);
-            }
-            if let Some(ty) = due(R_MEAN) {
-                self.columns_residuals(v, &c, mask(ty, V_COLS), ty);
-            }
-            if let Some(ty) = due(R_DIF) {
-                let [dh, dv] = &mut cb.dif;
-                self.green_row(line, c.row(ty), mask(ty, 0), dh.row_mut(ty));
-                self.columns_difference(v, &c, mask(ty, V_COLS), ty, dv.row_mut(ty));
-            }
-            if let Some(ty) = due(R_GRAD) {
+            if let Some(ty) = j.due(R_GRAD) {
                 self.gradients(cb, ty);
             }
-            if let Some(ty) = due(R_WEIGHT) {
+            if let Some(ty) = j.due(R_WEIGHT) {
                 self.weights(cb, ty);
             }
-            if let Some(ty) = due(R_GREEN) {
+            if let Some(ty) = j.due(R_GREEN) {
                 let out = cols_mut(green.row_mut(ty), R_GREEN);
                 self.green(cb, &c, mask(ty, R_GREEN), ty, out);
             }
-            if let Some(ty) = due(R_RB_LAPLACE) {
+            if let Some(ty) = j.due(R_RB_LAPLACE) {
                 self.chroma_products(x, green, &c, ty);
             }
-            if let Some(ty) = due_from(RB_PAIRS, R_RB_LAPLACE) {
+            if let Some(ty) = j.due_from(RB_PAIRS, R_RB_LAPLACE) {
                 let sources: [&dyn Rows; STATS] = [green, &c, &x.prod[0], &x.prod[1]];
                 pair_rows(sources, &mut x.pairs, ty, R_RB_LAPLACE);
             }
             let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
-            if let Some(ty) = due(R_RB_COEF) {
+            if let Some(ty) = j.due(R_RB_COEF) {
                 self.chroma_sums(x, green, &c, mask(ty, R_RB_LAPLACE), ty);
                 self.chroma_coefficients(x, mask(ty, R_RB_COEF), blue_row(ty), ty);
             }
-            if let Some(ty) = due_from(RB_QUADS, R_RB_COEF) {
+            if let Some(ty) = j.due_from(RB_QUADS, R_RB_COEF) {
                 quad_rows(&x.coef, &mut x.quads, ty, R_RB_COEF);
             }
-            if let Some(ty) = due(R_RB_MEAN) {
+            if let Some(ty) = j.due(R_RB_MEAN) {
                 self.chroma_residuals(x, green, &c, mask(ty, R_RB_MEAN), blue_row(ty), ty);
             }
             let emitted = Self::HALO..t.rows - Self::HALO;
-            if let Some(ty) = due(R_OUT).filter(|ty| emitted.contains(ty)) {
+            if let Some(ty) = j.due(R_OUT).filter(|ty| emitted.contains(ty)) {
                 self.chroma_output(x, &c, mask(ty, R_OUT), blue_row(ty), ty);
                 out.emit(ty, [&x.own, green.row(ty), &x.other]);
             }
