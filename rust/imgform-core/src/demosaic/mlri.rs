@@ -44,7 +44,7 @@
 //! out of memory. A tile streams down its rows: each stage computes one row
 //! per step, as many rows behind the raw data as its reach, and keeps its
 //! output in a [`Ring`] just deep enough for the stages that read it, so
-//! the rings stay small (~2.4 MB a thread) whatever the tile's height, and
+//! the rings stay small (~1.2 MB a thread) whatever the tile's height, and
 //! tiles can be tall (a haloed tile recomputes its 64 halo rows). The
 //! green stage's vertical pass alone sweeps the tile first, leaving one
 //! plane of its colour difference ([`Mlri::columns_pass`]): that was
@@ -103,10 +103,12 @@ const R_RB_MEAN: usize = R_RB_COEF + SQUARE_RADIUS;
 const R_OUT: usize = R_RB_MEAN + 1;
 /// First column of the vertical pass of step 1. Its filters are
 /// column-local, so it may start anywhere left of the columns later stages
-/// read of it (`R_GRAD` on); a multiple of 8 puts its 32-byte loads on
-/// 32-byte boundaries of rows that start on 64-byte ones ([`Ring`]), and
-/// loads that straddle two cache lines cost two.
-const V_COLS: usize = 8;
+/// read of it (`R_GRAD` on). Column 0 puts its vector loads on the
+/// 64-byte boundaries its rows start on ([`Ring`]); a load that straddles
+/// two cache lines costs two. Against column 8 (32-byte boundaries) that
+/// made the AVX-512 copy 5-8 % faster on two Intel cores and the AVX2 one
+/// no slower (interleaved runs, 24 MP).
+const V_COLS: usize = 0;
 /// Lags of the pair and quadruple sums across rows: they need rows 2 and 3
 /// further down than the row they are for.
 const PAIRS: usize = R_LAPLACE + 2;
@@ -141,17 +143,17 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 
 /// Output rows per tile, at least (see [`StreamKernel::rows`]): the recomputed halo
 /// rows cost ~12 % where the 128-row tiles of the plane version cost ~50 %.
-/// Output columns per tile: wide tiles recompute fewer halo columns. At
-/// 24 MP on two Zen 2 cores (512 KB of L2 each) 2048 columns beat 768 by
-/// 5-15 % at every quantile of 8 interleaved runs, though their rings (281
-/// rows of 2112 values, ~2.4 MB) no longer fit in L2; likely cause, not
-/// verified: long rows keep the prefetchers ahead. 3072 columns were no
-/// better, whole 6000-column rows worse, and 448 slower than 768 in earlier
-/// runs on Zen 4.
+/// Output columns per tile: wide tiles recompute fewer halo columns. When
+/// all stages ran in one stream, 2048 columns beat 768 by 5-15 % at 24 MP
+/// on two Zen 2 cores (512 KB of L2 each), though their rings (281 rows of
+/// 2112 values, ~2.4 MB) no longer fit in L2. Since the vertical pass has
+/// its own sweep ([`Mlri::columns_pass`]), 1024 and 1536 columns beat 2048
+/// by about 6 % on two Intel cores (2 MB of L2 each; three interleaved
+/// rounds of 7 runs), 512 and 768 lost to 1024 by 2-5 %, and 3072 by 15 %.
 const ROWS_PER_TILE: usize = 512;
-const COLS_PER_TILE: usize = 2048;
+const COLS_PER_TILE: usize = 1024;
 /// Output rows per tile, at most: the vertical green pass keeps a whole
-/// tile plane ([`Mlri::columns_pass`]), so this bounds its memory (17 MB a
+/// tile plane ([`Mlri::columns_pass`]), so this bounds its memory (9 MB a
 /// thread) on tall mosaics, at 3 % of rows recomputed as halo.
 const MAX_ROWS_PER_TILE: usize = 2048;
 
@@ -1023,11 +1025,12 @@ impl StreamKernel for Mlri {
     const HALO: usize = R_OUT + R_OUT % 2;
     const ROWS: usize = ROWS_PER_TILE;
     const COLS: usize = COLS_PER_TILE;
-    /// Its AVX-512 copy ran 3-4 % slower than the AVX2 one at 24 MP on two
-    /// Zen 4 cores (interleaved runs, with 512- and with 1000-row tiles).
-    /// Likely cause, not verified: its rings are read at every offset, so
-    /// most 64-byte loads straddle two cache lines.
-    const AVX512: bool = false;
+    /// Its AVX-512 copy runs 4-10 % faster than the AVX2 one at 24 MP on
+    /// two Intel cores (interleaved runs), with the vertical pass in its
+    /// own sweep from column 0 on 1024-column tiles. Before those changes
+    /// it ran 3-4 % slower on two Zen 4 cores, where AVX-512 splits each
+    /// 64-byte operation in two; not measured there since.
+    const AVX512: bool = true;
 
     /// Its memory grows little with the tile's height (the raw plane and
     /// the vertical difference do), so tiles are as tall as two per thread
