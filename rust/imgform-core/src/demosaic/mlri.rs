@@ -1046,9 +1046,14 @@ impl StreamKernel for Mlri {
 
     fn state(&self, stride: usize, rows: usize) -> State {
         let row = || vec![0.0f32; stride];
-        let ring = |from, to, back| Ring::new(stride, depth(from, to, back));
-        let two = |from, to, back| [ring(from, to, back), ring(from, to, back)];
-        let rings = |from, to, back| [0; 4].map(|_| ring(from, to, back));
+        // Rings of a stage computing row `j - from`, read until row `j -
+        // to` (`back` rows above), with their column `col` on cache lines:
+        // the column most of their loads start from, chosen so that the
+        // loads across rows of the window sums do not straddle two lines
+        // (AVX-512: 4-6 % less time at 24 MP on two Intel cores, same bits).
+        let ring = |from, to, back, col| Ring::new_at(stride, depth(from, to, back), col);
+        let two = |from, to, back, col| [0; 2].map(|_| ring(from, to, back, col));
+        let rings = |from, to, back, col| [0; 4].map(|_| ring(from, to, back, col));
         State {
             line: Line {
                 guide: row(),
@@ -1058,31 +1063,31 @@ impl StreamKernel for Mlri {
                 part: row(),
             },
             columns: Columns {
-                guide: ring(R_GUIDE, R_MEAN, 0),
-                prod: two(R_LAPLACE, R_COEF, 0),
-                pairs: [0; SUMMED].map(|_| ring(PAIRS, R_COEF, LINE_RADIUS)),
-                coef: rings(R_COEF, R_MEAN, 1),
-                quads: rings(QUADS, R_MEAN, LINE_RADIUS),
-                res: ring(R_MEAN, R_DIF, 1),
-                part: ring(R_MEAN, R_DIF, 0),
+                guide: ring(R_GUIDE, R_MEAN, 0, V_COLS),
+                prod: two(R_LAPLACE, R_COEF, 0, V_COLS),
+                pairs: [0; SUMMED].map(|_| ring(PAIRS, R_COEF, LINE_RADIUS, V_COLS)),
+                coef: rings(R_COEF, R_MEAN, 1, V_COLS),
+                quads: rings(QUADS, R_MEAN, LINE_RADIUS, V_COLS),
+                res: ring(R_MEAN, R_DIF, 1, V_COLS),
+                part: ring(R_MEAN, R_DIF, 0, V_COLS),
             },
             combine: Combine {
                 // The vertical difference is a plane: a ring as deep as the tile.
-                dif: [ring(R_DIF, R_GREEN, 4), Ring::new(stride, rows)],
-                grad: two(R_GRAD, R_WEIGHT, 1),
-                weight: two(R_WEIGHT, R_GREEN, 1),
+                dif: [ring(R_DIF, R_GREEN, 4, R_GRAD), Ring::new(stride, rows)],
+                grad: two(R_GRAD, R_WEIGHT, 1, R_GRAD),
+                weight: two(R_WEIGHT, R_GREEN, 1, R_GREEN),
                 tmp: row(),
             },
             // Read by the last stage, as the output's green.
-            green: ring(R_GREEN, R_OUT, 0),
+            green: ring(R_GREEN, R_OUT, 0, R_RB_LAPLACE),
             chroma: Chroma {
-                prod: two(R_RB_LAPLACE, R_RB_COEF, 0),
-                pairs: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS),
+                prod: two(R_RB_LAPLACE, R_RB_COEF, 0, R_RB_LAPLACE),
+                pairs: rings(RB_PAIRS, R_RB_COEF, SQUARE_RADIUS, R_RB_LAPLACE),
                 vsum: [0; STATS].map(|_| row()),
-                coef: rings(R_RB_COEF, R_RB_MEAN, 1),
-                quads: rings(RB_QUADS, R_RB_MEAN, SQUARE_RADIUS),
-                res: two(R_RB_MEAN, R_OUT, 1),
-                part: two(R_RB_MEAN, R_OUT, 0),
+                coef: rings(R_RB_COEF, R_RB_MEAN, 1, R_RB_COEF),
+                quads: rings(RB_QUADS, R_RB_MEAN, SQUARE_RADIUS, R_RB_COEF),
+                res: two(R_RB_MEAN, R_OUT, 1, R_RB_MEAN),
+                part: two(R_RB_MEAN, R_OUT, 0, R_RB_MEAN),
                 own: row(),
                 other: row(),
             },

@@ -36,8 +36,17 @@ pub(super) struct Ring {
 
 impl Ring {
     pub(super) fn new(stride: usize, depth: usize) -> Self {
-        let mut data = vec![0.0; stride * depth + ALIGN_PAD];
-        let first = data.len() - cache_aligned(&mut data).len();
+        Self::new_at(stride, depth, 0)
+    }
+
+    /// A ring whose rows have their column `col` on a cache line (all rows
+    /// when `stride` is a multiple of 16): a stage that reads and writes
+    /// its rows from that column on then never has a vector load straddle
+    /// two lines at an aligned offset.
+    pub(super) fn new_at(stride: usize, depth: usize, col: usize) -> Self {
+        let lead = (16 - col % 16) % 16;
+        let mut data = vec![0.0; stride * depth + ALIGN_PAD + lead];
+        let first = data.len() - cache_aligned(&mut data).len() + lead;
         Self {
             data,
             first,
@@ -134,6 +143,17 @@ mod tests {
             let part = cache_aligned(&mut buf[skip..]);
             assert_eq!(part.as_ptr() as usize % 64, 0);
             assert!(part.len() >= 100 - skip);
+        }
+    }
+
+    #[test]
+    fn the_chosen_column_of_every_row_starts_a_cache_line() {
+        for col in [0, 5, 16, 20, 31] {
+            let mut ring = Ring::new_at(64, 4, col);
+            for ty in 0..6 {
+                let at = ring.row_mut(ty)[col..].as_ptr() as usize;
+                assert_eq!(at % 64, 0, "column {col}, row {ty}");
+            }
         }
     }
 
