@@ -59,7 +59,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (103-110 MP/s at 24 MP on two cores in three runs of ``benchmarks/demosaic.py`` on
+  (103-110 MP/s at 24 MP on two cores in four runs of ``benchmarks/demosaic.py`` on
   2026-11-26, 3.6-4.0x LibRaw AHD in the same runs; about 1.0-1.1x slower
   than ``"rcd_menon"``).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,

@@ -46,9 +46,9 @@
 //! output in a [`Ring`] just deep enough for the stages that read it, so
 //! the rings stay small (~1.2 MB a thread) whatever the tile's height, and
 //! tiles can be tall (a haloed tile recomputes its 64 halo rows). The
-//! green stage's vertical pass alone sweeps the tile first, leaving one
-//! plane of its colour difference ([`Mlri::columns_pass`]): that was
-//! faster than running its stages in the same steps as the rest. Columns
+//! green stage's vertical pass runs ahead in blocks of steps of its own
+//! ([`Mlri::columns_pass`]): that was faster than running its stages in
+//! the same steps as the rest. Columns
 //! need no transposes: across rows, a vertical filter is the same
 //! arithmetic, sample by sample, as a horizontal one along a row, and sums
 //! keep the groups of their line versions ([`class_sums_across_at`]), so
@@ -63,6 +63,8 @@
 //! reads its 11 samples ([`class_sums_at`], [`all_sums_at`]) rather than a
 //! pass storing partial sums first; what the compiler must see for such
 //! loops to vectorise is said where they are built ([`ClassTaps`]).
+
+use std::ops::Range;
 
 use super::boxsum::{
     all_sums_across, all_sums_across_at, all_sums_at, class_sum_across_by_column,
@@ -152,10 +154,9 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 /// rounds of 7 runs), 512 and 768 lost to 1024 by 2-5 %, and 3072 by 15 %.
 const ROWS_PER_TILE: usize = 512;
 const COLS_PER_TILE: usize = 1024;
-/// Output rows per tile, at most: the vertical green pass keeps a whole
-/// tile plane ([`Mlri::columns_pass`]), so this bounds its memory (9 MB a
-/// thread) on tall mosaics, at 3 % of rows recomputed as halo.
-const MAX_ROWS_PER_TILE: usize = 2048;
+/// Steps the vertical green pass runs ahead of the other stages
+/// ([`Mlri::columns_pass`]); 16, 64 and 256 ran equally fast.
+const BLOCK: usize = 64;
 
 pub(super) struct Mlri {
     pub(super) phase: Phase,
@@ -671,16 +672,19 @@ impl Mlri {
         );
     }
 
-    /// The vertical pass of step 1 down the whole tile, into the plane
-    /// `combine.dif[1]` that the stream then reads. A sweep of its own:
-    /// at 24 MP on two threads it took 8-15 % less time than the same
-    /// stages inside the stream's steps (interleaved runs, Intel VM, same
-    /// bits), where splitting the stream further (a green plane, then red
-    /// and blue) gained nothing more, and 64-column strips of this sweep
-    /// (rings in the first-level cache) were slower. Likely cause, not
-    /// verified: a step touching fewer rings keeps more of them in cache.
+    /// The vertical pass of step 1 over the block of `steps`, into the
+    /// ring `combine.dif[1]`, which holds a block more rows than its
+    /// readers need: the other stages then run the same steps. Run apart,
+    /// a whole tile at a time, it took 8-15 % less time at 24 MP on two
+    /// threads than the same stages inside the stream's steps (interleaved
+    /// runs, Intel VM, same bits); blocks of 16 to 256 steps ran as fast
+    /// with memory that does not grow with the tile. Splitting the stream
+    /// further (a green plane, then red and blue) gained nothing more, and
+    /// 64-column strips of this pass (rings in the first-level cache) were
+    /// slower. Likely cause, not verified: a step touching fewer rings
+    /// keeps more of them in cache.
     #[inline(always)]
-    fn columns_pass(&self, st: &mut State, t: &Tile, c: &Plane) {
+    fn columns_pass(&self, st: &mut State, t: &Tile, c: &Plane, steps: Range<usize>) {
         let State {
             columns: v,
             combine: cb,
@@ -688,7 +692,7 @@ impl Mlri {
             ..
         } = st;
         let mask = |ty: usize| self.mask(masks, t, ty, V_COLS);
-        for j in (0..t.rows).map(Step) {
+        for j in steps.map(Step) {
             if let Some(ty) = j.due(R_GUIDE) {
                 self.columns_guide(v, c, ty);
             }
@@ -1032,26 +1036,25 @@ impl StreamKernel for Mlri {
     /// 64-byte operation in two; not measured there since.
     const AVX512: bool = true;
 
-    /// Its memory grows little with the tile's height (the raw plane and
-    /// the vertical difference do), so tiles are as tall as two per thread
-    /// allow, up to [`MAX_ROWS_PER_TILE`]: at 24 MP on two
+    /// Its memory hardly grows with the tile's height (only the raw plane
+    /// does), so tiles are as tall as two per thread allow: at 24 MP on two
     /// threads, 1000-row tiles recompute 6 % of their rows as halo where
     /// 512-row ones recompute 12 %.
     fn rows(height: usize, threads: usize) -> usize {
         height
             .div_ceil(2 * threads)
             .next_multiple_of(2)
-            .clamp(ROWS_PER_TILE, MAX_ROWS_PER_TILE)
+            .max(ROWS_PER_TILE)
     }
 
-    fn state(&self, stride: usize, rows: usize) -> State {
+    fn state(&self, stride: usize, _rows: usize) -> State {
         let row = || vec![0.0f32; stride];
         // Rings of a stage computing row `j - from`, read until row `j -
         // to` (`back` rows above), with their column `col` on cache lines:
         // the column most of their loads start from, chosen so that the
         // loads across rows of the window sums do not straddle two lines
         // (AVX-512: 4-6 % less time at 24 MP on two Intel cores, same bits).
-        let ring = |from, to, back, col| Ring::new_at(stride, depth(from, to, back), col);
+        let ring = |from, to, back, col| Ring::new(stride, depth(from, to, back), col);
         let two = |from, to, back, col| [0; 2].map(|_| ring(from, to, back, col));
         let rings = |from, to, back, col| [0; 4].map(|_| ring(from, to, back, col));
         State {
@@ -1072,8 +1075,11 @@ impl StreamKernel for Mlri {
                 part: ring(R_MEAN, R_DIF, 0, V_COLS),
             },
             combine: Combine {
-                // The vertical difference is a plane: a ring as deep as the tile.
-                dif: [ring(R_DIF, R_GREEN, 4, R_GRAD), Ring::new(stride, rows)],
+                // The vertical difference, written a block ahead.
+                dif: [
+                    ring(R_DIF, R_GREEN, 4, R_GRAD),
+                    ring(R_DIF, R_GREEN, 4 + BLOCK, R_GRAD),
+                ],
                 grad: two(R_GRAD, R_WEIGHT, 1, R_GRAD),
                 weight: two(R_WEIGHT, R_GREEN, 1, R_GREEN),
                 tmp: row(),
@@ -1102,53 +1108,66 @@ impl StreamKernel for Mlri {
             stride: t.stride,
         };
         st.fit(t.stride);
-        self.columns_pass(st, t, &c);
-        for j in (0..t.rows).map(Step) {
-            let State {
-                line,
-                combine: cb,
-                green,
-                chroma: x,
-                masks,
-                ..
-            } = st;
-            let mask = |ty: usize, r: usize| self.mask(masks, t, ty, r);
-            if let Some(ty) = j.due(R_DIF) {
-                self.green_row(line, c.row(ty), mask(ty, 0), cb.dif[0].row_mut(ty));
+        for j0 in (0..t.rows).step_by(BLOCK) {
+            let steps = j0..(j0 + BLOCK).min(t.rows);
+            self.columns_pass(st, t, &c, steps.clone());
+            for j in steps.map(Step) {
+                self.stream_step(st, t, &c, j, out);
             }
-            if let Some(ty) = j.due(R_GRAD) {
-                self.gradients(cb, ty);
-            }
-            if let Some(ty) = j.due(R_WEIGHT) {
-                self.weights(cb, ty);
-            }
-            if let Some(ty) = j.due(R_GREEN) {
-                let out = cols_mut(green.row_mut(ty), R_GREEN);
-                self.green(cb, &c, mask(ty, R_GREEN), ty, out);
-            }
-            if let Some(ty) = j.due(R_RB_LAPLACE) {
-                self.chroma_products(x, green, &c, ty);
-            }
-            if let Some(ty) = j.due_from(RB_PAIRS, R_RB_LAPLACE) {
-                let sources: [&dyn Rows; STATS] = [green, &c, &x.prod[0], &x.prod[1]];
-                pair_rows(sources, &mut x.pairs, ty, R_RB_LAPLACE);
-            }
-            let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
-            if let Some(ty) = j.due(R_RB_COEF) {
-                self.chroma_sums(x, green, &c, mask(ty, R_RB_LAPLACE), ty);
-                self.chroma_coefficients(x, mask(ty, R_RB_COEF), blue_row(ty), ty);
-            }
-            if let Some(ty) = j.due_from(RB_QUADS, R_RB_COEF) {
-                quad_rows(&x.coef, &mut x.quads, ty, R_RB_COEF);
-            }
-            if let Some(ty) = j.due(R_RB_MEAN) {
-                self.chroma_residuals(x, green, &c, mask(ty, R_RB_MEAN), blue_row(ty), ty);
-            }
-            let emitted = Self::HALO..t.rows - Self::HALO;
-            if let Some(ty) = j.due(R_OUT).filter(|ty| emitted.contains(ty)) {
-                self.chroma_output(x, &c, mask(ty, R_OUT), blue_row(ty), ty);
-                out.emit(ty, [&x.own, green.row(ty), &x.other]);
-            }
+        }
+    }
+}
+
+impl Mlri {
+    /// Step `j` of every stage after the vertical pass: what
+    /// [`StreamKernel::stream`] runs after [`Mlri::columns_pass`] has run
+    /// the block of steps that holds `j`.
+    #[inline(always)]
+    fn stream_step<E: Emit>(&self, st: &mut State, t: &Tile, c: &Plane, j: Step, out: &mut E) {
+        let State {
+            line,
+            combine: cb,
+            green,
+            chroma: x,
+            masks,
+            ..
+        } = st;
+        let mask = |ty: usize, r: usize| self.mask(masks, t, ty, r);
+        if let Some(ty) = j.due(R_DIF) {
+            self.green_row(line, c.row(ty), mask(ty, 0), cb.dif[0].row_mut(ty));
+        }
+        if let Some(ty) = j.due(R_GRAD) {
+            self.gradients(cb, ty);
+        }
+        if let Some(ty) = j.due(R_WEIGHT) {
+            self.weights(cb, ty);
+        }
+        if let Some(ty) = j.due(R_GREEN) {
+            let out = cols_mut(green.row_mut(ty), R_GREEN);
+            self.green(cb, c, mask(ty, R_GREEN), ty, out);
+        }
+        if let Some(ty) = j.due(R_RB_LAPLACE) {
+            self.chroma_products(x, green, c, ty);
+        }
+        if let Some(ty) = j.due_from(RB_PAIRS, R_RB_LAPLACE) {
+            let sources: [&dyn Rows; STATS] = [green, c, &x.prod[0], &x.prod[1]];
+            pair_rows(sources, &mut x.pairs, ty, R_RB_LAPLACE);
+        }
+        let blue_row = |ty: usize| t.kind(self.phase, ty).blue;
+        if let Some(ty) = j.due(R_RB_COEF) {
+            self.chroma_sums(x, green, c, mask(ty, R_RB_LAPLACE), ty);
+            self.chroma_coefficients(x, mask(ty, R_RB_COEF), blue_row(ty), ty);
+        }
+        if let Some(ty) = j.due_from(RB_QUADS, R_RB_COEF) {
+            quad_rows(&x.coef, &mut x.quads, ty, R_RB_COEF);
+        }
+        if let Some(ty) = j.due(R_RB_MEAN) {
+            self.chroma_residuals(x, green, c, mask(ty, R_RB_MEAN), blue_row(ty), ty);
+        }
+        let emitted = Self::HALO..t.rows - Self::HALO;
+        if let Some(ty) = j.due(R_OUT).filter(|ty| emitted.contains(ty)) {
+            self.chroma_output(x, c, mask(ty, R_OUT), blue_row(ty), ty);
+            out.emit(ty, [&x.own, green.row(ty), &x.other]);
         }
     }
 }

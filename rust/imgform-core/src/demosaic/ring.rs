@@ -35,15 +35,11 @@ pub(super) struct Ring {
 }
 
 impl Ring {
-    pub(super) fn new(stride: usize, depth: usize) -> Self {
-        Self::new_at(stride, depth, 0)
-    }
-
     /// A ring whose rows have their column `col` on a cache line (all rows
     /// when `stride` is a multiple of 16): a stage that reads and writes
     /// its rows from that column on then never has a vector load straddle
     /// two lines at an aligned offset.
-    pub(super) fn new_at(stride: usize, depth: usize, col: usize) -> Self {
+    pub(super) fn new(stride: usize, depth: usize, col: usize) -> Self {
         let lead = (16 - col % 16) % 16;
         let mut data = vec![0.0; stride * depth + ALIGN_PAD + lead];
         let first = data.len() - cache_aligned(&mut data).len() + lead;
@@ -108,7 +104,7 @@ mod tests {
 
     #[test]
     fn a_ring_holds_its_last_rows() {
-        let mut ring = Ring::new(4, 3);
+        let mut ring = Ring::new(4, 3, 0);
         for ty in 0..7 {
             ring.row_mut(ty).fill(ty as f32);
             for back in 0..3.min(ty + 1) {
@@ -125,7 +121,7 @@ mod tests {
     #[should_panic(expected = "row 3 read")]
     #[cfg(debug_assertions)]
     fn reading_a_replaced_row_is_caught_in_debug_builds() {
-        let mut ring = Ring::new(4, 3);
+        let mut ring = Ring::new(4, 3, 0);
         for ty in 0..7 {
             ring.row_mut(ty);
         }
@@ -134,7 +130,7 @@ mod tests {
 
     #[test]
     fn rows_of_a_multiple_of_16_floats_start_on_cache_lines() {
-        let mut ring = Ring::new(48, 5);
+        let mut ring = Ring::new(48, 5, 0);
         for ty in 0..5 {
             assert_eq!(ring.row_mut(ty).as_ptr() as usize % 64, 0, "row {ty}");
         }
@@ -149,7 +145,7 @@ mod tests {
     #[test]
     fn the_chosen_column_of_every_row_starts_a_cache_line() {
         for col in [0, 5, 16, 20, 31] {
-            let mut ring = Ring::new_at(64, 4, col);
+            let mut ring = Ring::new(64, 4, col);
             for ty in 0..6 {
                 let at = ring.row_mut(ty)[col..].as_ptr() as usize;
                 assert_eq!(at % 64, 0, "column {col}, row {ty}");

@@ -14,7 +14,7 @@
 //! A method may instead stream down its tile ([`StreamKernel`]), keeping a
 //! ring of recent rows per stage and handing over each output row as soon
 //! as it is done; its tiles can then be much taller, so fewer halo rows
-//! are recomputed, with memory that grows little with their height.
+//! are recomputed, with memory that does not grow with their height.
 
 use super::ring::{cache_aligned, ALIGN_PAD};
 use super::{Isa, Mosaic, Phase, RgbSink, RowKind};
@@ -104,7 +104,7 @@ pub(crate) trait TileKernel: Sync {
 /// [`run_tiled`] drives. Plane kernels ([`TileKernel`]) are streams whose
 /// rows all come at the end; a method that keeps only rings of recent rows
 /// per stage (MLRI) emits each row as soon as its last stage reaches it,
-/// and can take much taller tiles, since its memory grows little with
+/// and can take much taller tiles, since its memory no longer grows with
 /// their height.
 pub(crate) trait StreamKernel: Sync {
     /// Buffers, made once per rayon worker split.
