@@ -148,8 +148,8 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 /// Output columns per tile: wide tiles recompute fewer halo columns. When
 /// all stages ran in one stream, 2048 columns beat 768 by 5-15 % at 24 MP
 /// on two Zen 2 cores (512 KB of L2 each), though their rings (281 rows of
-/// 2112 values, ~2.4 MB) no longer fit in L2. Since the vertical pass has
-/// its own sweep ([`Mlri::columns_pass`]), 1024 and 1536 columns beat 2048
+/// 2112 values, ~2.4 MB) no longer fit in L2. Since the vertical pass runs
+/// apart ([`Mlri::columns_pass`]), 1024 and 1536 columns beat 2048
 /// by about 6 % on two Intel cores (2 MB of L2 each; three interleaved
 /// rounds of 7 runs), 512 and 768 lost to 1024 by 2-5 %, and 3072 by 15 %.
 const ROWS_PER_TILE: usize = 512;

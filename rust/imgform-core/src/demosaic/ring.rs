@@ -9,15 +9,18 @@ pub(super) trait Rows {
     fn row(&self, ty: usize) -> &[f32];
 }
 
+/// Floats in a cache line (64 bytes).
+const LINE: usize = 16;
+
 /// Floats a buffer needs beyond its length for [`cache_aligned`].
-pub(super) const ALIGN_PAD: usize = 15;
+pub(super) const ALIGN_PAD: usize = LINE - 1;
 
 /// `buf` from its first cache-line (64-byte) boundary on, at most
 /// [`ALIGN_PAD`] floats in. Rows of a multiple of 16 floats then all start
 /// on a line, and 32-byte loads at multiples of 8 floats never straddle two
 /// lines (a straddling load costs two).
 pub(super) fn cache_aligned(buf: &mut [f32]) -> &mut [f32] {
-    let skip = buf.as_ptr().align_offset(64).min(ALIGN_PAD);
+    let skip = buf.as_ptr().align_offset(4 * LINE).min(ALIGN_PAD);
     &mut buf[skip..]
 }
 
@@ -40,7 +43,7 @@ impl Ring {
     /// its rows from that column on then never has a vector load straddle
     /// two lines at an aligned offset.
     pub(super) fn new(stride: usize, depth: usize, col: usize) -> Self {
-        let lead = (16 - col % 16) % 16;
+        let lead = (LINE - col % LINE) % LINE;
         let mut data = vec![0.0; stride * depth + ALIGN_PAD + lead];
         let first = data.len() - cache_aligned(&mut data).len() + lead;
         Self {
