@@ -71,8 +71,8 @@ use super::boxsum::{
     class_sums_across_at, class_sums_at, line_taps, pair_row, pair_taps, quad_row, quad_taps,
     window_sum, window_sum_by, Parity,
 };
-use super::ring::{Plane, Ring, Rows};
-use super::tiled::{Emit, StreamKernel, Tile};
+use super::ring::{Ring, Rows};
+use super::tiled::{Emit, Load, StreamKernel, Tile};
 use super::{chroma_masks, select, shifted, Phase};
 
 /// Radius of the directional guided filters of the green stage.
@@ -248,6 +248,16 @@ struct Chroma {
     /// The output row's own and other chroma.
     own: Vec<f32>,
     other: Vec<f32>,
+}
+
+/// What a thread keeps from tile to tile: the raw rows, loaded a block
+/// of steps ahead into a ring that the last stage reads `R_OUT` rows
+/// behind, and the stages' buffers. A ring rather than a plane of the
+/// whole tile keeps the raw rows in cache (a 1000 x 4000 tile plane is
+/// 16 MB) and lets tiles be as tall as the image.
+pub(super) struct Buffers {
+    raw: Ring,
+    stages: State,
 }
 
 pub(super) struct State {
@@ -606,13 +616,13 @@ impl Mlri {
 /// row `ty` over the columns `V_COLS ..` whose lines step 1 needs.
 impl Mlri {
     #[inline(always)]
-    fn columns_guide(&self, v: &mut Columns, c: &Plane, ty: usize) {
+    fn columns_guide(&self, v: &mut Columns, c: &Ring, ty: usize) {
         let (a, b) = (cols(c.row(ty - 1), V_COLS), cols(c.row(ty + 1), V_COLS));
         midpoints(a, b, cols_mut(v.guide.row_mut(ty), V_COLS));
     }
 
     #[inline(always)]
-    fn columns_products(&self, v: &mut Columns, c: &Plane, ty: usize) {
+    fn columns_products(&self, v: &mut Columns, c: &Ring, ty: usize) {
         let g = |y: usize| cols(v.guide.row(y), V_COLS);
         let s = |y: usize| cols(c.row(y), V_COLS);
         let [ip, ii] = &mut v.prod;
@@ -625,7 +635,7 @@ impl Mlri {
     }
 
     #[inline(always)]
-    fn columns_coefficients(&self, v: &mut Columns, c: &Plane, m: &[u32], ty: usize) {
+    fn columns_coefficients(&self, v: &mut Columns, c: &Ring, m: &[u32], ty: usize) {
         let n = m.len();
         let [q0, q1, q2] = &v.pairs;
         let [p0, p1] = &v.prod;
@@ -640,7 +650,7 @@ impl Mlri {
     }
 
     #[inline(always)]
-    fn columns_residuals(&self, v: &mut Columns, c: &Plane, m: &[u32], ty: usize) {
+    fn columns_residuals(&self, v: &mut Columns, c: &Ring, m: &[u32], ty: usize) {
         let n = m.len();
         let [a0, a1, a2, a3] = &v.coef;
         let [f0, f1, f2, f3] = &v.quads;
@@ -657,7 +667,7 @@ impl Mlri {
     }
 
     #[inline(always)]
-    fn columns_difference(&self, v: &Columns, c: &Plane, m: &[u32], ty: usize, out: &mut [f32]) {
+    fn columns_difference(&self, v: &Columns, c: &Ring, m: &[u32], ty: usize, out: &mut [f32]) {
         let near = (
             cols(v.res.row(ty - 1), V_COLS),
             cols(v.res.row(ty + 1), V_COLS),
@@ -684,7 +694,7 @@ impl Mlri {
     /// slower. Likely cause, not verified: a step touching fewer rings
     /// keeps more of them in cache.
     #[inline(always)]
-    fn columns_pass(&self, st: &mut State, t: &Tile, c: &Plane, steps: Range<usize>) {
+    fn columns_pass(&self, st: &mut State, t: &Tile, c: &Ring, steps: Range<usize>) {
         let State {
             columns: v,
             combine: cb,
@@ -750,7 +760,7 @@ impl Mlri {
     /// Step 2 at tile row `ty`: green from the two directional colour
     /// differences.
     #[inline(always)]
-    fn green(&self, cb: &Combine, c: &Plane, m: &[u32], ty: usize, out: &mut [f32]) {
+    fn green(&self, cb: &Combine, c: &Ring, m: &[u32], ty: usize, out: &mut [f32]) {
         let (r, n) = (R_GREEN, m.len());
         let gauss = half_gaussian();
         let eps = self.weight_eps;
@@ -790,7 +800,7 @@ impl Mlri {
     /// Products of Laplacians over same-class samples (two steps each
     /// way) at tile row `ty`.
     #[inline(always)]
-    fn chroma_products(&self, x: &mut Chroma, green: &Ring, c: &Plane, ty: usize) {
+    fn chroma_products(&self, x: &mut Chroma, green: &Ring, c: &Ring, ty: usize) {
         let r = R_RB_LAPLACE;
         let [ip, ii] = &mut x.prod;
         let (ip, ii) = (cols_mut(ip.row_mut(ty), r), cols_mut(ii.row_mut(ty), r));
@@ -812,7 +822,7 @@ impl Mlri {
     /// [`Self::chroma_coefficients`]), give both at every site, half the
     /// sums of all four parities.
     #[inline(always)]
-    fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Plane, m: &[u32], ty: usize) {
+    fn chroma_sums(&self, x: &mut Chroma, green: &Ring, c: &Ring, m: &[u32], ty: usize) {
         let Chroma {
             prod, pairs, vsum, ..
         } = x;
@@ -900,7 +910,7 @@ impl Mlri {
         &self,
         x: &mut Chroma,
         g: &Ring,
-        c: &Plane,
+        c: &Ring,
         m: &[u32],
         blue_row: bool,
         ty: usize,
@@ -950,7 +960,7 @@ impl Mlri {
     /// plus its residuals interpolated bilinearly (they are zero away from
     /// the class's samples); the row's own samples are kept.
     #[inline(always)]
-    fn chroma_output(&self, x: &mut Chroma, c: &Plane, m: &[u32], blue_row: bool, ty: usize) {
+    fn chroma_output(&self, x: &mut Chroma, c: &Ring, m: &[u32], blue_row: bool, ty: usize) {
         let (own_k, other_k) = if blue_row { (1, 0) } else { (0, 1) };
         let Chroma {
             res,
@@ -1025,7 +1035,7 @@ fn interpolate_residual(part: &Ring, res: &Ring, ty: usize, out: &mut [f32]) {
 }
 
 impl StreamKernel for Mlri {
-    type State = State;
+    type State = Buffers;
     const HALO: usize = R_OUT + R_OUT % 2;
     const ROWS: usize = ROWS_PER_TILE;
     const COLS: usize = COLS_PER_TILE;
@@ -1036,18 +1046,26 @@ impl StreamKernel for Mlri {
     /// 64-byte operation in two; not measured there since.
     const AVX512: bool = true;
 
-    /// Its memory hardly grows with the tile's height (only the raw plane
-    /// does), so tiles are as tall as two per thread allow: at 24 MP on two
-    /// threads, 1000-row tiles recompute 6 % of their rows as halo where
-    /// 512-row ones recompute 12 %.
-    fn rows(height: usize, threads: usize) -> usize {
+    /// Its memory does not grow with the tile's height (the raw rows too
+    /// are a ring, [`Buffers`]), so tiles are as tall as an equal number of
+    /// tiles per thread allows: the threads share the tiles side by side,
+    /// and a mosaic is cut into bands only when the tiles across are not a
+    /// multiple of the threads. At 24 MP on two threads (six tiles across),
+    /// full-height tiles recompute 1.6 % of their rows as halo, where four
+    /// bands of 1000 rows recomputed 6 %: 2-3 % less time with the raw ring
+    /// (interleaved runs, same bits), none with a whole-tile raw plane,
+    /// whose page faults and memory traffic ate the gain.
+    fn rows(height: usize, across: usize, threads: usize) -> usize {
+        let bands = (1..threads)
+            .find(|b| across * b % threads == 0)
+            .unwrap_or(threads);
         height
-            .div_ceil(2 * threads)
+            .div_ceil(bands)
             .next_multiple_of(2)
             .max(ROWS_PER_TILE)
     }
 
-    fn state(&self, stride: usize, _rows: usize) -> State {
+    fn state(&self, stride: usize, _rows: usize) -> Buffers {
         let row = || vec![0.0f32; stride];
         // Rings of a stage computing row `j - from`, read until row `j -
         // to` (`back` rows above), with their column `col` on cache lines:
@@ -1057,7 +1075,7 @@ impl StreamKernel for Mlri {
         let ring = |from, to, back, col| Ring::new(stride, depth(from, to, back), col);
         let two = |from, to, back, col| [0; 2].map(|_| ring(from, to, back, col));
         let rings = |from, to, back, col| [0; 4].map(|_| ring(from, to, back, col));
-        State {
+        let stages = State {
             line: Line {
                 guide: row(),
                 prod: [row(), row()],
@@ -1098,21 +1116,27 @@ impl StreamKernel for Mlri {
                 other: row(),
             },
             masks: chroma_masks(stride),
+        };
+        Buffers {
+            // Read from R_OUT rows behind the step to a block ahead of it.
+            raw: Ring::new(stride, depth(0, R_OUT, 0) + BLOCK, 0),
+            stages,
         }
     }
 
     #[inline(always)]
-    fn stream<E: Emit>(&self, st: &mut State, t: &Tile, raw: &[f32], out: &mut E) {
-        let c = Plane {
-            data: raw,
-            stride: t.stride,
-        };
+    fn stream<E: Emit, L: Load>(&self, bufs: &mut Buffers, t: &Tile, raw: &L, out: &mut E) {
+        let Buffers { raw: c, stages: st } = bufs;
+        c.fit(t.stride);
         st.fit(t.stride);
         for j0 in (0..t.rows).step_by(BLOCK) {
             let steps = j0..(j0 + BLOCK).min(t.rows);
-            self.columns_pass(st, t, &c, steps.clone());
+            for ty in steps.clone() {
+                raw.load(ty, c.row_mut(ty));
+            }
+            self.columns_pass(st, t, c, steps.clone());
             for j in steps.map(Step) {
-                self.stream_step(st, t, &c, j, out);
+                self.stream_step(st, t, c, j, out);
             }
         }
     }
@@ -1123,7 +1147,7 @@ impl Mlri {
     /// [`StreamKernel::stream`] runs after [`Mlri::columns_pass`] has run
     /// the block of steps that holds `j`.
     #[inline(always)]
-    fn stream_step<E: Emit>(&self, st: &mut State, t: &Tile, c: &Plane, j: Step, out: &mut E) {
+    fn stream_step<E: Emit>(&self, st: &mut State, t: &Tile, c: &Ring, j: Step, out: &mut E) {
         let State {
             line,
             combine: cb,
@@ -1181,10 +1205,10 @@ mod tests {
 
     #[test]
     fn tile_heights_do_not_change_the_output() {
-        // 1100 rows make 550-row tiles on one thread and 512-row ones on
-        // two: the seams move, the output must not.
+        // 1100 rows one tile wide make one tile on one thread and two of
+        // 550 rows on two: the seams move, the output must not.
         let (w, h) = (40, 1100);
-        assert_ne!(Mlri::rows(h, 1), Mlri::rows(h, 2));
+        assert_ne!(Mlri::rows(h, 1, 1), Mlri::rows(h, 1, 2));
         let raw: Vec<u16> = (0..w * h).map(|i| ((i * 7919) % 4099) as u16).collect();
         let pattern = CfaPattern::from_name("GBRG").unwrap();
         let run_on = |threads| {

@@ -88,19 +88,6 @@ impl Rows for Ring {
     }
 }
 
-/// A whole tile plane, read as rows.
-pub(super) struct Plane<'a> {
-    pub(super) data: &'a [f32],
-    pub(super) stride: usize,
-}
-
-impl Rows for Plane<'_> {
-    #[inline(always)]
-    fn row(&self, ty: usize) -> &[f32] {
-        &self.data[ty * self.stride..(ty + 1) * self.stride]
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,15 +141,5 @@ mod tests {
                 assert_eq!(at % 64, 0, "column {col}, row {ty}");
             }
         }
-    }
-
-    #[test]
-    fn a_plane_reads_its_rows() {
-        let data: Vec<f32> = (0..12).map(|v| v as f32).collect();
-        let plane = Plane {
-            data: &data,
-            stride: 4,
-        };
-        assert_eq!(plane.row(2), [8.0, 9.0, 10.0, 11.0]);
     }
 }

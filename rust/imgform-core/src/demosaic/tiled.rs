@@ -117,16 +117,25 @@ pub(crate) trait StreamKernel: Sync {
     /// Whether the kernel runs in its AVX-512 copy on CPUs that have it
     /// ([`Isa::Avx512`]), or in its AVX2 one.
     const AVX512: bool = true;
-    /// Output rows per tile of a mosaic `height` tall on `threads`
-    /// threads (even): `ROWS`, for kernels whose memory grows with it.
-    fn rows(_height: usize, _threads: usize) -> usize {
+    /// Output rows per tile of a mosaic `height` tall, `across` tiles
+    /// wide, on `threads` threads (even): `ROWS`, for kernels whose memory
+    /// grows with it.
+    fn rows(_height: usize, _across: usize, _threads: usize) -> usize {
         Self::ROWS
     }
     /// Buffers for tiles `stride` wide and `rows` tall (halo included).
     fn state(&self, stride: usize, rows: usize) -> Self::State;
-    /// Computes the tile from the raw plane `raw`, handing `out` each tile
-    /// row of `HALO .. t.rows - HALO` once, in order.
-    fn stream<E: Emit>(&self, st: &mut Self::State, t: &Tile, raw: &[f32], out: &mut E);
+    /// Computes the tile from its raw rows, which `raw` loads, handing
+    /// `out` each tile row of `HALO .. t.rows - HALO` once, in order.
+    fn stream<E: Emit, L: Load>(&self, st: &mut Self::State, t: &Tile, raw: &L, out: &mut E);
+}
+
+/// Where a [`StreamKernel`] gets its raw rows: a kernel that streams down
+/// its tile loads them as it goes, into a ring that stays in cache,
+/// instead of a whole tile plane loaded first.
+pub(crate) trait Load {
+    /// Tile row `ty` as `f32`, into `dst` (`t.stride` long).
+    fn load(&self, ty: usize, dst: &mut [f32]);
 }
 
 /// Where a [`StreamKernel`] hands its output rows. A trait with an inlined
@@ -139,19 +148,32 @@ pub(crate) trait Emit {
     fn emit(&mut self, ty: usize, rows: [&[f32]; 3]);
 }
 
+/// A [`TileKernel`]'s buffers: the tile's raw plane, and its own.
+pub(crate) struct Planes<S> {
+    raw: Vec<f32>,
+    kernel: S,
+}
+
 impl<K: TileKernel> StreamKernel for K {
-    type State = K::State;
+    type State = Planes<K::State>;
     const HALO: usize = <K as TileKernel>::HALO;
     const ROWS: usize = ROWS_PER_TILE;
     const COLS: usize = COLS_PER_TILE;
 
-    fn state(&self, stride: usize, rows: usize) -> K::State {
-        TileKernel::state(self, stride, stride * rows)
+    fn state(&self, stride: usize, rows: usize) -> Self::State {
+        Planes {
+            raw: vec![0.0f32; stride * rows + ALIGN_PAD],
+            kernel: TileKernel::state(self, stride, stride * rows),
+        }
     }
 
     #[inline(always)]
-    fn stream<E: Emit>(&self, st: &mut K::State, t: &Tile, raw: &[f32], out: &mut E) {
-        let planes = self.run(st, t, raw);
+    fn stream<E: Emit, L: Load>(&self, st: &mut Self::State, t: &Tile, raw: &L, out: &mut E) {
+        let plane = &mut cache_aligned(&mut st.raw)[..t.stride * t.rows];
+        for (ty, row) in plane.chunks_exact_mut(t.stride).enumerate() {
+            raw.load(ty, row);
+        }
+        let planes = self.run(&mut st.kernel, t, plane);
         let halo = <K as TileKernel>::HALO;
         for ty in halo..t.rows - halo {
             out.emit(ty, planes.map(|p| &p[ty * t.stride..(ty + 1) * t.stride]));
@@ -177,7 +199,7 @@ pub(super) fn range<T: Sample>(raw: &ImageView<'_, T>) -> (f32, f32) {
         )
 }
 
-/// Runs `k` over every tile of rows and writes the result through `sink`,
+/// Runs `k` over every tile and writes the result through `sink`,
 /// clamped to the range of `raw` (min and max are exact whatever the
 /// thread count).
 pub(crate) fn run_tiled<M, O, S, K>(raw: &M, phase: Phase, k: &K, isa: Isa, sink: &S, out: &mut [O])
@@ -188,22 +210,21 @@ where
     K: StreamKernel,
 {
     let bounds = raw.range();
-    let w = raw.width();
+    let (w, threads) = (raw.width(), rayon::current_num_threads());
+    let tw = tile_width(w, K::COLS);
+    let band = K::rows(raw.height(), w.div_ceil(tw), threads);
     // One set of planes per rayon worker split, reused from tile to tile:
     // fresh multi-megabyte planes per tile spent a third of the time in
     // page faults. Each stage only reads what earlier stages of the same
     // tile wrote, so leftovers of the previous tile never reach the output
     // (the thread-count tests compare runs with different reuse).
-    let stride = w.min(K::COLS) + 2 * K::HALO;
-    let band = K::rows(raw.height(), rayon::current_num_threads());
+    let stride = tw + 2 * K::HALO;
     let rows = band + 2 * K::HALO;
     let init = || Scratch {
-        plane: vec![0.0f32; stride * rows + ALIGN_PAD],
         state: k.state(stride, rows),
-        clamped: [0, 1, 2].map(|_| vec![0.0f32; K::COLS]),
-        sink: sink.scratch(K::COLS),
+        clamped: [0, 1, 2].map(|_| vec![0.0f32; tw]),
+        sink: sink.scratch(tw),
     };
-    let bands = raw.height().div_ceil(band);
     let ctx = Ctx {
         raw,
         phase,
@@ -211,31 +232,63 @@ where
         sink,
         bounds,
     };
-    out.par_chunks_mut(3 * w * band)
-        // Bands cost the same: a run of them per thread makes rayon call
-        // `init` about once per thread instead of once per split.
-        .with_min_len(bands.div_ceil(2 * rayon::current_num_threads()))
-        .enumerate()
-        .for_each_init(init, |scratch, (i, rows)| {
-            let y0 = i * band;
-            for x0 in (0..w).step_by(K::COLS) {
-                match isa {
-                    Isa::Baseline => tile(&ctx, (x0, y0), scratch, rows),
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
-                    Isa::Avx2 => unsafe { tile_avx2(&ctx, (x0, y0), scratch, rows) },
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `Isa::Avx512` is only made after detecting
-                    // the four AVX-512 subsets `tile_avx512` enables.
-                    Isa::Avx512 if K::AVX512 => unsafe {
-                        tile_avx512(&ctx, (x0, y0), scratch, rows)
-                    },
-                    #[cfg(target_arch = "x86_64")]
-                    // SAFETY: `Isa::Avx512` is only made on CPUs with AVX2.
-                    Isa::Avx512 => unsafe { tile_avx2(&ctx, (x0, y0), scratch, rows) },
-                }
-            }
+    let tasks = tasks(out, w, band, tw);
+    // Tiles cost about the same: a run of them per thread makes rayon call
+    // `init` about once per thread instead of once per split.
+    let run = tasks.len().div_ceil(2 * threads);
+    tasks
+        .into_par_iter()
+        .with_min_len(run)
+        .for_each_init(init, |scratch, mut task| match isa {
+            Isa::Baseline => tile(&ctx, scratch, &mut task),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+            Isa::Avx2 => unsafe { tile_avx2(&ctx, scratch, &mut task) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Isa::Avx512` is only made after detecting the four
+            // AVX-512 subsets `tile_avx512` enables.
+            Isa::Avx512 if K::AVX512 => unsafe { tile_avx512(&ctx, scratch, &mut task) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Isa::Avx512` is only made on CPUs with AVX2.
+            Isa::Avx512 => unsafe { tile_avx2(&ctx, scratch, &mut task) },
         });
+}
+
+/// The width of the tiles of a mosaic `w` wide, at most `cols`: as few
+/// tiles as that allows, of equal widths rounded up to whole cache lines
+/// (16 floats; `cols` is a multiple), so that the threads get equal work
+/// and rings of [`cache_aligned`] rows keep their alignment.
+fn tile_width(w: usize, cols: usize) -> usize {
+    w.div_ceil(w.div_ceil(cols)).next_multiple_of(16).min(w)
+}
+
+/// The tile of `rows` (segments of output rows, `3 * width` long each) at
+/// image row `y0` and column `x0`.
+struct Task<'o, O> {
+    y0: usize,
+    x0: usize,
+    rows: Vec<&'o mut [O]>,
+}
+
+/// The tiles of bands of `band` rows and `tw` columns of an output `w`
+/// pixels wide, band by band, each holding its own segments of the
+/// output rows: tiles side by side can then run on different threads.
+fn tasks<O>(out: &mut [O], w: usize, band: usize, tw: usize) -> Vec<Task<'_, O>> {
+    let mut tasks: Vec<Task<'_, O>> = Vec::new();
+    for (i, rows) in out.chunks_mut(3 * w * band).enumerate() {
+        let first = tasks.len();
+        tasks.extend((0..w).step_by(tw).map(|x0| Task {
+            y0: i * band,
+            x0,
+            rows: Vec::with_capacity(band),
+        }));
+        for row in rows.chunks_exact_mut(3 * w) {
+            for (task, segment) in tasks[first..].iter_mut().zip(row.chunks_mut(3 * tw)) {
+                task.rows.push(segment);
+            }
+        }
+    }
+    tasks
 }
 
 /// What every tile of one [`run_tiled`] call shares.
@@ -249,7 +302,6 @@ struct Ctx<'a, M, K, S> {
 
 /// Per-thread buffers of [`run_tiled`].
 struct Scratch<S, Q> {
-    plane: Vec<f32>,
     state: S,
     clamped: [Vec<f32>; 3],
     sink: Q,
@@ -260,11 +312,10 @@ struct Scratch<S, Q> {
 #[target_feature(enable = "avx2")]
 fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
-    origin: (usize, usize),
     scratch: &mut Scratch<K::State, S::Scratch>,
-    rows: &mut [O],
+    task: &mut Task<'_, O>,
 ) {
-    tile(ctx, origin, scratch, rows);
+    tile(ctx, scratch, task);
 }
 
 /// [`tile`] compiled for AVX-512 (see [`Isa::Avx512`]). The kernels use no
@@ -273,65 +324,59 @@ fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
 fn tile_avx512<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
-    origin: (usize, usize),
     scratch: &mut Scratch<K::State, S::Scratch>,
-    rows: &mut [O],
+    task: &mut Task<'_, O>,
 ) {
-    tile(ctx, origin, scratch, rows);
+    tile(ctx, scratch, task);
 }
 
-/// The tile of output columns `x0 .. x0 + K::COLS` of the band
-/// `rows` starting at row `y0`.
+/// Computes `task`'s tile and writes its output rows.
 #[inline(always)]
 fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
-    (x0, y0): (usize, usize),
     scratch: &mut Scratch<K::State, S::Scratch>,
-    rows: &mut [O],
+    task: &mut Task<'_, O>,
 ) {
-    let (raw, halo) = (ctx.raw, K::HALO);
-    let w = raw.width();
-    let n = rows.len() / (3 * w);
-    let tw = K::COLS.min(w - x0);
+    let halo = K::HALO;
+    let (n, tw) = (task.rows.len(), task.rows[0].len() / 3);
     let t = Tile {
         stride: tw + 2 * halo,
         rows: n + 2 * halo,
-        y0: y0 as isize - halo as isize,
+        y0: task.y0 as isize - halo as isize,
     };
     let Scratch {
-        plane,
         state,
         clamped,
         sink,
     } = scratch;
-    let plane = &mut cache_aligned(plane)[..t.stride * t.rows];
-    load(raw, &t, x0 as isize - halo as isize, plane);
+    let raw = Source {
+        raw: ctx.raw,
+        t: &t,
+        left: task.x0 as isize - halo as isize,
+    };
     let mut store = Store {
         ctx,
         t: &t,
-        x0,
         clamped,
         sink,
-        rows,
+        rows: &mut task.rows,
     };
-    ctx.k.stream(state, &t, plane, &mut store);
+    ctx.k.stream(state, &t, &raw, &mut store);
 }
 
 /// The output rows of one tile, which [`Emit`] clamps and writes.
-struct Store<'a, 'c, M, K, S: RgbSink<O>, O> {
+struct Store<'a, 'c, 'o, M, K, S: RgbSink<O>, O> {
     ctx: &'c Ctx<'c, M, K, S>,
     t: &'a Tile,
-    x0: usize,
     clamped: &'a mut [Vec<f32>; 3],
     sink: &'a mut S::Scratch,
-    rows: &'a mut [O],
+    rows: &'a mut [&'o mut [O]],
 }
 
-impl<M: Mosaic, K: StreamKernel, S: RgbSink<O>, O> Emit for Store<'_, '_, M, K, S, O> {
+impl<M: Mosaic, K: StreamKernel, S: RgbSink<O>, O> Emit for Store<'_, '_, '_, M, K, S, O> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, [own, green, other]: [&[f32]; 3]) {
         let (ctx, halo) = (self.ctx, K::HALO);
-        let w = ctx.raw.width();
         let tw = self.t.stride - 2 * halo;
         let rgb = if self.t.kind(ctx.phase, ty).blue {
             [other, green, own]
@@ -345,29 +390,34 @@ impl<M: Mosaic, K: StreamKernel, S: RgbSink<O>, O> Emit for Store<'_, '_, M, K, 
             }
         }
         let rgb = [0, 1, 2].map(|c| &self.clamped[c][..tw]);
-        let o = &mut self.rows[3 * w * (ty - halo)..][..3 * w];
-        let x0 = self.x0;
-        ctx.sink
-            .store(self.sink, rgb, &mut o[3 * x0..3 * (x0 + tw)]);
+        ctx.sink.store(self.sink, rgb, self.rows[ty - halo]);
     }
 }
 
-/// Loads the tile's raw plane: image columns `left ..` go to tile columns
-/// `0 ..`; those inside the image are loaded as one run, the rest are
-/// mirrored, copied from the run where it holds them (it always does but
-/// in images narrower than the halo).
-#[inline(always)]
-fn load<M: Mosaic>(raw: &M, t: &Tile, left: isize, plane: &mut [f32]) {
-    let (w, h) = (raw.width(), raw.height());
-    let (in_lo, in_hi) = (
-        left.max(0) as usize,
-        (left + t.stride as isize).min(w as isize) as usize,
-    );
-    let run = (in_lo as isize - left) as usize;
-    for (ty, dst) in plane.chunks_exact_mut(t.stride).enumerate() {
-        let y = mirror(t.y0 + ty as isize, h);
+/// The raw rows of one tile: image columns `left ..` are tile columns `0 ..`.
+struct Source<'a, M> {
+    raw: &'a M,
+    t: &'a Tile,
+    left: isize,
+}
+
+impl<M: Mosaic> Load for Source<'_, M> {
+    /// The columns inside the image are loaded as one run, the rest are
+    /// mirrored, copied from the run where it holds them (it always does
+    /// but in images narrower than the halo).
+    #[inline(always)]
+    fn load(&self, ty: usize, dst: &mut [f32]) {
+        let (raw, left) = (self.raw, self.left);
+        let (w, h) = (raw.width(), raw.height());
+        let stride = self.t.stride;
+        let (in_lo, in_hi) = (
+            left.max(0) as usize,
+            (left + stride as isize).min(w as isize) as usize,
+        );
+        let run = (in_lo as isize - left) as usize;
+        let y = mirror(self.t.y0 + ty as isize, h);
         raw.load(y, in_lo, &mut dst[run..run + in_hi - in_lo]);
-        for tx in (0..run).chain(run + in_hi - in_lo..t.stride) {
+        for tx in (0..run).chain(run + in_hi - in_lo..stride) {
             let x = mirror(left + tx as isize, w);
             dst[tx] = if (in_lo..in_hi).contains(&x) {
                 dst[run + x - in_lo]
