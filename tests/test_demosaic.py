@@ -158,7 +158,7 @@ def test_methods_commute_with_the_flips_between_phases(raw, p, method, vertical,
 
 @pytest.mark.parametrize("method", CLAMPED)
 def test_tile_seams_do_not_show(method):
-    # The multi-stage methods work in tiles of 384 columns (mlri 2048)
+    # The multi-stage methods work in tiles of up to 384 columns (mlri 1536)
     # counted from the left; flipping a wide mosaic moves every seam, so
     # equal results mean the seams leave no trace.
     raw = random_raw(3, 30, 2101, np.uint16)

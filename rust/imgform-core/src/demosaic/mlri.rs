@@ -152,8 +152,11 @@ const fn depth(from: usize, to: usize, back: usize) -> usize {
 /// apart ([`Mlri::columns_pass`]), 1024 and 1536 columns beat 2048
 /// by about 6 % on two Intel cores (2 MB of L2 each; three interleaved
 /// rounds of 7 runs), 512 and 768 lost to 1024 by 2-5 %, and 3072 by 15 %.
+/// Since tiles run the full height ([`StreamKernel::rows`]), four tiles
+/// across 24 MP (1536 columns at most) beat six (1024) by ~2 % on two
+/// threads and tie on one; five (1280) fall between, and 2048 lost 3 %.
 const ROWS_PER_TILE: usize = 512;
-const COLS_PER_TILE: usize = 1024;
+const COLS_PER_TILE: usize = 1536;
 /// Steps the vertical green pass runs ahead of the other stages
 /// ([`Mlri::columns_pass`]); 16, 64 and 256 ran equally fast.
 const BLOCK: usize = 64;
