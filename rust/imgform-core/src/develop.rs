@@ -355,7 +355,7 @@ impl<T: Sample, U: Sample> Finish<T, U> {
         let planes: [Vec<f32>; 3] =
             [0, 1, 2].map(|c| src.iter().skip(c).step_by(3).map(|s| s.to_f32()).collect());
         let mut scratch = self.scratch(planes[0].len());
-        self.store(&mut scratch, [0, 1, 2].map(|c| &planes[c][..]), out);
+        self.store(&mut scratch, [0, 1, 2].map(|c| &planes[c][..]), None, out);
     }
 }
 
@@ -372,14 +372,21 @@ impl<T: Sample, U: Sample> RgbSink<U> for Finish<T, U> {
     /// The matrix runs over planes, where it vectorises 8 pixels wide; the
     /// tone lookups, which cannot, follow in a loop of their own.
     #[inline(always)]
-    fn store(&self, (lin, idx): &mut FinishScratch, rgb: [&[f32]; 3], out: &mut [U]) {
+    fn store(
+        &self,
+        (lin, idx): &mut FinishScratch,
+        rgb: [&[f32]; 3],
+        within: Option<(f32, f32)>,
+        out: &mut [U],
+    ) {
         let n = out.len() / 3;
         let (m, inv, span) = (&self.matrix, 1.0 / T::FULL_SCALE, self.curve.span());
+        let (lo, hi) = within.unwrap_or((f32::NEG_INFINITY, f32::INFINITY));
         let [r, g, b] = rgb.map(|p| &p[..n]);
         let [l0, l1, l2] = lin;
         let (l0, l1, l2) = (&mut l0[..n], &mut l1[..n], &mut l2[..n]);
         for i in 0..n {
-            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::quantize(v) * inv);
+            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::quantize(v.max(lo).min(hi)) * inv);
             l0[i] = (m[0] * r + m[1] * g + m[2] * b).clamp(0.0, 1.0) * span;
             l1[i] = (m[3] * r + m[4] * g + m[5] * b).clamp(0.0, 1.0) * span;
             l2[i] = (m[6] * r + m[7] * g + m[8] * b).clamp(0.0, 1.0) * span;

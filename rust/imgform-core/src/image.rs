@@ -24,6 +24,16 @@ pub trait Sample: Copy + Send + Sync + Default + PartialEq + std::fmt::Debug + '
         }
     }
 
+    /// [`Sample::from_f32_row`] of the values clamped to `[lo, hi]`, two
+    /// values of the type (such as the smallest and largest sample of a
+    /// mosaic): one pass where a clamp and a conversion took two.
+    #[inline(always)]
+    fn from_f32_row_within(dst: &mut [Self], src: &[f32], (lo, hi): (f32, f32)) {
+        for (d, s) in dst.iter_mut().zip(src) {
+            *d = Self::from_f32(s.max(lo).min(hi));
+        }
+    }
+
     /// `from_f32(v).to_f32()`: `v` rounded to a value of the type but kept
     /// in `f32`, for pipelines that must match a round trip through the
     /// type. Types override it where that form does not vectorise.
@@ -55,14 +65,20 @@ impl Sample for u8 {
 
     #[inline(always)]
     fn from_f32_row(dst: &mut [Self], src: &[f32]) {
+        Self::from_f32_row_within(dst, src, (0.0, 255.0));
+    }
+
+    #[inline(always)]
+    fn from_f32_row_within(dst: &mut [Self], src: &[f32], (lo, hi): (f32, f32)) {
+        let (lo, hi) = (lo.clamp(0.0, 255.0), hi.clamp(0.0, 255.0));
         for (d, s) in dst.iter_mut().zip(src) {
-            *d = round_clamped(*s, 255.0) as u8;
+            *d = round_within(*s, lo, hi) as u8;
         }
     }
 
     #[inline(always)]
     fn quantize(v: f32) -> f32 {
-        round_clamped(v, 255.0) as f32
+        round_within(v, 0.0, 255.0) as f32
     }
 }
 
@@ -79,33 +95,42 @@ impl Sample for u16 {
 
     #[inline(always)]
     fn from_f32_row(dst: &mut [Self], src: &[f32]) {
+        Self::from_f32_row_within(dst, src, (0.0, 65535.0));
+    }
+
+    #[inline(always)]
+    fn from_f32_row_within(dst: &mut [Self], src: &[f32], (lo, hi): (f32, f32)) {
+        let (lo, hi) = (lo.clamp(0.0, 65535.0), hi.clamp(0.0, 65535.0));
         for (d, s) in dst.iter_mut().zip(src) {
-            *d = round_clamped(*s, 65535.0) as u16;
+            *d = round_within(*s, lo, hi) as u16;
         }
     }
 
     #[inline(always)]
     fn quantize(v: f32) -> f32 {
-        round_clamped(v, 65535.0) as f32
+        round_within(v, 0.0, 65535.0) as f32
     }
 }
 
-/// `v + 0.5` clamped to `[0, max]` (NaN to 0) and truncated: the value of
-/// `from_f32`, in a form that vectorises.
+/// `v` clamped to `[lo, hi]` (NaN to `lo`), two integers in `[0, 65535]`,
+/// and rounded half up: `from_f32` of the clamped value (`lo = 0` and `hi`
+/// the type's largest value), in a form that vectorises.
 ///
 /// Rust's saturating `as` cast from float to int handles NaN and overflow
 /// with scalar fix-ups that keep LLVM from vectorising a row of them (a u16
 /// RGB row measured ~3x slower that way). The two comparisons below map to
-/// `maxps` / `minps` (NaN lands on 0 because `NaN > 0` is false), after
-/// which the value is finite and in range, so the unchecked conversion
-/// (`cvttps2dq`) is exact.
+/// `maxps` / `minps` (NaN lands on the lower end because `NaN > x` is
+/// false), after which the value is finite and in range, so the unchecked
+/// conversion (`cvttps2dq`) is exact. Clamping `v + 0.5` to `[lo + 0.5,
+/// hi + 0.5]` gives the bits of clamping `v` first: `lo + 0.5` and `hi +
+/// 0.5` are exact and rounding is monotonic.
 #[inline(always)]
-fn round_clamped(v: f32, max: f32) -> i32 {
-    let v = v + 0.5;
-    let v = if v > 0.0 { v } else { 0.0 };
-    let v = if v < max { v } else { max };
-    // SAFETY: `v` is finite and in [0, max] with max <= 65535, which i32
-    // represents exactly: the precondition of `to_int_unchecked`.
+fn round_within(v: f32, lo: f32, hi: f32) -> i32 {
+    let (v, lo, hi) = (v + 0.5, lo + 0.5, hi + 0.5);
+    let v = if v > lo { v } else { lo };
+    let v = if v < hi { v } else { hi };
+    // SAFETY: `v` is finite and in [0.5, 65535.5], which truncates to an
+    // i32: the precondition of `to_int_unchecked`.
     unsafe { v.to_int_unchecked::<i32>() }
 }
 
@@ -266,6 +291,27 @@ mod tests {
         u8::from_f32_row(&mut row8, &src);
         let each8: Vec<u8> = src.iter().map(|&v| u8::from_f32(v)).collect();
         assert_eq!(row8, each8);
+    }
+
+    #[test]
+    fn clamped_row_conversion_equals_a_clamp_then_the_conversion() {
+        // Values around the bounds, between and beyond them, and NaN.
+        let src: Vec<f32> = (-40..2000)
+            .map(|i| i as f32 * 0.37 - 3.0)
+            .chain([f32::NAN, 1e9, -1e9, 99.5, 100.5, 1199.5, 1200.49])
+            .collect();
+        for bounds in [(100.0, 1200.0), (0.0, 255.0), (7.0, 7.0)] {
+            let clamped: Vec<f32> = src.iter().map(|v| v.max(bounds.0).min(bounds.1)).collect();
+            let (mut fused, mut apart) = (vec![0u16; src.len()], vec![0u16; src.len()]);
+            u16::from_f32_row_within(&mut fused, &src, bounds);
+            u16::from_f32_row(&mut apart, &clamped);
+            assert_eq!(fused, apart, "{bounds:?}");
+            let (mut fused, mut apart) = (vec![0u8; src.len()], vec![0u8; src.len()]);
+            u8::from_f32_row_within(&mut fused, &src, (bounds.0, bounds.1.min(255.0)));
+            let clamped: Vec<f32> = clamped.iter().map(|v| v.min(255.0)).collect();
+            u8::from_f32_row(&mut apart, &clamped);
+            assert_eq!(fused, apart, "{bounds:?}");
+        }
     }
 
     #[test]

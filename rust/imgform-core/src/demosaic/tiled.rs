@@ -222,7 +222,6 @@ where
     let rows = band + 2 * K::HALO;
     let init = || Scratch {
         state: k.state(stride, rows),
-        clamped: [0, 1, 2].map(|_| vec![0.0f32; tw]),
         sink: sink.scratch(tw),
     };
     let ctx = Ctx {
@@ -303,7 +302,6 @@ struct Ctx<'a, M, K, S> {
 /// Per-thread buffers of [`run_tiled`].
 struct Scratch<S, Q> {
     state: S,
-    clamped: [Vec<f32>; 3],
     sink: Q,
 }
 
@@ -344,11 +342,7 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
         rows: n + 2 * halo,
         y0: task.y0 as isize - halo as isize,
     };
-    let Scratch {
-        state,
-        clamped,
-        sink,
-    } = scratch;
+    let Scratch { state, sink } = scratch;
     let raw = Source {
         raw: ctx.raw,
         t: &t,
@@ -357,7 +351,6 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     let mut store = Store {
         ctx,
         t: &t,
-        clamped,
         sink,
         rows: &mut task.rows,
     };
@@ -368,7 +361,6 @@ fn tile<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
 struct Store<'a, 'c, 'o, M, K, S: RgbSink<O>, O> {
     ctx: &'c Ctx<'c, M, K, S>,
     t: &'a Tile,
-    clamped: &'a mut [Vec<f32>; 3],
     sink: &'a mut S::Scratch,
     rows: &'a mut [&'o mut [O]],
 }
@@ -383,14 +375,9 @@ impl<M: Mosaic, K: StreamKernel, S: RgbSink<O>, O> Emit for Store<'_, '_, '_, M,
         } else {
             [own, green, other]
         };
-        let (lo, hi) = ctx.bounds;
-        for (c, src) in self.clamped.iter_mut().zip(rgb) {
-            for (d, s) in c[..tw].iter_mut().zip(&src[halo..halo + tw]) {
-                *d = s.max(lo).min(hi);
-            }
-        }
-        let rgb = [0, 1, 2].map(|c| &self.clamped[c][..tw]);
-        ctx.sink.store(self.sink, rgb, self.rows[ty - halo]);
+        let rgb = rgb.map(|p| &p[halo..halo + tw]);
+        let row = &mut *self.rows[ty - halo];
+        ctx.sink.store(self.sink, rgb, Some(ctx.bounds), row);
     }
 }
 
