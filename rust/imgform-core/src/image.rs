@@ -7,7 +7,7 @@ use crate::error::{CoreError, Result};
 /// Kernels compute in `f32` and convert back once per output sample: integers
 /// are rounded half up and clamped to their type's range, floats pass through
 /// unchanged (never clipped, as CONVENTIONS.md asks).
-pub trait Sample: Copy + Send + Sync + Default + PartialEq + std::fmt::Debug + 'static {
+pub trait Sample: Copy + Send + Sync + Default + PartialOrd + std::fmt::Debug + 'static {
     /// Largest value of the type's nominal range (1.0 for floats).
     const FULL_SCALE: f32;
     /// The sample as `f32`.
