@@ -48,6 +48,7 @@ where
         raw,
         (phase, isa),
         1,
+        #[inline(always)]
         |ring, y, kind, p| planes(ring.row(y - 1), ring.row(y), ring.row(y + 1), kind, p),
         sink,
         out,

@@ -124,20 +124,28 @@ where
         greens: Ring::new(w, 3),
         next: y0 as isize - 1,
     };
-    run_rows(raw, out, 3, isa, init, |st, ring, y, o| {
-        while st.next <= y + 1 {
-            let gy = st.next;
-            let rows = [-2, -1, 0, 1, 2].map(|d| ring.row(gy + d));
-            let chroma = &st.planes.chroma[phase.row(gy).chroma_parity];
-            green_row(rows, chroma, st.greens.row_mut(gy));
-            st.next += 1;
-        }
-        let kind = phase.row(y);
-        let raws = [ring.row(y - 1), ring.row(y), ring.row(y + 1)];
-        let greens = [st.greens.row(y - 1), st.greens.row(y), st.greens.row(y + 1)];
-        colour_planes(raws, greens, kind, &mut st.planes);
-        write_row(&st.planes, sink, &mut st.scratch, kind, o);
-    });
+    run_rows(
+        raw,
+        out,
+        3,
+        isa,
+        init,
+        #[inline(always)]
+        |st, ring, y, o| {
+            while st.next <= y + 1 {
+                let gy = st.next;
+                let rows = [-2, -1, 0, 1, 2].map(|d| ring.row(gy + d));
+                let chroma = &st.planes.chroma[phase.row(gy).chroma_parity];
+                green_row(rows, chroma, st.greens.row_mut(gy));
+                st.next += 1;
+            }
+            let kind = phase.row(y);
+            let raws = [ring.row(y - 1), ring.row(y), ring.row(y + 1)];
+            let greens = [st.greens.row(y - 1), st.greens.row(y), st.greens.row(y + 1)];
+            colour_planes(raws, greens, kind, &mut st.planes);
+            write_row(&st.planes, sink, &mut st.scratch, kind, o);
+        },
+    );
 }
 
 // PAD must cover the green plane one column beyond the image, computed from

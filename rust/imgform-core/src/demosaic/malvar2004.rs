@@ -14,7 +14,7 @@
 //! Symmetric taps are summed in pairs (left + right, up + down), so results
 //! are bit-identical under the flips that map one Bayer phase to another.
 
-use super::{run_stencil, select, shifted, Isa, Mosaic, Phase, RgbSink, Ring, RowKind, RowPlanes};
+use super::{run_stencil, select, shifted, Isa, Mosaic, Phase, RgbSink, RowKind, RowPlanes};
 
 /// Fills `p` from raw rows `r` = y-2 ..= y+2 for a row of kind `kind`.
 #[inline(always)]
@@ -65,8 +65,13 @@ where
     O: Send,
     K: RgbSink<O>,
 {
-    let planes_at = |ring: &Ring, y: isize, kind, p: &mut RowPlanes| {
-        planes([-2, -1, 0, 1, 2].map(|d| ring.row(y + d)), kind, p);
-    };
-    run_stencil(raw, (phase, isa), 2, planes_at, sink, out);
+    run_stencil(
+        raw,
+        (phase, isa),
+        2,
+        #[inline(always)]
+        |ring, y, kind, p| planes([-2, -1, 0, 1, 2].map(|d| ring.row(y + d)), kind, p),
+        sink,
+        out,
+    );
 }
