@@ -59,9 +59,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (103-110 MP/s at 24 MP on two cores in four runs of ``benchmarks/demosaic.py`` on
-  2026-11-26, 3.6-4.0x LibRaw AHD in the same runs; about 1.0-1.1x slower
-  than ``"rcd_menon"``).
+  (119-121 MP/s at 24 MP on two cores in six runs of ``benchmarks/demosaic.py`` on
+  2026-11-27, 4.02-4.20x LibRaw AHD in the same runs; about 1.1x slower than
+  ``"rcd_menon"``; 6 MiB of extra memory at 24 MP).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
   Transactions on Computational Imaging 3(1), 2017: per CFA position and class of
