@@ -71,7 +71,7 @@ use super::boxsum::{
     class_sums_across_at, class_sums_at, line_taps, pair_row, pair_taps, quad_row, quad_taps,
     window_sum, window_sum_by, Parity,
 };
-use super::ring::{Ring, Rows};
+use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 use super::{chroma_masks, select, shifted, Phase};
 
@@ -376,7 +376,7 @@ fn cols_mut(v: &mut [f32], r: usize) -> &mut [f32] {
 /// Row `ty + d` of `p`, columns `r ..` on: what a stage of reach `r` reads
 /// across rows.
 #[inline(always)]
-fn across<'a>(p: &'a dyn Rows, ty: usize, r: usize) -> impl Fn(isize) -> &'a [f32] {
+fn across<'a>(p: &'a Ring, ty: usize, r: usize) -> impl Fn(isize) -> &'a [f32] {
     move |d| &p.row((ty as isize + d) as usize)[r..]
 }
 
@@ -713,7 +713,7 @@ impl Mlri {
                 self.columns_products(v, c, ty);
             }
             if let Some(ty) = j.due_from(PAIRS, R_LAPLACE) {
-                let sources: [&dyn Rows; SUMMED] = [c, &v.prod[0], &v.prod[1]];
+                let sources: [&Ring; SUMMED] = [c, &v.prod[0], &v.prod[1]];
                 pair_rows(sources, &mut v.pairs, ty, V_COLS);
             }
             if let Some(ty) = j.due(R_COEF) {
@@ -829,7 +829,7 @@ impl Mlri {
         let Chroma {
             prod, pairs, vsum, ..
         } = x;
-        let sources: [&dyn Rows; STATS] = [green, c, &prod[0], &prod[1]];
+        let sources: [&Ring; STATS] = [green, c, &prod[0], &prod[1]];
         let r = R_RB_LAPLACE;
         for ((src, q), v) in sources.into_iter().zip(&*pairs).zip(vsum.iter_mut()) {
             class_sum_across_by_column(
@@ -984,7 +984,7 @@ impl Mlri {
 /// Tile row `ty` of the [`pair_row`]s of the statistics `sources`, over
 /// the columns `r ..`.
 #[inline(always)]
-fn pair_rows<const K: usize>(sources: [&dyn Rows; K], pairs: &mut [Ring; K], ty: usize, r: usize) {
+fn pair_rows<const K: usize>(sources: [&Ring; K], pairs: &mut [Ring; K], ty: usize, r: usize) {
     for (src, q) in sources.into_iter().zip(pairs.iter_mut()) {
         let (a, b) = (cols(src.row(ty), r), cols(src.row(ty + 2), r));
         pair_row(a, b, cols_mut(q.row_mut(ty), r));
@@ -1004,7 +1004,7 @@ fn quad_rows(coef: &[Ring; 4], quads: &mut [Ring; 4], ty: usize, r: usize) {
 /// from them: centre, north, south, west, east (the nearest samples of the
 /// same class).
 #[inline(always)]
-fn cross(p: &dyn Rows, ty: usize, r: usize, n: usize) -> [&[f32]; 5] {
+fn cross(p: &Ring, ty: usize, r: usize, n: usize) -> [&[f32]; 5] {
     let row = p.row(ty);
     let (north, south) = (
         shifted(p.row(ty - 2), r, 0, n),
@@ -1177,7 +1177,7 @@ impl Mlri {
             self.chroma_products(x, green, c, ty);
         }
         if let Some(ty) = j.due_from(RB_PAIRS, R_RB_LAPLACE) {
-            let sources: [&dyn Rows; STATS] = [green, c, &x.prod[0], &x.prod[1]];
+            let sources: [&Ring; STATS] = [green, c, &x.prod[0], &x.prod[1]];
             pair_rows(sources, &mut x.pairs, ty, R_RB_LAPLACE);
         }
         let blue_row = |ty: usize| t.kind(self.phase, ty).blue;

@@ -3,12 +3,6 @@
 //! instead of a whole plane. A dozen rings of a dozen rows stay in the
 //! core's own cache where as many tile planes spill to the shared one.
 
-/// Rows of a plane indexed by tile row.
-pub(super) trait Rows {
-    /// Tile row `ty`, `stride` long.
-    fn row(&self, ty: usize) -> &[f32];
-}
-
 /// Floats in a cache line (64 bytes).
 const LINE: usize = 16;
 
@@ -72,11 +66,10 @@ impl Ring {
         let start = self.first + (ty % self.depth) * self.stride;
         &mut self.data[start..start + self.stride]
     }
-}
 
-impl Rows for Ring {
+    /// Tile row `ty`, `stride` long.
     #[inline(always)]
-    fn row(&self, ty: usize) -> &[f32] {
+    pub(super) fn row(&self, ty: usize) -> &[f32] {
         debug_assert!(
             ty <= self.newest && self.newest - ty < self.depth,
             "row {ty} read when the ring holds {} rows up to {}",
