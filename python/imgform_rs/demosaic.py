@@ -59,8 +59,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   two colour differences, then red and blue guided by the full green over 11x11
   windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
   on the benchmark's images; wide support (31 pixels), so slower than the others
-  (119-121 MP/s at 24 MP on two cores in six runs of ``benchmarks/demosaic.py`` on
-  2026-11-27, 4.02-4.20x LibRaw AHD in the same runs; about 1.1x slower than
+  (117-121 MP/s at 24 MP on two cores in nine runs of ``benchmarks/demosaic.py`` on
+  2026-11-27, 4.02-4.25x LibRaw AHD in the same runs; about 1.1x slower than
   ``"rcd_menon"``; 6 MiB of extra memory at 24 MP).
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
