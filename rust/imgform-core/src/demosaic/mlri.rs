@@ -256,8 +256,9 @@ struct Chroma {
 /// What a thread keeps from tile to tile: the raw rows, loaded a block
 /// of steps ahead into a ring that the last stage reads `R_OUT` rows
 /// behind, and the stages' buffers. A ring rather than a plane of the
-/// whole tile keeps the raw rows in cache (a 1000 x 4000 tile plane is
-/// 16 MB) and lets tiles be as tall as the image.
+/// whole tile keeps the raw rows in cache (a plane of a full-height tile
+/// of 24 MP is 1568 x 4064 values, 25 MB) and lets tiles be as tall as
+/// the image.
 pub(super) struct Buffers {
     raw: Ring,
     stages: State,
@@ -1053,7 +1054,7 @@ impl StreamKernel for Mlri {
     /// are a ring, [`Buffers`]), so tiles are as tall as an equal number of
     /// tiles per thread allows: the threads share the tiles side by side,
     /// and a mosaic is cut into bands only when the tiles across are not a
-    /// multiple of the threads. At 24 MP on two threads (six tiles across),
+    /// multiple of the threads. At 24 MP on two threads (four tiles across),
     /// full-height tiles recompute 1.6 % of their rows as halo, where four
     /// bands of 1000 rows recomputed 6 %: 2-3 % less time with the raw ring
     /// (interleaved runs, same bits), none with a whole-tile raw plane,
