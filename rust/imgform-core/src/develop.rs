@@ -381,12 +381,12 @@ impl<T: Sample, U: Sample> RgbSink<U> for Finish<T, U> {
     ) {
         let n = out.len() / 3;
         let (m, inv, span) = (&self.matrix, 1.0 / T::FULL_SCALE, self.curve.span());
-        let (lo, hi) = within.unwrap_or((f32::NEG_INFINITY, f32::INFINITY));
+        let clamp = |v: f32| within.map_or(v, |(lo, hi)| v.max(lo).min(hi));
         let [r, g, b] = rgb.map(|p| &p[..n]);
         let [l0, l1, l2] = lin;
         let (l0, l1, l2) = (&mut l0[..n], &mut l1[..n], &mut l2[..n]);
         for i in 0..n {
-            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::quantize(v.max(lo).min(hi)) * inv);
+            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::quantize(clamp(v)) * inv);
             l0[i] = (m[0] * r + m[1] * g + m[2] * b).clamp(0.0, 1.0) * span;
             l1[i] = (m[3] * r + m[4] * g + m[5] * b).clamp(0.0, 1.0) * span;
             l2[i] = (m[6] * r + m[7] * g + m[8] * b).clamp(0.0, 1.0) * span;
