@@ -48,8 +48,18 @@ test: $(BUILT) ## cargo test (core) and pytest
 test-slow: $(BUILT) ## the slow tests too
 	$(PY) -m pytest -q -m "slow or not slow"
 
+# Peers only the benchmarks use. eari-demosaic declares opencv-python, which would
+# clash with the opencv-python-headless of the test extra (both provide cv2), so it
+# is installed without its dependencies (numpy, scipy and cv2 are already there).
+$(VENV)/.bench-peers: | $(PY)
+	$(PY) -m pip install --quiet --no-deps eari-demosaic==0.1.4
+	touch $@
+
+.PHONY: bench-peers
+bench-peers: $(VENV)/.bench-peers ## install the benchmark-only peers into .venv
+
 .PHONY: bench
-bench: $(BUILT) ## side-by-side benchmarks against the peers
+bench: $(BUILT) $(VENV)/.bench-peers ## side-by-side benchmarks against the peers
 	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 .PHONY: filters

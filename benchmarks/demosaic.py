@@ -1,5 +1,8 @@
-"""Demosaicing: speed on a 24 MP uint16 RGGB mosaic and CPSNR on scikit-image's
+"""Demosaicing: speed on a 24 MP uint16 RGGB mosaic and CPSNR on three sets of
 RGB images, for every method of ours and every peer installed, in one run.
+
+``python benchmarks/demosaic.py [section ...]`` runs some of the sections (speed,
+memory, quality, artefacts, xtrans), e.g. ``quality`` alone; none runs them all.
 
 Speed. The mosaic is a simulated 14-bit raw (``simulate_sensor``) of
 scikit-image's astronaut resized to 6000 x 4000, so adaptive methods see real
@@ -23,14 +26,37 @@ CPSNR (the usual 8-bit protocol): uint8 RGB image, mosaic RGGB, demosaic, crop 1
 pixels on every side, ``CPSNR = 10 log10(255^2 / MSE)`` with the MSE over all three
 channels. Float peers are rounded to uint8 first; LibRaw reads the mosaic
 (times 257, 16 bits) from a DNG and develops it linearly in camera RGB without
-white balance, so only its demosaicer differs.
+white balance, so only its demosaicer differs. The peers are OpenCV, LibRaw,
+colour-demosaicing, eari-demosaic's residual interpolation (``pyeari.ri``, float32
+NumPy/SciPy/OpenCV; ``make bench`` installs it without its opencv-python
+dependency, which would clash with our headless OpenCV) and, if installed,
+demosaicnet. Three subsets, each scored by the mean CPSNR over its
+images, and one mean over the subsets, so that the 68 small CBSD68 images do not
+outweigh the others:
+
+- skimage7: scikit-image's seven RGB images in ``EVALUATION_IMAGES``, held out of
+  every training.
+- CBSD68: the colour versions of the 68 BSDS300 test images (481 x 321, either way
+  up): natural scenes.
+- Urban24: Urban100's img_001..img_024 at full resolution (long side 1024 to 1280),
+  buildings whose regular structures alias. img_011 is achromatic (R = G = B), so
+  any chroma there is pure false colour; it counts like any other image.
+
+CBSD68 and Urban24 are in the shared folder ``demosaic-val`` next to the repository
+(``../shared/data/demosaic-val``; the environment variable ``IMGFORM_DEMOSAIC_VAL``
+names another), whose README and MANIFEST.tsv give their sources (cszn/FFDNet's
+CBSD68, the Urban100 authors' SelfExSR) and licences: research test sets that we
+may only evaluate on. Never commit them, and never train or tune anything
+shipped on them. Without the folder only skimage7 is scored.
 """
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import tempfile
+import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -49,6 +75,14 @@ MP = H * W / 1e6
 CROP = (800, 1250)  # 1 MP for colour-demosaicing
 IMAGES = EVALUATION_IMAGES  # held out of every training
 LIBRAW_METHODS = ["LINEAR", "VNG", "PPG", "AHD", "DCB", "DHT", "AAHD"]
+SECTIONS = ["speed", "memory", "quality", "artefacts", "xtrans"]
+SKIMAGE7 = "skimage7"
+# The subsets in the shared demosaic-val folder: name in the tables, subfolder.
+VALIDATION_SUBSETS = {"CBSD68": "cbsd68", "Urban24": "urban24"}
+DEMOSAICNET = "demosaicnet (Gharbi 2016)"
+LEARNED_PEERS = {DEMOSAICNET}  # left out of "best classical peer"
+Methods = dict[str, Callable[[np.ndarray, str], np.ndarray]]
+Scores = dict[str, dict[str, dict[str, float]]]  # method -> subset -> image -> CPSNR
 
 
 def optional(name: str):
@@ -64,6 +98,7 @@ cv2 = optional("cv2")
 rawpy = optional("rawpy")
 cd = optional("colour_demosaicing")
 demosaicnet = optional("demosaicnet")  # the bench-learned extra
+pyeari = optional("pyeari")  # eari-demosaic, installed by make bench with --no-deps
 
 
 def demosaicnet_rggb(net, raw: np.ndarray) -> np.ndarray:
@@ -258,6 +293,43 @@ def load_images() -> dict[str, np.ndarray]:
     return images
 
 
+def validation_dir() -> Path:
+    """The shared demosaic-val folder: outside the repository, because its images
+    may not be redistributed; ``IMGFORM_DEMOSAIC_VAL`` points elsewhere."""
+    env = os.environ.get("IMGFORM_DEMOSAIC_VAL")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "demosaic-val"
+
+
+def load_pngs(folder: Path) -> dict[str, np.ndarray]:
+    """Every PNG of a folder by file stem, checked to be 8-bit RGB (the protocol)."""
+    from skimage.io import imread
+
+    images = {}
+    for path in sorted(folder.glob("*.png")):
+        img = imread(path)
+        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+            raise ValueError(f"{path}: {img.dtype} {img.shape}, expected uint8 RGB")
+        images[path.stem] = np.ascontiguousarray(img)
+    return images
+
+
+def validation_images() -> dict[str, dict[str, np.ndarray]]:
+    """The quality images as ``{subset: {name: uint8 RGB}}``: skimage7 always,
+    CBSD68 and Urban24 when the demosaic-val folder is there (for evaluation only:
+    never train or tune on them)."""
+    subsets = {SKIMAGE7: load_images()}
+    root = validation_dir()
+    for subset, folder in VALIDATION_SUBSETS.items():
+        images = load_pngs(root / folder) if (root / folder).is_dir() else {}
+        if images:
+            subsets[subset] = images
+        else:
+            print(f"skipped {subset}: no PNGs in {root / folder} (set IMGFORM_DEMOSAIC_VAL)")
+    return subsets
+
+
 def cpsnr(out: np.ndarray, ref: np.ndarray) -> float:
     d = out[10:-10, 10:-10].astype(np.float64) - ref[10:-10, 10:-10].astype(np.float64)
     return 10 * np.log10(255.0**2 / np.mean(d**2))
@@ -297,26 +369,103 @@ def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]
                     return to_u8(develop(), 1 / 257)
 
             methods[f"LibRaw {algo}"] = libraw
+    if pyeari is not None:
+        # pyeari.ri is the function: the package's `from .ri import ri` shadows the
+        # submodule of that name, so there is no pyeari.ri.ri.
+        ri = pyeari.ri
+        methods["eari-demosaic RI"] = lambda raw, name: to_u8(ri(raw, "RGGB"), 255.0)
     if demosaicnet is not None:
         net = demosaicnet.BayerDemosaick(pretrained=True, pad=False).eval()
-        methods["demosaicnet (Gharbi 2016)"] = lambda raw, name: demosaicnet_rggb(net, raw)
+        methods[DEMOSAICNET] = lambda raw, name: demosaicnet_rggb(net, raw)
     return methods
 
 
-def quality(tmp: Path, methods: dict[str, Callable[[np.ndarray, str], np.ndarray]]) -> None:
-    images = load_images()
-    scores = {m: {} for m in methods}
-    for name, rgb in images.items():
-        raw = ig.mosaic(rgb, "RGGB")
-        for m, fn in methods.items():
-            scores[m][name] = cpsnr(fn(raw, name), rgb)
-    names = list(images)
+def score(
+    tmp: Path, methods: Methods, subsets: dict[str, dict[str, np.ndarray]]
+) -> tuple[Scores, dict[str, float]]:
+    """CPSNR of every method on every image, and each method's seconds in all.
+    An image is named ``subset-name`` to the methods: LibRaw's DNG is keyed by it,
+    so two subsets' images of the same name cannot share one."""
+    scores: Scores = {m: {s: {} for s in subsets} for m in methods}
+    seconds = dict.fromkeys(methods, 0.0)
+    for subset, images in subsets.items():
+        for name, rgb in images.items():
+            key = f"{subset}-{name}"
+            raw = ig.mosaic(rgb, "RGGB")
+            for m, fn in methods.items():
+                start = time.perf_counter()
+                out = fn(raw, key)
+                seconds[m] += time.perf_counter() - start
+                scores[m][subset][name] = cpsnr(out, rgb)
+            (tmp / f"{key}.dng").unlink(missing_ok=True)  # 99 DNGs would add up
+    return scores, seconds
+
+
+def subset_means(scores: Scores) -> dict[str, dict[str, float]]:
+    """Per method, each subset's mean CPSNR and, under "mean", their mean: every
+    subset weighs the same, however many images it has."""
+    means = {}
+    for m, by_subset in scores.items():
+        means[m] = {s: float(np.mean(list(v.values()))) for s, v in by_subset.items()}
+        means[m]["mean"] = float(np.mean(list(means[m].values())))
+    return means
+
+
+def print_seven(scores: Scores) -> None:
+    """The per-image table on skimage7, as before the other subsets came."""
+    names = list(next(iter(scores.values()))[SKIMAGE7])
     rows = []
-    for m in sorted(methods, key=lambda m: -np.mean(list(scores[m].values()))):
-        vals = [scores[m][n] for n in names]
+    for m in sorted(scores, key=lambda m: -np.mean(list(scores[m][SKIMAGE7].values()))):
+        vals = [scores[m][SKIMAGE7][n] for n in names]
         rows.append([m, *(f"{v:.2f}" for v in vals), f"{np.mean(vals):.2f}"])
-    print("\n## CPSNR (dB), 8-bit protocol, RGGB, 10 px border cropped; sorted by mean\n")
+    print(f"\n## CPSNR (dB) on {SKIMAGE7}, per image; sorted by mean\n")
     print(table(["method", *names, "mean"], rows))
+
+
+def print_margins(means: dict[str, dict[str, float]], columns: list[str]) -> None:
+    """Per subset, the best of ours against the best classical peer (learned
+    peers such as demosaicnet left out): positive margins are ours ahead."""
+    ours = [m for m in means if m.startswith("ours ")]
+    peers = [m for m in means if not m.startswith("ours ") and m not in LEARNED_PEERS]
+    if not peers:
+        return
+    rows = []
+    for col in columns:
+        a = max(ours, key=lambda m: means[m][col])
+        b = max(peers, key=lambda m: means[m][col])
+        margin = means[a][col] - means[b][col]
+        label = "mean of subsets" if col == "mean" else col
+        rows.append([label, a, f"{means[a][col]:.2f}", b, f"{means[b][col]:.2f}", f"{margin:+.2f}"])
+    print("\n## Best of ours against the best classical peer, per subset (CPSNR dB)\n")
+    print(table(["subset", "best of ours", "dB", "best classical peer", "dB", "margin"], rows))
+
+
+def quality(tmp: Path, methods: Methods) -> None:
+    """CPSNR by subset: a method can win on CBSD68's natural scenes and lose on
+    Urban24's aliasing structures, which one mean over all images would hide."""
+    start = time.perf_counter()
+    subsets = validation_images()
+    scores, seconds = score(tmp, methods, subsets)
+    took = time.perf_counter() - start
+    if SKIMAGE7 in subsets:
+        print_seven(scores)
+    means = subset_means(scores)
+    columns = [*subsets, "mean"]
+    head = ["method", *(f"{s} ({len(subsets[s])})" for s in subsets), "mean of subsets"]
+    rows = [
+        [m, *(f"{means[m][c]:.2f}" for c in columns)]
+        for m in sorted(means, key=lambda m: -means[m]["mean"])
+    ]
+    print("\n## CPSNR (dB), 8-bit protocol, RGGB, 10 px border cropped: mean over each")
+    print("subset's images (image count in brackets); sorted by the mean of the subset means\n")
+    print(table(head, rows))
+    print_margins(means, columns)
+    count = sum(len(v) for v in subsets.values())
+    mp = sum(rgb.shape[0] * rgb.shape[1] for v in subsets.values() for rgb in v.values()) / 1e6
+    rows = [[m, f"{seconds[m]:.2f}"] for m in sorted(seconds, key=lambda m: -seconds[m])]
+    print(f"\n## Seconds per method over the {count} images ({mp:.1f} MP), 1 run each\n")
+    print(table(["method", "s"], rows))
+    print(f"\nquality took {took:.0f} s in all ({os.cpu_count()} cores)")
 
 
 def zone_plate(n: int = 512) -> np.ndarray:
@@ -436,14 +585,33 @@ def xtrans(tmp: Path) -> None:
     print(table(["method", "best ms", "MP/s"], rows))
 
 
+def sections() -> set[str]:
+    """The sections named on the command line, all of them if none is."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    # Checked by hand: argparse rejects an empty list for nargs="*" with choices.
+    parser.add_argument("section", nargs="*", help=f"any of {', '.join(SECTIONS)}; default all")
+    wanted = parser.parse_args().section
+    unknown = set(wanted) - set(SECTIONS)
+    if unknown:
+        parser.error(f"unknown section {', '.join(sorted(unknown))}; choose from {SECTIONS}")
+    return set(wanted or SECTIONS)
+
+
 def main() -> None:
+    wanted = sections()
     with tempfile.TemporaryDirectory() as d:
-        speed(Path(d))
-        memory()
-        methods = all_methods(Path(d))
-        quality(Path(d), methods)
-        artefacts(methods)
-        xtrans(Path(d))
+        if "speed" in wanted:
+            speed(Path(d))
+        if "memory" in wanted:
+            memory()
+        if wanted & {"quality", "artefacts"}:
+            methods = all_methods(Path(d))
+            if "quality" in wanted:
+                quality(Path(d), methods)
+            if "artefacts" in wanted:
+                artefacts(methods)
+        if "xtrans" in wanted:
+            xtrans(Path(d))
 
 
 if __name__ == "__main__":
