@@ -76,7 +76,7 @@ pub(super) fn window_sum(
 /// a row or in the rows of a ring.
 ///
 /// The plain window sum: the reference the shared-sum versions are tested
-/// against, and the direction weights' 3x3 box, which gets a loop whose
+/// against, and the direction weights' 5x5 box, which gets a loop whose
 /// taps are known at compile time (each sum stays in a register).
 #[inline(always)]
 pub(super) fn window_sum_by<'a>(
@@ -87,6 +87,7 @@ pub(super) fn window_sum_by<'a>(
 ) {
     match (parity, radius) {
         (Parity::All, 1) => taps(&view, out, [1]),
+        (Parity::All, 2) => taps(&view, out, [1, 2]),
         _ => {
             let n = out.len();
             if parity == Parity::Other {
