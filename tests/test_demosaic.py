@@ -58,16 +58,25 @@ def test_methods_are_exactly_the_documented_ones():
         "raisr",
         "markesteijn",
         "best",
+        "quality",
     )
 
 
-def test_best_is_the_rcd_menon_mean():
+@pytest.mark.parametrize(("alias", "method"), [("best", "mlri"), ("quality", "raisr")])
+def test_aliases_name_a_method(alias, method):
+    raw = np.random.default_rng(4).integers(0, 4096, (40, 52)).astype(np.uint16)
+    for pattern in ["RGGB", "GBRG"]:
+        np.testing.assert_array_equal(
+            ig.demosaic(raw, pattern, alias), ig.demosaic(raw, pattern, method)
+        )
+
+
+def test_rcd_menon_is_the_rcd_menon_mean():
     # Smooth data, so that neither method reaches the clamp (the mean is
     # clamped, not its terms).
     raw = ig.mosaic(smooth_rgb(9, 20, 30), "BGGR")
     raw[0, 0], raw[-1, -1] = -1, 2  # widen the clamp range, away from the middle
-    best = ig.demosaic(raw, "BGGR", "best")
-    np.testing.assert_array_equal(best, ig.demosaic(raw, "BGGR", "rcd_menon"))
+    best = ig.demosaic(raw, "BGGR", "rcd_menon")
     want = 0.5 * (ig.demosaic(raw, "BGGR", "rcd") + ig.demosaic(raw, "BGGR", "menon2007"))
     np.testing.assert_allclose(best[4:-4, 4:-4], want[4:-4, 4:-4], rtol=0, atol=1e-6)
 
@@ -133,9 +142,9 @@ def test_bilinear_reproduces_a_linear_ramp_in_the_interior(a, b, h, w, p, dtype)
     np.testing.assert_array_equal(out[1:-1, 1:-1], want[1:-1, 1:-1])
 
 
-# "raisr"'s learned filters are not mirror-symmetric, so flips change its output
+# "raisr"'s ("quality"'s) learned filters are not mirror-symmetric, so flips change its output
 # slightly; tests/test_raisr.py checks its tile seams by a shift instead.
-FLIP_SYMMETRIC = [m for m in METHODS if m != "raisr"]
+FLIP_SYMMETRIC = [m for m in METHODS if m not in ("raisr", "quality")]
 
 
 @given(
@@ -279,12 +288,32 @@ def test_adaptive_methods_beat_bilinear_on_a_natural_image():
     # The frequency-domain method is at least 1 dB better than Malvar's.
     assert errors["leung2011"] < errors["malvar2004"] / 10**0.1
     # Residual interpolation beats both of the single methods it competes
-    # with (39.4 dB mean CPSNR on the benchmark's images against 38.7 / 38.8).
+    # with (39.76 dB mean CPSNR on the benchmark's seven images against 38.7 /
+    # 38.8; 38.50 on CBSD68 against 35.0 / 37.6).
     assert errors["mlri"] < min(errors["rcd"], errors["menon2007"])
 
 
+@pytest.mark.parametrize("name", ["grass", "gravel"])
+def test_mlri_leads_on_fine_grey_texture(name):
+    # Any chroma is an error on a grey image, and fine texture is where the
+    # green stage's choice of direction decides. Weighing the directions
+    # over 5x5 gradient windows (RI's) rather than the MLRI code's 3x3 ones
+    # is worth 2.4 / 2.7 dB here (33.4 / 39.9 dB against 31.0 / 37.2) and
+    # puts MLRI 1.5 dB above the RCD / Menon mean, which the 3x3 ones trailed.
+    data = pytest.importorskip("skimage.data")
+    grey = getattr(data, name)()
+    rgb = np.repeat(grey[..., None], 3, axis=2)
+    raw = ig.mosaic(rgb, "RGGB")
+
+    def cpsnr(method):
+        out = ig.demosaic(raw, "RGGB", method).astype(np.float64)
+        return 10 * np.log10(255**2 / ((out - rgb)[10:-10, 10:-10] ** 2).mean())
+
+    assert cpsnr("mlri") > cpsnr("rcd_menon") + 1.0
+
+
 def test_borders_are_mirrored_not_black_or_wrapped():
-    # Wider than MLRI's reach (31 columns), so only wrapping could carry the
+    # Wider than MLRI's reach (32 columns), so only wrapping could carry the
     # bright last column into the first.
     raw = np.full((9, 40), 1000, np.uint16)
     raw[:, -1] = 3000  # a bright last column must not leak into the first

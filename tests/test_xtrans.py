@@ -90,9 +90,10 @@ def test_best_is_markesteijn_for_x_trans_and_unchanged_for_bayer():
     raw = np.random.default_rng(5).integers(0, 4096, (24, 30)).astype(np.uint16)
     best = ig.demosaic(raw, "XTRANS", "best")
     np.testing.assert_array_equal(best, ig.demosaic(raw, "XTRANS", "markesteijn"))
+    np.testing.assert_array_equal(ig.demosaic(raw, "XTRANS", "quality"), best)
     bayer = ig.demosaic(raw, "RGGB", "best")
-    np.testing.assert_array_equal(bayer, ig.demosaic(raw, "RGGB", "rcd_menon"))
-    assert ig.XTRANS_DEMOSAIC_METHODS == ("bilinear", "markesteijn", "best")
+    np.testing.assert_array_equal(bayer, ig.demosaic(raw, "RGGB", "mlri"))
+    assert ig.XTRANS_DEMOSAIC_METHODS == ("bilinear", "markesteijn", "best", "quality")
     assert "markesteijn" not in ig.BAYER_DEMOSAIC_METHODS
 
 

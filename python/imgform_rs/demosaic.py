@@ -56,12 +56,12 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   into tentative values, and the residuals between samples and tentative values,
   smoother than colour differences, are interpolated instead: green along rows and
   along columns (11-sample windows), combined with weights from the gradients of the
-  two colour differences, then red and blue guided by the full green over 11x11
-  windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR 39.40 dB
-  on the benchmark's images; wide support (31 pixels), so slower than the others
-  (117-121 MP/s at 24 MP on two cores in nine runs of ``benchmarks/demosaic.py`` on
-  2026-11-27, 4.02-4.25x LibRaw AHD in the same runs; about 1.1x slower than
-  ``"rcd_menon"``; 6 MiB of extra memory at 24 MP).
+  two colour differences over 5x5 windows on each side (as in residual
+  interpolation, Kiku et al. 2013; the MLRI code's 3x3 windows lost 2 dB on
+  textured photographs), then red and blue guided by the full green over 11x11
+  windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR (8-bit
+  protocol, see ``"best"``) 39.76 dB on the scikit-image seven, 38.50 on CBSD68,
+  35.25 on Urban24; wide support (32 pixels), about as fast as ``"rcd_menon"``.
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
   Transactions on Computational Imaging 3(1), 2017: per CFA position and class of
@@ -78,19 +78,31 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   rocket 33.12, immunohistochemistry 42.71, retina 52.52, motorcycle_left 36.04), and
   above its base on the held-out photographs too; 59-82 MP/s at 24 MP on two cores
   in runs of ``benchmarks/demosaic.py`` on 2026-11-23 to 26.
-  It is the most accurate method here but not ``"best"``, which must keep 100 MP/s.
-- ``"best"``: our highest-quality method meant to keep 100 MP/s, currently
-  ``"rcd_menon"`` (``"raisr"`` is 0.4 dB better at half the speed). Mean CPSNR on
-  the seven scikit-image images of ``benchmarks/demosaic.py`` (8-bit protocol,
-  RGGB, 10 px crop): 39.63 dB, against ``"menon2007"`` 38.76, ``"rcd"`` 38.68 and the
-  best peers LibRaw AAHD 38.78, colour-demosaicing Menon2007 38.76, LibRaw AHD 38.27.
-  Per image: astronaut 37.01, coffee 35.09, chelsea 41.31, rocket 33.16,
-  immunohistochemistry 42.61, retina 52.36, motorcycle_left 35.86. Speed on a 24 MP uint16
-  mosaic, 2 cores: 88-142 MP/s in runs of ``benchmarks/demosaic.py`` on 2026-11-23
-  to 26 (AVX-512 where the CPU has it; under 100 only on the slowest VM), 3.7-4.9x
-  LibRaw AHD in the same runs (119 MP/s and 4.15x in the latest).
-  Zone-plate false colour is about twice Menon's alone (RCD's share), still below
-  LibRaw AHD's.
+  It is the most accurate method here (``"quality"``) but not ``"best"``, which must
+  keep 100 MP/s.
+- ``"best"``: our most accurate method at the speed of the fast ones, currently
+  ``"mlri"``, chosen on the benchmark's three validation subsets (``python
+  benchmarks/demosaic.py quality``: the seven scikit-image images, the 68 CBSD68
+  photographs and the first 24 Urban100 images; 8-bit protocol, RGGB, 10 px crop).
+  Mean CPSNR per subset:
+
+  ====================  ==========  ======  =======
+  method                scikit 7    CBSD68  Urban24
+  ====================  ==========  ======  =======
+  ``"raisr"``           40.04       38.37   35.67
+  ``"mlri"`` (best)     39.76       38.50   35.25
+  ``"rcd_menon"``       39.63       37.38   34.89
+  ``"menon2007"``       38.76       37.60   34.72
+  eari-demosaic RI      38.80       38.99   35.56
+  LibRaw AAHD           38.78       35.67   32.73
+  ====================  ==========  ======  =======
+
+  The residual-interpolation peer (Kiku et al. 2013, in NumPy) is still ahead on
+  CBSD68 and Urban24; LibRaw and colour-demosaicing's Menon2007 are behind on
+  every subset. Until 2026-11-27 ``"best"`` was ``"rcd_menon"``, picked on the
+  seven images alone.
+- ``"quality"``: the most accurate method whatever its speed, currently ``"raisr"``
+  (best mean over the three subsets); ``"markesteijn"`` for X-Trans.
 
 - ``"markesteijn"`` (X-Trans only): Frank Markesteijn's X-Trans method, as in dcraw's
   and LibRaw's ``xtrans_interpolate`` (one pass) — green interpolated along rows,
@@ -113,7 +125,8 @@ method                 Bayer        X-Trans
 =====================  ===========  =========
 ``"bilinear"``         yes          yes
 ``"markesteijn"``      no           yes
-``"best"``             rcd_menon    markesteijn
+``"best"``             mlri         markesteijn
+``"quality"``          raisr        markesteijn
 every other method     yes          no
 =====================  ===========  =========
 
@@ -171,8 +184,9 @@ def demosaic(
         (6, 6) array for X-Trans.
     method : str
         One of :data:`BAYER_DEMOSAIC_METHODS` for Bayer patterns, of
-        :data:`XTRANS_DEMOSAIC_METHODS` for X-Trans. ``"best"`` is ``"rcd_menon"``
-        for Bayer and ``"markesteijn"`` for X-Trans.
+        :data:`XTRANS_DEMOSAIC_METHODS` for X-Trans. ``"best"`` is ``"mlri"``
+        for Bayer and ``"markesteijn"`` for X-Trans, ``"quality"`` ``"raisr"`` and
+        ``"markesteijn"``.
     out : ndarray, shape (H, W, 3), same dtype as ``raw``, optional
         Where to write the result, returned instead of a new array: C-contiguous,
         writeable, sharing no memory with ``raw``. Reusing one buffer over many
@@ -186,8 +200,9 @@ def demosaic(
         R, G, B. Each sampled value comes back unchanged at its own site.
         Integer outputs are rounded half up and clamped to the dtype's range;
         float outputs are not clamped (Malvar and Hamilton-Adams can overshoot),
-        except by ``"rcd"``, ``"menon2007"``, ``"rcd_menon"`` (``"best"``),
-        ``"ahd"``, ``"leung2011"``, ``"mlri"`` and ``"markesteijn"``, which clamp every output to
+        except by ``"rcd"``, ``"menon2007"``, ``"rcd_menon"``, ``"ahd"``,
+        ``"leung2011"``, ``"mlri"`` (``"best"``), ``"raisr"`` (``"quality"``) and
+        ``"markesteijn"``, which clamp every output to
         ``[raw.min(), raw.max()]``.
         Borders are reconstructed from a mirrored mosaic (edge not repeated,
         which keeps the CFA phase): no black frame, no wrap-around.

@@ -149,19 +149,39 @@ impl Method {
         }
     }
 
-    /// Our highest-quality method, which the name "best" selects: the
-    /// RCD / Menon 2007 mean, 39.63 dB mean CPSNR on the benchmark's seven
-    /// scikit-image images (Menon 38.76, RCD 38.68; best peer LibRaw AAHD
-    /// 38.78).
-    pub const BEST: Method = Method::RcdMenon;
+    /// Our most accurate method at the speed of the fast ones, which the
+    /// name "best" selects: MLRI, chosen on the validation subsets rather
+    /// than the scikit-image seven alone. Mean CPSNR on the seven 39.76 dB,
+    /// CBSD68 38.50, Urban24 35.25, against the RCD / Menon 2007 mean's
+    /// 39.63, 37.38 and 34.89 at about the same speed.
+    pub const BEST: Method = Method::Mlri;
+
+    /// The most accurate method, which the name "quality" selects, whatever
+    /// its speed: the learned refinement, 38.03 dB over the means of the
+    /// validation subsets (scikit-image seven 40.04, CBSD68 38.37, Urban24
+    /// 35.67).
+    pub const QUALITY: Method = Method::Raisr;
+
+    /// The names that select a method by what it is for rather than by what
+    /// it does: each with its Bayer and its X-Trans method.
+    const ALIASES: [(&'static str, Method, Method); 2] = [
+        ("best", Self::BEST, Self::BEST_XTRANS),
+        ("quality", Self::QUALITY, Self::BEST_XTRANS),
+    ];
 
     /// Every name [`Method::from_name`] accepts: the methods' own, then
-    /// "best".
+    /// the aliases ("best", "quality").
     pub fn names() -> Vec<&'static str> {
         let mut names: Vec<&str> = Self::ALL.iter().map(|m| m.name()).collect();
         names.push(Method::Markesteijn.name());
-        names.push("best");
+        names.extend(Self::ALIASES.map(|(name, ..)| name));
         names
+    }
+
+    /// The alias `name` stands for, on Bayer or X-Trans mosaics.
+    fn alias(name: &str, xtrans: bool) -> Option<Method> {
+        let (_, bayer, other) = Self::ALIASES.into_iter().find(|&(n, ..)| n == name)?;
+        Some(if xtrans { other } else { bayer })
     }
 
     /// How far, in pixels, an output pixel's value reaches into the mosaic:
@@ -210,11 +230,14 @@ impl Method {
     }
 
     /// The names of the methods for Bayer (`xtrans == false`) or X-Trans
-    /// mosaics, then "best".
+    /// mosaics, then the aliases.
     pub fn names_for(xtrans: bool) -> Vec<&'static str> {
         Self::names()
             .into_iter()
-            .filter(|&n| n == "best" || Self::from_name(n).is_ok_and(|m| m.supports_kind(xtrans)))
+            .filter(|&n| {
+                Self::from_name(n).is_ok_and(|m| m.supports_kind(xtrans))
+                    || Self::alias(n, xtrans).is_some()
+            })
             .collect()
     }
 
@@ -228,24 +251,25 @@ impl Method {
 
     /// Parses a method name for mosaics of `pattern`: "best" gives
     /// [`Method::BEST`] for Bayer patterns and [`Method::BEST_XTRANS`] for
-    /// X-Trans ones.
+    /// X-Trans ones, "quality" [`Method::QUALITY`] and
+    /// [`Method::BEST_XTRANS`].
     ///
     /// # Errors
     /// As [`Method::from_name`].
     pub fn from_name_for(name: &str, pattern: &CfaPattern) -> Result<Self> {
-        if name == "best" && !pattern.is_bayer() {
-            return Ok(Self::BEST_XTRANS);
+        match Self::alias(name, !pattern.is_bayer()) {
+            Some(method) => Ok(method),
+            None => Self::from_name(name),
         }
-        Self::from_name(name)
     }
 
-    /// Parses a method name ("best" gives [`Method::BEST`]).
+    /// Parses a method name (an alias gives its Bayer method).
     ///
     /// # Errors
     /// [`CoreError::InvalidArgument`] naming the string and the accepted names.
     pub fn from_name(name: &str) -> Result<Self> {
-        if name == "best" {
-            return Ok(Self::BEST);
+        if let Some(method) = Self::alias(name, false) {
+            return Ok(method);
         }
         Self::ALL
             .into_iter()
