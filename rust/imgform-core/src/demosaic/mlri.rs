@@ -1,6 +1,8 @@
-//! Minimized-Laplacian residual interpolation: Kiku, Monno, Tanaka and
-//! Okutomi, "Minimized-Laplacian residual interpolation for color image
-//! demosaicking", Proc. SPIE 9023, Digital Photography X, 2014.
+//! Residual interpolation with a minimized-Laplacian red / blue stage:
+//! green as in Kiku, Monno, Tanaka and Okutomi, "Residual interpolation for
+//! color image demosaicking", ICIP 2013 (RI), red and blue as in their
+//! "Minimized-Laplacian residual interpolation for color image
+//! demosaicking", Proc. SPIE 9023, Digital Photography X, 2014 (MLRI).
 //!
 //! Residual interpolation replaces the colour differences of classical
 //! demosaicers (`G - R`, assumed smooth) by residuals `R - R~` between
@@ -17,11 +19,11 @@
 //! 1. Along each direction (rows, then columns) every site gets a guide:
 //!    the mean of its two neighbours on the line, i.e. the other class of
 //!    that line interpolated linearly. A guided filter per CFA class on
-//!    the line (samples of the class, guide at those samples) gives
-//!    tentative values of that class everywhere on the line; the missing
-//!    class at each site is its tentative value plus the mean of the two
-//!    neighbouring residuals. The difference `G - C` follows per
-//!    direction.
+//!    the line (samples of the class, guide at those samples; RI's
+//!    least-squares line) gives tentative values of that class everywhere
+//!    on the line; the missing class at each site is its tentative value
+//!    plus the mean of the two neighbouring residuals. The difference
+//!    `G - C` follows per direction.
 //! 2. The two directional colour differences are combined as in the
 //!    residual-interpolation papers (after Pekkucuksen and Altunbasak's
 //!    GBTF): one-sided Gaussian means towards north, south, west and east,
@@ -29,19 +31,25 @@
 //!    summed over a 5x5 window on that side. Green is the sample plus that
 //!    difference.
 //! 3. Red and blue are guided-filtered from the full green over a 11x11
-//!    window of their own samples, and their residuals interpolated
-//!    bilinearly.
+//!    window of their own samples (MLRI's Laplacian slope), and their
+//!    residuals interpolated bilinearly.
 //!
 //! The guided filters' windows are those of the residual-interpolation
 //! reference implementations: an 11-sample line (radius 5) for the
-//! directional green estimates, 11x11 for red and blue. The combination
-//! takes RI's 5x5 gradient windows ending at the site rather than the MLRI
-//! code's 3x3 ones a step out, and a Gaussian of sigma 2 over 5 samples,
-//! chosen on the training photographs of [`super::raisr`] (41.58 dB mean
-//! CPSNR in a NumPy model of this file; sigma 1 41.56, sigma 3 41.29, a
-//! flat mean 40.84), never on the validation sets. With the 3x3 windows
-//! and sigma 1 the method lost 2.0 dB CPSNR on CBSD68, 1.5 on Urban100 and
-//! 0.4 on the scikit-image seven (see [`WEIGHT_RADIUS`]).
+//! directional green estimates, 11x11 for red and blue. The choices
+//! between the two papers were made on the training photographs of
+//! [`super::raisr`] (mean CPSNR in a NumPy model of this file), never on
+//! the validation sets:
+//! - the combination takes RI's 5x5 gradient windows ending at the site
+//!   rather than the MLRI code's 3x3 ones a step out, and a Gaussian of
+//!   sigma 2 over 5 samples (41.58 dB; sigma 1 41.56, sigma 3 41.29, a
+//!   flat mean 40.84; the MLRI code's 3x3 windows with sigma 1 41.59, but
+//!   2.0 dB less on CBSD68, 1.5 on Urban100, 0.4 on the scikit-image seven:
+//!   see [`WEIGHT_RADIUS`]);
+//! - the green stage fits RI's line on the samples rather than MLRI's
+//!   slope on Laplacians (41.72 dB against 41.58; on the validation
+//!   subsets +0.04 / +0.39 / +0.45 dB), while red and blue keep MLRI's
+//!   (RI's there did worse in the model).
 //!
 //! Boxes are sums of mirrored pairs ([`super::boxsum`]), so the four Bayer phases
 //! are exact flips of each other; every sampled value is returned
@@ -86,9 +94,10 @@ use super::{chroma_masks, select, shifted, Phase};
 const LINE_RADIUS: usize = 5;
 /// Radius of the square guided filters of the red / blue stage.
 const SQUARE_RADIUS: usize = 5;
-/// The guided filter's floor on the mean squared Laplacian, relative to
-/// the squared full scale: the references use `1e-5 * 255^2` on 8-bit
-/// data. Without it a flat guide would divide noise by zero.
+/// The guided filters' floor on the mean squared Laplacian (red / blue)
+/// or the guide's variance (green), relative to the squared full scale:
+/// the references use `1e-5 * 255^2` on 8-bit data. Without it a flat
+/// guide would divide noise by zero.
 const FLAT: f32 = 1e-5;
 /// Floor on the squared gradient sums of the direction weights, relative
 /// to the squared full scale: equal weights on flat data and no overflow.
@@ -112,8 +121,8 @@ const ONE_SIDED_SIGMA: f32 = 2.0;
 /// `j - r` at step `j`, so what it reads `r - r'` rows further down of a
 /// stage of reach `r'` was computed earlier in the same step.
 const R_GUIDE: usize = 1;
-const R_LAPLACE: usize = R_GUIDE + 2;
-const R_COEF: usize = R_LAPLACE + LINE_RADIUS;
+const R_PRODUCT: usize = R_GUIDE;
+const R_COEF: usize = R_PRODUCT + LINE_RADIUS;
 const R_MEAN: usize = R_COEF + LINE_RADIUS;
 const R_DIF: usize = R_MEAN + 1;
 const R_GRAD: usize = R_DIF + 1;
@@ -133,7 +142,7 @@ const R_OUT: usize = R_RB_MEAN + 1;
 const V_COLS: usize = 0;
 /// Lags of the pair and quadruple sums across rows: they need rows 2 and 3
 /// further down than the row they are for.
-const PAIRS: usize = R_LAPLACE + 2;
+const PAIRS: usize = R_PRODUCT + 2;
 const QUADS: usize = R_COEF + 3;
 const RB_PAIRS: usize = R_RB_LAPLACE + 2;
 const RB_QUADS: usize = R_RB_COEF + 3;
@@ -210,7 +219,8 @@ impl Mlri {
 }
 
 /// The four statistics a guided filter sums over its window: guide,
-/// input, Laplacian products and squared guide Laplacians.
+/// input, guide times input and guide squared (of Laplacians in the red /
+/// blue stage).
 const STATS: usize = 4;
 /// The statistics the green stage sums itself: all but the guide's, which
 /// [`guide_sums`] derives from the input's.
@@ -218,7 +228,7 @@ const SUMMED: usize = STATS - 1;
 
 /// Buffers of one row of the green stage's horizontal pass.
 struct Line {
-    /// The guide, and the products of Laplacians (`L(I) L(p)`, `L(I)^2`).
+    /// The guide, and the products of guide and samples (`I p`, `I^2`).
     guide: Vec<f32>,
     prod: [Vec<f32>; 2],
     /// Coefficients (a, b) of the chroma and the green class. Their window
@@ -337,8 +347,8 @@ impl State {
 }
 
 /// The guided filter's coefficients from window sums over `n` samples,
-/// given as `window(n, flat)`: the slope fitted on Laplacians, the offset
-/// on the samples.
+/// given as `window(n, flat)`: the slope fitted on Laplacians (MLRI), the
+/// offset on the samples.
 #[inline(always)]
 fn coefficients(s: [f32; STATS], (floor, inv_n): (f32, f32)) -> (f32, f32) {
     let [si, sp, sip, sii] = s;
@@ -346,9 +356,21 @@ fn coefficients(s: [f32; STATS], (floor, inv_n): (f32, f32)) -> (f32, f32) {
     (a, (sp - a * si) * inv_n)
 }
 
-/// What [`coefficients`] needs of a window of `n` samples: the floor on its
-/// sum of squared Laplacians, and `1 / n` (a product per pixel where a
-/// quotient cost as much as the rest of the formula).
+/// The guided filter's coefficients from window sums of the guide, the
+/// samples, their products and the guide's squares over `n` samples, given
+/// as `window(n, flat)`: He et al.'s least-squares line (RI), its variance
+/// floored as the Laplacians' sum is in [`coefficients`].
+#[inline(always)]
+fn regression(s: [f32; STATS], (floor, inv_n): (f32, f32)) -> (f32, f32) {
+    let [si, sp, sip, sii] = s.map(|v| v * inv_n);
+    let a = (sip - si * sp) / (sii - si * si).max(floor * inv_n);
+    (a, sp - a * si)
+}
+
+/// What [`coefficients`] and [`regression`] need of a window of `n`
+/// samples: the floor on its sum of squared Laplacians (or of squared
+/// deviations), and `1 / n` (a product per pixel where a quotient cost as
+/// much as the rest of the formula).
 fn window(n: usize, flat: f32) -> (f32, f32) {
     (n as f32 * flat, 1.0 / n as f32)
 }
@@ -420,16 +442,13 @@ fn midpoints(a: &[f32], b: &[f32], out: &mut [f32]) {
     }
 }
 
-/// Products of the second differences of the guide `g` and the samples
-/// `c` on a line (each given as centre, one side, the other side, two
-/// steps apart: one class).
+/// The products of the green stage's regression at each site: guide
+/// times sample (`ip`) and guide squared (`ii`).
 #[inline(always)]
-fn laplace_products(g: [&[f32]; 3], c: [&[f32]; 3], ip: &mut [f32], ii: &mut [f32]) {
-    for i in 0..ip.len() {
-        let li = 2.0 * g[0][i] - (g[1][i] + g[2][i]);
-        let lp = 2.0 * c[0][i] - (c[1][i] + c[2][i]);
-        ip[i] = li * lp;
-        ii[i] = li * li;
+fn products(g: &[f32], c: &[f32], ip: &mut [f32], ii: &mut [f32]) {
+    for (((ip, ii), g), c) in ip.iter_mut().zip(ii.iter_mut()).zip(g).zip(c) {
+        *ip = g * c;
+        *ii = g * g;
     }
 }
 
@@ -589,8 +608,8 @@ impl Mlri {
             let outer5 = before5[i] + after5[i];
             let outer6 = before6[i] + after6[i];
             let (si, oi) = guide_sums(sp, op, outer5, outer6);
-            let (a_s, b_s) = coefficients([si, sp, sip, sii], n_same);
-            let (a_o, b_o) = coefficients([oi, op, oip, oii], n_other);
+            let (a_s, b_s) = regression([si, sp, sip, sii], n_same);
+            let (a_o, b_o) = regression([oi, op, oip, oii], n_other);
             (ac[i], ag[i]) = swap(m[i], a_s, a_o);
             (bc[i], bg[i]) = swap(m[i], b_s, b_o);
         }
@@ -604,12 +623,14 @@ impl Mlri {
         let n = len - 2 * R_GUIDE;
         let (a, b) = (shifted(c, R_GUIDE, -1, n), shifted(c, R_GUIDE, 1, n));
         midpoints(a, b, cols_mut(&mut lb.guide, R_GUIDE));
-        let (r, n) = (R_LAPLACE, len - 2 * R_LAPLACE);
-        let g = |k: isize| shifted(&lb.guide, r, k, n);
-        let v = |k: isize| shifted(c, r, k, n);
+        let r = R_PRODUCT;
         let [ip, ii] = &mut lb.prod;
-        let (ip, ii) = (cols_mut(ip, r), cols_mut(ii, r));
-        laplace_products([g(0), g(-2), g(2)], [v(0), v(-2), v(2)], ip, ii);
+        products(
+            cols(&lb.guide, r),
+            cols(c, r),
+            cols_mut(ip, r),
+            cols_mut(ii, r),
+        );
         let [ip, ii] = &lb.prod;
         let n = len - 2 * R_COEF;
         let (tc, tp, ti) = (
@@ -658,15 +679,13 @@ impl Mlri {
 
     #[inline(always)]
     fn columns_products(&self, v: &mut Columns, c: &Ring, ty: usize) {
-        let g = |y: usize| cols(v.guide.row(y), V_COLS);
-        let s = |y: usize| cols(c.row(y), V_COLS);
         let [ip, ii] = &mut v.prod;
-        let (ip, ii) = (
+        products(
+            cols(v.guide.row(ty), V_COLS),
+            cols(c.row(ty), V_COLS),
             cols_mut(ip.row_mut(ty), V_COLS),
             cols_mut(ii.row_mut(ty), V_COLS),
         );
-        let (gs, cs) = ([g(ty), g(ty - 2), g(ty + 2)], [s(ty), s(ty - 2), s(ty + 2)]);
-        laplace_products(gs, cs, ip, ii);
     }
 
     #[inline(always)]
@@ -741,10 +760,10 @@ impl Mlri {
             if let Some(ty) = j.due(R_GUIDE) {
                 self.columns_guide(v, c, ty);
             }
-            if let Some(ty) = j.due(R_LAPLACE) {
+            if let Some(ty) = j.due(R_PRODUCT) {
                 self.columns_products(v, c, ty);
             }
-            if let Some(ty) = j.due_from(PAIRS, R_LAPLACE) {
+            if let Some(ty) = j.due_from(PAIRS, R_PRODUCT) {
                 let sources: [&Ring; SUMMED] = [c, &v.prod[0], &v.prod[1]];
                 pair_rows(sources, &mut v.pairs, ty, V_COLS);
             }
@@ -1127,7 +1146,7 @@ impl StreamKernel for Mlri {
             },
             columns: Columns {
                 guide: ring(R_GUIDE, R_MEAN, 0, V_COLS),
-                prod: two(R_LAPLACE, R_COEF, 0, V_COLS),
+                prod: two(R_PRODUCT, R_COEF, 0, V_COLS),
                 pairs: [0; SUMMED].map(|_| ring(PAIRS, R_COEF, LINE_RADIUS, V_COLS)),
                 coef: rings(R_COEF, R_MEAN, 1, V_COLS),
                 quads: rings(QUADS, R_MEAN, LINE_RADIUS, V_COLS),
@@ -1280,6 +1299,22 @@ mod tests {
         assert_eq!((a, b), (2.0, 3.0));
         // A flat guide: the floor keeps the slope finite and small.
         let (a, b) = coefficients([4.0, 8.0, 0.0, 0.0], window(4, 1e-5));
+        assert_eq!((a, b), (0.0, 2.0));
+    }
+
+    #[test]
+    fn regression_recovers_a_linear_relation() {
+        // p = 2 I + 3 on four samples: the least-squares line.
+        let guide = [1.0f32, 4.0, 2.0, 7.0];
+        let si: f32 = guide.iter().sum();
+        let sp: f32 = guide.iter().map(|g| 2.0 * g + 3.0).sum();
+        let sip: f32 = guide.iter().map(|g| g * (2.0 * g + 3.0)).sum();
+        let sii: f32 = guide.iter().map(|g| g * g).sum();
+        let (a, b) = regression([si, sp, sip, sii], window(4, 1e-5));
+        assert!((a - 2.0).abs() < 1e-5 && (b - 3.0).abs() < 1e-4, "{a} {b}");
+        // A flat guide: the floor on the variance keeps the slope at zero
+        // and the offset at the samples' mean.
+        let (a, b) = regression([4.0, 8.0, 4.0 * 2.0, 4.0], window(4, 1e-5));
         assert_eq!((a, b), (0.0, 2.0));
     }
 

@@ -150,17 +150,18 @@ impl Method {
     }
 
     /// Our most accurate method at the speed of the fast ones, which the
-    /// name "best" selects: MLRI, chosen on the validation subsets rather
-    /// than the scikit-image seven alone. Mean CPSNR on the seven 39.76 dB,
-    /// CBSD68 38.50, Urban24 35.25, against the RCD / Menon 2007 mean's
-    /// 39.63, 37.38 and 34.89 at about the same speed.
+    /// name "best" selects: residual interpolation ([`Method::Mlri`]),
+    /// chosen on the validation subsets rather than the scikit-image seven
+    /// alone. Mean CPSNR on the seven 39.80 dB, CBSD68 38.89, Urban24
+    /// 35.70, against the RCD / Menon 2007 mean's 39.63, 37.38 and 34.89 at
+    /// about the same speed.
     pub const BEST: Method = Method::Mlri;
 
     /// The most accurate method, which the name "quality" selects, whatever
-    /// its speed: the learned refinement, 38.03 dB over the means of the
-    /// validation subsets (scikit-image seven 40.04, CBSD68 38.37, Urban24
-    /// 35.67).
-    pub const QUALITY: Method = Method::Raisr;
+    /// its speed: by the mean over the validation subsets, currently the
+    /// same as [`Method::BEST`] (38.13 dB against the learned refinement's
+    /// 38.03, which leads only on the scikit-image seven).
+    pub const QUALITY: Method = Method::Mlri;
 
     /// The names that select a method by what it is for rather than by what
     /// it does: each with its Bayer and its X-Trans method.
