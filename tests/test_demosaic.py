@@ -288,8 +288,8 @@ def test_adaptive_methods_beat_bilinear_on_a_natural_image():
     # The frequency-domain method is at least 1 dB better than Malvar's.
     assert errors["leung2011"] < errors["malvar2004"] / 10**0.1
     # Residual interpolation beats both of the single methods it competes
-    # with (39.76 dB mean CPSNR on the benchmark's seven images against 38.7 /
-    # 38.8; 38.50 on CBSD68 against 35.0 / 37.6).
+    # with (39.80 dB mean CPSNR on the benchmark's seven images against 38.7 /
+    # 38.8; 38.89 on CBSD68 against 35.0 / 37.6).
     assert errors["mlri"] < min(errors["rcd"], errors["menon2007"])
 
 
@@ -298,8 +298,9 @@ def test_mlri_leads_on_fine_grey_texture(name):
     # Any chroma is an error on a grey image, and fine texture is where the
     # green stage's choice of direction decides. Weighing the directions
     # over 5x5 gradient windows (RI's) rather than the MLRI code's 3x3 ones
-    # is worth 2.4 / 2.7 dB here (33.4 / 39.9 dB against 31.0 / 37.2) and
-    # puts MLRI 1.5 dB above the RCD / Menon mean, which the 3x3 ones trailed.
+    # is worth 2.4 / 2.7 dB here (33.4 / 39.9 dB against 31.0 / 37.2), RI's
+    # green regression 0.3 / 0.6 more: 1.8 / 2.2 dB above the RCD / Menon
+    # mean, which the MLRI code's choices trailed.
     data = pytest.importorskip("skimage.data")
     grey = getattr(data, name)()
     rgb = np.repeat(grey[..., None], 3, axis=2)
@@ -313,7 +314,7 @@ def test_mlri_leads_on_fine_grey_texture(name):
 
 
 def test_borders_are_mirrored_not_black_or_wrapped():
-    # Wider than MLRI's reach (32 columns), so only wrapping could carry the
+    # Wider than MLRI's reach (30 columns), so only wrapping could carry the
     # bright last column into the first.
     raw = np.full((9, 40), 1000, np.uint16)
     raw[:, -1] = 3000  # a bright last column must not leak into the first

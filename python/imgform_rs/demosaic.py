@@ -50,20 +50,21 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   openly licensed images, none of the benchmark's. Outputs are clamped to the
   range of the input mosaic. Mean CPSNR 38.99 dB on the benchmark's images
   (``"malvar2004"`` 37.39).
-- ``"mlri"``: Kiku, Monno, Tanaka and Okutomi, "Minimized-Laplacian residual
-  interpolation for color image demosaicking", Proc. SPIE 9023, Digital Photography
-  X, 2014 — guided filters (fitted on Laplacians) turn a linearly interpolated guide
-  into tentative values, and the residuals between samples and tentative values,
-  smoother than colour differences, are interpolated instead: green along rows and
-  along columns (11-sample windows), combined with weights from the gradients of the
-  two colour differences over 5x5 windows on each side (as in residual
-  interpolation, Kiku et al. 2013; the MLRI code's 3x3 windows lost 2 dB on
-  textured photographs), then red and blue guided by the full green over 11x11
-  windows. Outputs are clamped to the range of the input mosaic. Mean CPSNR (8-bit
-  protocol, see ``"best"``) 39.76 dB on the scikit-image seven, 38.50 on CBSD68,
-  35.25 on Urban24; wide support (32 pixels), about 1.1x the time of ``"rcd_menon"``
-  (2.78x LibRaw AHD against its 3.05x in a run on a 2-core AMD EPYC VM on
-  2026-11-27; 4.02-4.25x on an Intel VM with AVX-512 before the 5x5 windows).
+- ``"mlri"``: residual interpolation, the green stage as in Kiku, Monno, Tanaka and
+  Okutomi, "Residual interpolation for color image demosaicking", ICIP 2013 (RI), red
+  and blue as in their "Minimized-Laplacian residual interpolation for color image
+  demosaicking", Proc. SPIE 9023, Digital Photography X, 2014 (MLRI) — guided filters
+  turn a linearly interpolated guide into tentative values, and the residuals between
+  samples and tentative values, smoother than colour differences, are interpolated
+  instead: green along rows and along columns (11-sample windows, least-squares
+  lines), combined with weights from the gradients of the two colour differences over
+  5x5 windows on each side, then red and blue guided by the full green over 11x11
+  windows (slopes fitted on Laplacians). These choices between the papers were made
+  on the training photographs of ``"raisr"``; together they gained 2.4 dB on CBSD68
+  and 1.9 on Urban24 over the MLRI code's (3x3 windows, Laplacians throughout).
+  Outputs are clamped to the range of the input mosaic. Mean CPSNR (8-bit protocol,
+  see ``"best"``) 39.80 dB on the scikit-image seven, 38.89 on CBSD68, 35.70 on
+  Urban24; wide support (30 pixels), about 1.1x the time of ``"rcd_menon"``.
 - ``"raisr"``: a learned refinement of ``"rcd_menon"`` in the manner of Romano,
   Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super Resolution", IEEE
   Transactions on Computational Imaging 3(1), 2017: per CFA position and class of
@@ -80,8 +81,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   rocket 33.12, immunohistochemistry 42.71, retina 52.52, motorcycle_left 36.04), and
   above its base on the held-out photographs too; 59-82 MP/s at 24 MP on two cores
   in runs of ``benchmarks/demosaic.py`` on 2026-11-23 to 26.
-  It is the most accurate method here (``"quality"``) but not ``"best"``, which must
-  keep 100 MP/s.
+  The most accurate method on the seven, not on the other two subsets.
 - ``"best"``: our most accurate method at the speed of the fast ones, currently
   ``"mlri"``, chosen on the benchmark's three validation subsets (``python
   benchmarks/demosaic.py quality``: the seven scikit-image images, the 68 CBSD68
@@ -91,20 +91,22 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ====================  ==========  ======  =======
   method                scikit 7    CBSD68  Urban24
   ====================  ==========  ======  =======
+  ``"mlri"`` (best)     39.80       38.89   35.70
   ``"raisr"``           40.04       38.37   35.67
-  ``"mlri"`` (best)     39.76       38.50   35.25
   ``"rcd_menon"``       39.63       37.38   34.89
   ``"menon2007"``       38.76       37.60   34.72
   eari-demosaic RI      38.80       38.99   35.56
   LibRaw AAHD           38.78       35.67   32.73
   ====================  ==========  ======  =======
 
-  The residual-interpolation peer (Kiku et al. 2013, in NumPy) is still ahead on
-  CBSD68 and Urban24; LibRaw and colour-demosaicing's Menon2007 are behind on
-  every subset. Until 2026-11-27 ``"best"`` was ``"rcd_menon"``, picked on the
-  seven images alone.
-- ``"quality"``: the most accurate method whatever its speed, currently ``"raisr"``
-  (best mean over the three subsets); ``"markesteijn"`` for X-Trans.
+  The residual-interpolation peer (Kiku et al. 2013, in NumPy) is still 0.09 dB
+  ahead on CBSD68; LibRaw and colour-demosaicing's Menon2007 are behind on every
+  subset. On a grey zone plate ``"mlri"`` shows about twice the false colour of
+  ``"rcd_menon"`` (but less zipper, and less of both on a Siemens star). Until
+  2026-11-27 ``"best"`` was ``"rcd_menon"``, picked on the seven images alone.
+- ``"quality"``: the most accurate method whatever its speed, by the mean over the
+  three subsets: currently ``"mlri"`` too (``"raisr"`` leads only on the seven);
+  ``"markesteijn"`` for X-Trans.
 
 - ``"markesteijn"`` (X-Trans only): Frank Markesteijn's X-Trans method, as in dcraw's
   and LibRaw's ``xtrans_interpolate`` (one pass) — green interpolated along rows,
@@ -128,7 +130,7 @@ method                 Bayer        X-Trans
 ``"bilinear"``         yes          yes
 ``"markesteijn"``      no           yes
 ``"best"``             mlri         markesteijn
-``"quality"``          raisr        markesteijn
+``"quality"``          mlri         markesteijn
 every other method     yes          no
 =====================  ===========  =========
 
@@ -187,8 +189,7 @@ def demosaic(
     method : str
         One of :data:`BAYER_DEMOSAIC_METHODS` for Bayer patterns, of
         :data:`XTRANS_DEMOSAIC_METHODS` for X-Trans. ``"best"`` is ``"mlri"``
-        for Bayer and ``"markesteijn"`` for X-Trans, ``"quality"`` ``"raisr"`` and
-        ``"markesteijn"``.
+        for Bayer and ``"markesteijn"`` for X-Trans, and so is ``"quality"``.
     out : ndarray, shape (H, W, 3), same dtype as ``raw``, optional
         Where to write the result, returned instead of a new array: C-contiguous,
         writeable, sharing no memory with ``raw``. Reusing one buffer over many
@@ -203,7 +204,7 @@ def demosaic(
         Integer outputs are rounded half up and clamped to the dtype's range;
         float outputs are not clamped (Malvar and Hamilton-Adams can overshoot),
         except by ``"rcd"``, ``"menon2007"``, ``"rcd_menon"``, ``"ahd"``,
-        ``"leung2011"``, ``"mlri"`` (``"best"``), ``"raisr"`` (``"quality"``) and
+        ``"leung2011"``, ``"mlri"`` (``"best"``, ``"quality"``), ``"raisr"`` and
         ``"markesteijn"``, which clamp every output to
         ``[raw.min(), raw.max()]``.
         Borders are reconstructed from a mirrored mosaic (edge not repeated,
