@@ -102,8 +102,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   The residual-interpolation peer (Kiku et al. 2013, in NumPy) is still 0.09 dB
   ahead on CBSD68; LibRaw and colour-demosaicing's Menon2007 are behind on every
   subset. On a grey zone plate ``"mlri"`` shows about twice the false colour of
-  ``"rcd_menon"`` (but less zipper, and less of both on a Siemens star). Until
-  2026-11-27 ``"best"`` was ``"rcd_menon"``, picked on the seven images alone.
+  ``"rcd_menon"`` (but less zipper, and less of both on a Siemens star).
 - ``"quality"``: the most accurate method whatever its speed, by the mean over the
   three subsets: currently ``"mlri"`` too (``"raisr"`` leads only on the seven);
   ``"markesteijn"`` for X-Trans.
