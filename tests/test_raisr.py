@@ -1,5 +1,6 @@
-"""The learned "raisr" demosaicer: properties the shared demosaic tests don't cover
-(it is not flip-symmetric), agreement with its training script, reproducible training."""
+"""The learned demosaicers ("raisr" and "fusion"): properties the shared demosaic tests
+don't cover (they are not flip-symmetric), agreement with their training script,
+reproducible training."""
 
 from pathlib import Path
 
@@ -11,40 +12,47 @@ from test_demosaic import BAYER, mosaics, random_raw
 
 import imgform_rs as ig
 
-WEIGHTS = Path(__file__).parents[1] / "rust/imgform-core/src/demosaic/raisr_weights.bin"
+KERNELS = Path(__file__).parents[1] / "rust/imgform-core/src/demosaic"
+WEIGHTS = KERNELS / "raisr_weights.bin"
+LEARNED = ["raisr", "fusion"]
 
 
-@given(raw=mosaics(), p=st.sampled_from(BAYER))
-def test_outputs_stay_within_the_input_range(raw, p):
-    out = ig.demosaic(raw, p, "raisr")
+@given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(LEARNED))
+def test_outputs_stay_within_the_input_range(raw, p, method):
+    out = ig.demosaic(raw, p, method)
     assert raw.min() <= out.min() and out.max() <= raw.max()
 
 
+@pytest.mark.parametrize("method", LEARNED)
 @pytest.mark.parametrize("dtype", [np.uint16, np.float32])
-def test_tile_seams_do_not_show(dtype):
+def test_tile_seams_do_not_show(dtype, method):
     # Tiles are 384 columns counted from the left: dropping an even number of
     # columns keeps the phase and moves every seam, so the interiors agree.
     raw = random_raw(5, 40, 1001, dtype)
-    shift, reach = 50, 40
-    whole = ig.demosaic(raw, "GBRG", "raisr")
-    cut = ig.demosaic(np.ascontiguousarray(raw[:, shift:]), "GBRG", "raisr")
+    shift, reach = 50, ig.demosaic_halo(method, "GBRG") + 8
+    whole = ig.demosaic(raw, "GBRG", method)
+    cut = ig.demosaic(np.ascontiguousarray(raw[:, shift:]), "GBRG", method)
     np.testing.assert_array_equal(cut[:, reach:-reach], whole[:, shift + reach : -reach])
 
 
-def test_the_kernel_applies_the_filters_the_training_script_fitted():
+@pytest.mark.parametrize("method", LEARNED)
+def test_the_kernel_applies_the_filters_the_training_script_fitted(method):
     # The training script reimplements the kernel's features and hash in
     # NumPy; the shipped filters applied there must give the kernel's output.
     data = pytest.importorskip("skimage.data")
     from imgform_rs.training import demosaic as tr
 
-    truth, base, position = tr.prepare(data.coffee()[100:180, 200:290] / 255.0)
+    crop = data.coffee()[100:180, 200:290] / 255.0
+    truth, bases, position = tr.prepare(crop, tr.BASES[method])
+    base = bases[0]
     mosaic = np.ascontiguousarray((truth * ig.channel_masks(truth.shape[:2], "RGGB")).sum(-1))
-    out = ig.demosaic(mosaic.astype(np.float32), "RGGB", "raisr")
-    blob = WEIGHTS.read_bytes()
+    out = ig.demosaic(mosaic.astype(np.float32), "RGGB", method)
+    blob = (KERNELS / f"{method}_weights.bin").read_bytes()
+    nf = int(np.frombuffer(blob, "<u4", 1, 20)[0])
     strength = np.frombuffer(blob, "<f4", tr.STRENGTHS - 1, 24)
-    filters = np.frombuffer(blob, "<f4", offset=40).reshape(-1, 2, tr.FEATURES)
+    filters = np.frombuffer(blob, "<f4", offset=40).reshape(-1, 2, nf)
     cls = tr.classes(*tr.hash_inputs(base, position), strength)
-    feats, _ = tr.samples(truth, base, position)
+    feats, _ = tr.samples(truth, bases, position)
     want = np.einsum("nf,nkf->nk", feats, filters[cls])
     blue, chroma = tr.interior(position >= 2, 0), tr.interior(position % 2 == 1, 0)
 
@@ -64,9 +72,9 @@ def test_a_small_training_gives_identical_bytes_twice():
     pytest.importorskip("skimage.data")
     from imgform_rs.training.demosaic import train
 
-    first = train(small=True)
-    assert first.startswith(b"IGRAISR1") and len(first) > 50_000
-    assert train(small=True) == first
+    first = train("fusion", small=True)
+    assert first.startswith(b"IGRAISR1") and len(first) > 100_000
+    assert train("fusion", small=True) == first
 
 
 @pytest.mark.slow
@@ -77,7 +85,7 @@ def test_the_shipped_weights_are_what_training_gives():
 
     if not (DEFAULT_DATA / ".fetched").exists():
         pytest.skip("the training photographs are not fetched (make training-data)")
-    assert train() == WEIGHTS.read_bytes()
+    assert train("raisr") == WEIGHTS.read_bytes()
 
 
 def test_photos_are_downsampled_by_area_averages():

@@ -1,4 +1,5 @@
-"""Training of the ``"raisr"`` demosaicer's filter bank (rebuilds ``raisr_weights.bin``).
+"""Training of the learned demosaicers' filter banks: ``"raisr"`` (rebuilds
+``raisr_weights.bin``) and ``"fusion"`` (``fusion_weights.bin``).
 
 RAISR (Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
 Resolution", IEEE Transactions on Computational Imaging 3(1), 2017) learns, per
@@ -32,8 +33,14 @@ RGGB (the four CFA positions all occur) and demosaicked in float32. The normal
 equations are accumulated in float64, solved with a small ridge term, and the
 filters rounded to float32: two runs give identical bytes.
 
-Run ``python -m imgform_rs.training.demosaic [--out PATH] [--data DIR] [--small]``
-(``--small``: two scikit-image images only, no download; for the tests).
+``"fusion"`` is the same machinery with two bases: the filters refine
+``demosaic(..., "mlri")`` and also see ``"rcd_menon"``'s difference from it over the
+3x3 window (27 more features), so that per class they learn how far to trust either
+(``Method::Fusion`` in ``rust/imgform-core/src/demosaic/mod.rs``).
+
+Run ``python -m imgform_rs.training.demosaic [--method raisr|fusion] [--out PATH]
+[--data DIR] [--small]`` (``--small``: two scikit-image images only, no download; for
+the tests).
 """
 
 from __future__ import annotations
@@ -49,6 +56,12 @@ from imgform_rs.training.photos import DEFAULT_DATA
 
 SEED = 20170101
 FEATURES = 26
+#: Features of a second base: its difference from the first, 3 colours x 3x3.
+SECOND_FEATURES = 27
+#: The bases of each learned method: the one refined, then the one compared.
+BASES = {"raisr": ("rcd_menon",), "fusion": ("mlri", "rcd_menon")}
+#: The training set of each (:func:`imgform_rs.training.sets.training_images`).
+SETS = {"raisr": "raisr", "fusion": "raisr"}
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3
 POSITIONS = 4
 CLASSES = POSITIONS * ANGLES * STRENGTHS * COHERENCES
@@ -84,9 +97,7 @@ EVALUATION_IMAGES = [
 ]
 # motorcycle_right is the other view of motorcycle_left's scene.
 HELD_OUT = {*EVALUATION_IMAGES, "motorcycle_right"}
-DEFAULT_OUT = (
-    Path(__file__).resolve().parents[3] / "rust/imgform-core/src/demosaic/raisr_weights.bin"
-)
+KERNELS = Path(__file__).resolve().parents[3] / "rust/imgform-core/src/demosaic"
 
 
 def smooth_field(rng: np.random.Generator, shape: tuple[int, int], sigma: float) -> np.ndarray:
@@ -194,18 +205,31 @@ def features(base: np.ndarray, blue_rows: np.ndarray) -> np.ndarray:
     return np.where(blue_rows[1:-1, None, None], out[1], out[0])
 
 
-def prepare(rgb: np.ndarray):
-    """The 8-bit truth, its RGGB mosaic demosaicked by the base, and the CFA
-    positions (``2 * blue_row + chroma_site``) of every pixel."""
+def second_features(base: np.ndarray, second: np.ndarray, blue_rows: np.ndarray) -> np.ndarray:
+    """The second base minus the first at each pixel of the 3x3 window, colours in
+    the centre row's frame: (H-2, W-2, 27) for the pixels 1 away from the border."""
+    h, w = base.shape[:2]
+    out = []
+    steps = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
+    for diff in (second - base, (second - base)[..., ::-1]):
+        f = [diff[1 + dy : h - 1 + dy, 1 + dx : w - 1 + dx] for dy, dx in steps]
+        out.append(np.concatenate(f, -1))
+    return np.where(blue_rows[1:-1, None, None], out[1], out[0])
+
+
+def prepare(rgb: np.ndarray, bases: tuple[str, ...]):
+    """The 8-bit truth, its RGGB mosaic demosaicked by each base (the first's
+    output, then the others' differences from it), and the CFA positions
+    (``2 * blue_row + chroma_site``) of every pixel."""
     truth = quantise(rgb)
     h, w = truth.shape[:2]
     masks = ig.channel_masks((h, w), "RGGB")
     mosaic = np.ascontiguousarray((truth * masks).sum(-1), dtype=np.float32)
-    base = ig.demosaic(mosaic, "RGGB", "rcd_menon")
+    outputs = [ig.demosaic(mosaic, "RGGB", m) for m in bases]
     yy, xx = np.mgrid[:h, :w]
     blue = yy % 2 == 1
     chroma = (xx % 2 == 0) ^ blue
-    return truth, base, 2 * blue + chroma
+    return truth, outputs, 2 * blue + chroma
 
 
 def interior(a: np.ndarray, reach: int) -> np.ndarray:
@@ -221,11 +245,14 @@ def hash_inputs(base: np.ndarray, position: np.ndarray):
     return [interior(s, 2) for s in tensor(base[..., 1])], interior(position, 0)
 
 
-def samples(truth: np.ndarray, base: np.ndarray, position: np.ndarray):
-    """Features and targets (residuals of the two missing colours in the
-    centre row's frame) of the interior pixels."""
+def samples(truth: np.ndarray, bases: list[np.ndarray], position: np.ndarray):
+    """Features and targets (residuals of the first base's two missing colours in
+    the centre row's frame) of the interior pixels."""
     blue = position >= 2
-    feats = interior(features(base, blue[:, 0]), 1)
+    base = bases[0]
+    feats = [features(base, blue[:, 0])]
+    feats += [second_features(base, other, blue[:, 0]) for other in bases[1:]]
+    feats = interior(np.concatenate(feats, -1), 1)
     residual = truth - base
     frame = np.where(blue[..., None], residual[..., ::-1], residual)
     chroma = (position % 2 == 1)[..., None]
@@ -243,59 +270,82 @@ def classes(sums, position, strength: np.ndarray) -> np.ndarray:
     return ((position * ANGLES + a) * STRENGTHS + s) * COHERENCES + c
 
 
-def strength_thresholds(prepared) -> np.ndarray:
+def strength_thresholds(images, bases: tuple[str, ...]) -> np.ndarray:
     """The strength bin bounds: quantiles of the largest eigenvalue, as float32."""
-    l1 = [eigen(*hash_inputs(base, pos)[0])[0] for _, base, pos in prepared]
+    l1 = []
+    for rgb in images:
+        _, outputs, position = prepare(rgb, bases)
+        l1.append(eigen(*hash_inputs(outputs[0], position)[0])[0])
     return np.quantile(np.concatenate(l1).astype(np.float64), STRENGTH_QUANTILES).astype(np.float32)
 
 
-def solve(prepared, strength: np.ndarray) -> np.ndarray:
-    """Least-squares filters per class, (CLASSES, 2, FEATURES) float32."""
-    xtx = np.zeros((CLASSES, FEATURES, FEATURES))
-    xty = np.zeros((CLASSES, FEATURES, 2))
+def solve(images, bases: tuple[str, ...], strength: np.ndarray) -> np.ndarray:
+    """Least-squares filters per class, (CLASSES, 2, features) float32. The images
+    are demosaicked again here rather than kept from :func:`strength_thresholds`:
+    several hundred images' bases would not fit in memory."""
+    nf = FEATURES + SECOND_FEATURES * (len(bases) - 1)
+    xtx = np.zeros((CLASSES, nf, nf))
+    xty = np.zeros((CLASSES, nf, 2))
     count = np.zeros(CLASSES, dtype=np.int64)
-    for truth, base, position in prepared:
-        cls = classes(*hash_inputs(base, position), strength)
-        feats, target = samples(truth, base, position)
+    for rgb in images:
+        truth, bases_out, position = prepare(rgb, bases)
+        cls = classes(*hash_inputs(bases_out[0], position), strength)
+        feats, target = samples(truth, bases_out, position)
+        # Sorted once, so each class's samples are one contiguous block.
         order = np.argsort(cls, kind="stable")
+        feats, target = feats[order].astype(np.float64), target[order].astype(np.float64)
         bounds = np.searchsorted(cls[order], np.arange(CLASSES + 1))
-        for k in range(CLASSES):
-            idx = order[bounds[k] : bounds[k + 1]]
-            x, y = feats[idx].astype(np.float64), target[idx].astype(np.float64)
+        for k in np.flatnonzero(np.diff(bounds)):
+            x, y = feats[bounds[k] : bounds[k + 1]], target[bounds[k] : bounds[k + 1]]
             xtx[k] += x.T @ x
             xty[k] += x.T @ y
-            count[k] += idx.size
-    filters = np.zeros((CLASSES, 2, FEATURES), dtype=np.float32)
+            count[k] += len(x)
+    filters = np.zeros((CLASSES, 2, nf), dtype=np.float32)
     for k in np.flatnonzero(count >= MIN_SAMPLES):
-        ridge = RIDGE * np.trace(xtx[k]) / FEATURES + 1e-12
-        w = np.linalg.solve(xtx[k] + ridge * np.eye(FEATURES), xty[k])
+        ridge = RIDGE * np.trace(xtx[k]) / nf + 1e-12
+        w = np.linalg.solve(xtx[k] + ridge * np.eye(nf), xty[k])
         filters[k] = w.T.astype(np.float32)
     return filters
 
 
 def encode(strength: np.ndarray, filters: np.ndarray) -> bytes:
     """The weights file (layout documented at ``Weights::parse`` in raisr.rs)."""
-    header = b"IGRAISR1" + struct.pack("<4I", ANGLES, STRENGTHS, COHERENCES, FEATURES)
+    nf = filters.shape[2]
+    header = b"IGRAISR1" + struct.pack("<4I", ANGLES, STRENGTHS, COHERENCES, nf)
     thresholds = np.concatenate([strength, np.float32(COHERENCE_THRESHOLDS)])
     return header + thresholds.astype("<f4").tobytes() + filters.astype("<f4").tobytes()
 
 
-def train(small: bool = False, data: Path = DEFAULT_DATA) -> bytes:
-    """The weights file trained from the fixed seed (``small``: a quick subset)."""
-    images = training_images(small, data)
-    prepared = [prepare(im) for rgb in images for im in (rgb, np.rot90(rgb))]
-    strength = strength_thresholds(prepared)
-    return encode(strength, solve(prepared, strength))
+def views(method: str, small: bool, data: Path) -> list[np.ndarray]:
+    """The training images of ``method``: raisr's each also turned by 90 degrees
+    (so that every filter sees both orientations of each structure); the extended
+    set's are already flipped and turned at random by its augmentation."""
+    if small or SETS[method] == "raisr":
+        return [im for rgb in training_images(small, data) for im in (rgb, np.rot90(rgb))]
+    from imgform_rs.training import sets
+
+    return sets.training_images(SETS[method], data)
+
+
+def train(method: str = "raisr", small: bool = False, data: Path = DEFAULT_DATA) -> bytes:
+    """The weights file of ``method`` trained from the fixed seed (``small``: a
+    quick subset)."""
+    images = views(method, small, data)
+    bases = BASES[method]
+    strength = strength_thresholds(images, bases)
+    return encode(strength, solve(images, bases, strength))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="where to write")
+    parser.add_argument("--method", choices=sorted(BASES), default="raisr")
+    parser.add_argument("--out", type=Path, help="where to write (default: the shipped file)")
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="photographs folder")
     parser.add_argument("--small", action="store_true", help="a quick subset (for tests)")
     args = parser.parse_args()
-    args.out.write_bytes(train(args.small, args.data))
-    print(f"wrote {args.out}")
+    out = args.out or KERNELS / f"{args.method}_weights.bin"
+    out.write_bytes(train(args.method, args.small, args.data))
+    print(f"wrote {out}")
 
 
 if __name__ == "__main__":

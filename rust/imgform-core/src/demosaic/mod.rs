@@ -106,6 +106,15 @@ pub enum Method {
     /// missing colours. Not flip-symmetric (the filters are learned).
     /// Outputs are clamped to the input's range.
     Raisr,
+    /// A learned adaptive fusion of [`Method::Mlri`] and [`Method::RcdMenon`]:
+    /// the refinement of [`Method::Raisr`] applied to MLRI, its filters also
+    /// seeing the RCD / Menon mean's difference from MLRI over the 3x3
+    /// window. MLRI's residual interpolation wins where the colour channels
+    /// are weakly correlated, RCD / Menon's colour differences where they
+    /// are strongly correlated; per class of local structure the filters
+    /// learn how far to trust either. Not flip-symmetric. Outputs are
+    /// clamped to the input's range.
+    Fusion,
     /// Markesteijn's X-Trans method as in dcraw's `xtrans_interpolate`
     /// (one pass): green, then red and blue by colour differences, along
     /// four directions; per pixel the mean of the directions with the most
@@ -117,7 +126,7 @@ pub enum Method {
 impl Method {
     /// Every method for Bayer mosaics, in the order the documentation lists
     /// them.
-    pub const ALL: [Method; 11] = [
+    pub const ALL: [Method; 12] = [
         Method::Nearest,
         Method::Bilinear,
         Method::Malvar2004,
@@ -129,6 +138,7 @@ impl Method {
         Method::Leung2011,
         Method::Mlri,
         Method::Raisr,
+        Method::Fusion,
     ];
 
     /// The name users pass.
@@ -145,6 +155,7 @@ impl Method {
             Method::Leung2011 => "leung2011",
             Method::Mlri => "mlri",
             Method::Raisr => "raisr",
+            Method::Fusion => "fusion",
             Method::Markesteijn => "markesteijn",
         }
     }
@@ -212,6 +223,7 @@ impl Method {
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
             Method::Mlri => <mlri::Mlri as tiled::StreamKernel>::HALO,
             Method::Raisr => <raisr::Raisr<ensemble::Ensemble> as TileKernel>::HALO,
+            Method::Fusion => <Fusion as TileKernel>::HALO,
             Method::Markesteijn => markesteijn::HALO,
         }
     }
@@ -579,26 +591,46 @@ where
             unreachable!("callers route nearest and X-Trans-only methods elsewhere")
         }
         Method::RcdMenon => {
-            let k = ensemble::Ensemble {
-                rcd: Rcd::new(phase, T::FULL_SCALE),
-                menon: Menon2007 { phase },
-            };
+            let k = rcd_menon(phase, T::FULL_SCALE);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
             let k = raisr::Raisr {
-                base: ensemble::Ensemble {
-                    rcd: Rcd::new(phase, T::FULL_SCALE),
-                    menon: Menon2007 { phase },
-                },
+                base: rcd_menon(phase, T::FULL_SCALE),
+                second: raisr::Alone,
                 phase,
                 inv_scale: 1.0 / T::FULL_SCALE,
                 bounds: raw.range(),
-                weights: raisr::Weights::shipped(),
+                weights: raisr::Weights::raisr(),
                 isa,
             };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
+        Method::Fusion => {
+            let k: Fusion = raisr::Raisr {
+                base: tiled::AsTile(mlri::Mlri::new(phase, T::FULL_SCALE)),
+                second: raisr::Against(rcd_menon(phase, T::FULL_SCALE)),
+                phase,
+                inv_scale: 1.0 / T::FULL_SCALE,
+                bounds: raw.range(),
+                weights: raisr::Weights::fusion(),
+                isa,
+            };
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+        }
+    }
+}
+
+/// The kernel of [`Method::Fusion`]: MLRI refined, seeing the RCD / Menon
+/// mean.
+type Fusion = raisr::Raisr<tiled::AsTile<mlri::Mlri>, raisr::Against<ensemble::Ensemble>>;
+
+/// The mean of RCD and Menon 2007 ([`Method::RcdMenon`]), also the base of
+/// the learned methods.
+fn rcd_menon(phase: Phase, full_scale: f32) -> ensemble::Ensemble {
+    ensemble::Ensemble {
+        rcd: Rcd::new(phase, full_scale),
+        menon: Menon2007 { phase },
     }
 }
 

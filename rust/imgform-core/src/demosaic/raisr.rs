@@ -19,16 +19,28 @@
 //! chroma, green, the other chroma), so one set of filters serves all four
 //! Bayer phases. The known colour of each site is never touched.
 //!
+//! The same machinery fuses two bases ([`Against`]): the filters then also
+//! see the second base's difference from the first over the 3x3 window, 27
+//! features more, and learn per class how far to trust either (the learned
+//! fusion of MLRI and the RCD / Menon mean, [`super::Method::Fusion`]).
+//!
 //! The filters are trained by `python -m imgform_rs.training.demosaic` on
 //! openly licensed images that are not the benchmark's (see the docs) and
-//! shipped in `raisr_weights.bin`, whose layout [`Weights::parse`] reads.
+//! shipped in `raisr_weights.bin` and `fusion_weights.bin`, whose layout
+//! [`Weights::parse`] reads.
 
 use super::tiled::{Tile, TileKernel};
 use super::{Isa, Phase};
 use std::sync::OnceLock;
 
-/// Features per pixel: 8 neighbours x 3 colours, plus 2 centre differences.
+/// Features per pixel of one base: 8 neighbours x 3 colours, plus 2 centre
+/// differences.
 pub(crate) const FEATURES: usize = 26;
+/// Features a second base adds: its difference from the first, 3 colours
+/// at each pixel of the 3x3 window.
+const SECOND_FEATURES: usize = 27;
+/// Tap windows (a plane on a row, 4 columns) per base: 3 planes x 3 rows.
+const WINDOWS: usize = 9;
 /// Angle bins of the structure tensor's orientation (fixed by [`angle_bin`]).
 const ANGLES: usize = 8;
 /// Strength and coherence bins: fixed, so the thresholds are arrays and the
@@ -40,31 +52,35 @@ const POSITIONS: usize = 4;
 /// Header magic of the weights file.
 const MAGIC: &[u8; 8] = b"IGRAISR1";
 
-/// One trained filter: the corrections of the pixel's two missing colours
-/// as functions of the features.
-type Filter = [[f32; FEATURES]; 2];
+/// A filter rewritten as taps on the tile's planes, one [`Window`] per
+/// plane and row: window `3 * r + p` is plane `p` (own chroma, green, other
+/// chroma of *that* row) of the first base on row `y + r - 1`, columns
+/// `x - 1 ..= x + 2`; with a second base, window `9 + 3 * r + p` is its
+/// difference from the first.
+type Taps<const N: usize> = [Window; N];
 
-/// A filter rewritten as taps on the tile's planes: window `3 * r + p` is
-/// plane `p` (own chroma, green, other chroma of *that* row) on row
-/// `y + r - 1`, columns `x - 1 ..= x + 2`; lanes 0..4 give the first missing
-/// colour, lanes 4..8 the second. The fourth column's tap is zero: it only
-/// makes a window one 4-wide load, which both halves of an 8-wide multiply
-/// share.
-type Taps = [[f32; 8]; 9];
+/// The taps of one window: lanes 0..4 give the first missing colour, lanes
+/// 4..8 the second. The fourth column's tap is zero: it only makes a
+/// window one 4-wide load, which both halves of an 8-wide multiply share.
+type Window = [f32; 8];
 
 /// The trained filter bank, as taps, and its hashing thresholds.
 pub(crate) struct Weights {
+    /// Windows per filter: [`WINDOWS`] for one base, twice that for two.
+    windows: usize,
     /// Upper bounds of the strength bins but the last, on the largest
     /// eigenvalue of the structure tensor of full-scale-normalised green.
     strength: [f32; STRENGTHS - 1],
     /// Upper bounds of the coherence bins but the last.
     coherence: [f32; COHERENCES - 1],
-    taps: Vec<Taps>,
+    /// The filters' windows, `windows` per class.
+    taps: Vec<Window>,
 }
 
 impl Weights {
     /// Reads the little-endian layout: the 8-byte magic `IGRAISR1`; `u32`
-    /// counts of angle, strength and coherence bins and of features; the
+    /// counts of angle, strength and coherence bins and of features
+    /// ([`FEATURES`] for one base, [`SECOND_FEATURES`] more for two); the
     /// strength then coherence thresholds (`f32`, one fewer than bins); the
     /// filters (`f32`), indexed `[position][angle][strength][coherence]
     /// [missing colour][feature]`, position being `2 * blue_row + chroma_site`.
@@ -75,42 +91,65 @@ impl Weights {
         let mut words = body.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
         let mut count = || words.next().map(|w| u32::from_le_bytes(w) as usize);
         let counts = [count()?, count()?, count()?, count()?];
-        if counts != [ANGLES, STRENGTHS, COHERENCES, FEATURES] {
+        let features = counts[3];
+        let windows = match features {
+            FEATURES => WINDOWS,
+            f if f == FEATURES + SECOND_FEATURES => 2 * WINDOWS,
+            _ => return None,
+        };
+        if counts[..3] != [ANGLES, STRENGTHS, COHERENCES] {
             return None;
         }
         let rest: Vec<f32> = words.map(f32::from_le_bytes).collect();
         let nfilters = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
         let thresholds = STRENGTHS - 1 + COHERENCES - 1;
-        if body.len() % 4 != 0 || rest.len() != thresholds + nfilters * 2 * FEATURES {
+        if body.len() % 4 != 0 || rest.len() != thresholds + nfilters * 2 * features {
             return None;
         }
         let (strength, rest) = rest.split_at(STRENGTHS - 1);
         let (coherence, rest) = rest.split_at(COHERENCES - 1);
         let taps = rest
-            .chunks_exact(2 * FEATURES)
-            .map(|f| {
-                let mut filter = [[0.0; FEATURES]; 2];
-                filter[0].copy_from_slice(&f[..FEATURES]);
-                filter[1].copy_from_slice(&f[FEATURES..]);
-                taps(&filter)
-            })
+            .chunks_exact(2 * features)
+            .flat_map(|f| taps(f.split_at(features), windows))
             .collect();
         Some(Weights {
+            windows,
             strength: strength.try_into().ok()?,
             coherence: coherence.try_into().ok()?,
             taps,
         })
     }
 
-    /// The shipped filter bank, parsed on first use.
-    pub(crate) fn shipped() -> &'static Weights {
-        static WEIGHTS: OnceLock<Weights> = OnceLock::new();
-        WEIGHTS.get_or_init(|| {
-            // The file is part of the crate and checked by a unit test, so
+    /// A shipped filter bank, parsed on first use.
+    fn shipped(cell: &'static OnceLock<Weights>, bytes: &[u8], windows: usize) -> &'static Weights {
+        cell.get_or_init(|| {
+            // The files are part of the crate and checked by a unit test, so
             // a parse failure is a build defect, not bad input.
-            Weights::parse(include_bytes!("raisr_weights.bin"))
-                .expect("raisr_weights.bin is malformed")
+            Weights::parse(bytes)
+                .filter(|w| w.windows == windows)
+                .expect("a shipped weights file is malformed")
         })
+    }
+
+    /// The shipped filter bank of the RCD / Menon refinement.
+    pub(crate) fn raisr() -> &'static Weights {
+        static WEIGHTS: OnceLock<Weights> = OnceLock::new();
+        Self::shipped(&WEIGHTS, include_bytes!("raisr_weights.bin"), WINDOWS)
+    }
+
+    /// The shipped filter bank of the fusion of MLRI and the RCD / Menon mean.
+    pub(crate) fn fusion() -> &'static Weights {
+        static WEIGHTS: OnceLock<Weights> = OnceLock::new();
+        Self::shipped(&WEIGHTS, include_bytes!("fusion_weights.bin"), 2 * WINDOWS)
+    }
+
+    /// The windows of class `class`'s filter.
+    #[inline(always)]
+    fn filter<const N: usize>(&self, class: u32) -> &Taps<N> {
+        let start = class as usize * N;
+        self.taps[start..start + N]
+            .try_into()
+            .expect("N is the bank's window count")
     }
 
     /// The class (index into `taps`) of a CFA position and structure-tensor
@@ -136,26 +175,35 @@ fn plane_of(j: usize, dy: isize) -> usize {
     }
 }
 
-/// Rewrites a filter on the difference features as taps on the planes:
-/// feature `f[3k + j] = C_j(n_k) - C_j(centre)` puts `w` on the neighbour
-/// and `-w` on the centre, `f[24] = own - green`, `f[25] = other - green`.
-/// The sums are the same linear map, evaluated with fewer operations.
-fn taps(filter: &Filter) -> Taps {
-    let mut t = [[0.0f32; 8]; 9];
-    for (half, w) in filter.iter().enumerate() {
-        let mut add = |dy: isize, dx: isize, j: usize, v: f32| {
-            let window = 3 * (1 + dy) as usize + plane_of(j, dy);
+/// Rewrites a filter (its two missing colours' weights on the features) as
+/// `windows` windows of taps on the planes: feature `f[3k + j] = C_j(n_k) -
+/// C_j(centre)` puts `w` on the neighbour and `-w` on the centre, `f[24] =
+/// own - green`, `f[25] = other - green`; a second base's feature
+/// `f[26 + 3m + j]`, its difference in colour `j` at the `m`-th pixel of
+/// the 3x3 window (row by row), is a tap on the difference planes. The sums
+/// are the same linear map, evaluated with fewer operations.
+fn taps((first, second): (&[f32], &[f32]), windows: usize) -> Vec<Window> {
+    let mut t = vec![[0.0f32; 8]; windows];
+    for (half, w) in [first, second].into_iter().enumerate() {
+        let mut add = |base: usize, dy: isize, dx: isize, j: usize, v: f32| {
+            let window = WINDOWS * base + 3 * (1 + dy) as usize + plane_of(j, dy);
             t[window][4 * half + (1 + dx) as usize] += v;
         };
         for (k, &(dy, dx)) in NEIGHBOURS.iter().enumerate() {
             for j in 0..3 {
-                add(dy, dx, j, w[3 * k + j]);
-                add(0, 0, j, -w[3 * k + j]);
+                add(0, dy, dx, j, w[3 * k + j]);
+                add(0, 0, 0, j, -w[3 * k + j]);
             }
         }
-        add(0, 0, 0, w[24]);
-        add(0, 0, 2, w[25]);
-        add(0, 0, 1, -(w[24] + w[25]));
+        add(0, 0, 0, 0, w[24]);
+        add(0, 0, 0, 2, w[25]);
+        add(0, 0, 0, 1, -(w[24] + w[25]));
+        for (m, w) in w[FEATURES..].chunks_exact(3).enumerate() {
+            let (dy, dx) = (m as isize / 3 - 1, m as isize % 3 - 1);
+            for (j, &v) in w.iter().enumerate() {
+                add(1, dy, dx, j, v);
+            }
+        }
     }
     t
 }
@@ -202,9 +250,11 @@ fn angle_bin(a: f32, b: f32) -> usize {
     2 * quadrant + usize::from(upper)
 }
 
-/// The base kernel refined by the filter bank.
-pub(super) struct Raisr<B> {
+/// The base kernel refined by the filter bank, which may also see a
+/// second base ([`Against`]; [`Alone`] when not).
+pub(super) struct Raisr<B, S = Alone> {
     pub(super) base: B,
+    pub(super) second: S,
     pub(super) phase: Phase,
     /// `1 / FULL_SCALE` of the sample type, so the hash sees [0, 1] data.
     pub(super) inv_scale: f32,
@@ -216,8 +266,11 @@ pub(super) struct Raisr<B> {
     pub(super) isa: Isa,
 }
 
-pub(super) struct State<S> {
-    base: S,
+pub(super) struct State<B, S> {
+    base: B,
+    second: S,
+    /// The second base minus the (clamped) first, clamped as the first.
+    diff: [Vec<f32>; 3],
     gx: Vec<f32>,
     gy: Vec<f32>,
     /// Horizontal 3-sums of the gradient products; the 3x3 sums of the
@@ -229,6 +282,44 @@ pub(super) struct State<S> {
     class: Vec<u32>,
     clamped: [Vec<f32>; 3],
     out: [Vec<f32>; 3],
+}
+
+/// What the filters see besides the base: nothing, or a second base.
+pub(super) trait Secondary: Sync {
+    type State;
+    /// The second base's halo (0 for none).
+    const HALO: usize;
+    fn state(&self, stride: usize, len: usize) -> Self::State;
+    /// The second base's planes over the tile, if there is one.
+    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> Option<[&'s [f32]; 3]>;
+}
+
+/// No second base: the filters refine the first alone.
+pub(super) struct Alone;
+
+impl Secondary for Alone {
+    type State = ();
+    const HALO: usize = 0;
+    fn state(&self, _: usize, _: usize) {}
+    #[inline(always)]
+    fn run<'s>(&self, _: &'s mut (), _: &Tile, _: &[f32]) -> Option<[&'s [f32]; 3]> {
+        None
+    }
+}
+
+/// A second base, whose difference from the first the filters see.
+pub(super) struct Against<K>(pub(super) K);
+
+impl<K: TileKernel> Secondary for Against<K> {
+    type State = K::State;
+    const HALO: usize = K::HALO;
+    fn state(&self, stride: usize, len: usize) -> K::State {
+        self.0.state(stride, len)
+    }
+    #[inline(always)]
+    fn run<'s>(&self, st: &'s mut K::State, t: &Tile, raw: &[f32]) -> Option<[&'s [f32]; 3]> {
+        Some(self.0.run(st, t, raw))
+    }
 }
 
 /// The 3x3 neighbours in feature order (row by row, centre excluded).
@@ -245,16 +336,16 @@ const NEIGHBOURS: [(isize, isize); 8] = [
 
 /// The two corrections of the pixel at column `x` whose windows' rows are
 /// `rows` (see [`Taps`]). Eight independent lanes, one partial sum per
-/// window row (three short dependency chains instead of one of nine
-/// additions), each a product then a sum (no fused multiply-add), then the
-/// pairwise sum of each half: the order [`apply_avx2`] computes in, so both
-/// give the same bits.
+/// window row (three short dependency chains instead of one of nine or
+/// eighteen additions), each a product then a sum (no fused multiply-add),
+/// then the pairwise sum of each half: the order [`apply_avx2`] computes
+/// in, so both give the same bits.
 #[inline(always)]
-fn apply(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
+fn apply<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (f32, f32) {
     let mut acc = [[0.0f32; 8]; 3];
     for (k, (t, row)) in taps.iter().zip(rows).enumerate() {
         let v = &row[x - 1..x + 3];
-        for (l, a) in acc[k / 3].iter_mut().enumerate() {
+        for (l, a) in acc[k / 3 % 3].iter_mut().enumerate() {
             *a += t[l] * v[l & 3];
         }
     }
@@ -270,7 +361,7 @@ fn apply(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn apply_avx2(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
+fn apply_avx2<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (f32, f32) {
     use std::arch::x86_64::*;
     let mut acc = [_mm256_setzero_ps(); 3];
     for (k, (t, row)) in taps.iter().zip(rows).enumerate() {
@@ -278,7 +369,8 @@ fn apply_avx2(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
         // SAFETY: `v` and `t` hold 4 and 8 floats (slice and array
         // lengths); the loads are unaligned ones.
         let (v, t) = unsafe { (_mm_loadu_ps(v.as_ptr()), _mm256_loadu_ps(t.as_ptr())) };
-        acc[k / 3] = _mm256_add_ps(acc[k / 3], _mm256_mul_ps(t, _mm256_set_m128(v, v)));
+        let a = &mut acc[k / 3 % 3];
+        *a = _mm256_add_ps(*a, _mm256_mul_ps(t, _mm256_set_m128(v, v)));
     }
     let acc = _mm256_add_ps(_mm256_add_ps(acc[0], acc[1]), acc[2]);
     let h = _mm_hadd_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
@@ -286,16 +378,18 @@ fn apply_avx2(taps: &Taps, rows: &[&[f32]; 9], x: usize) -> (f32, f32) {
     (_mm_cvtss_f32(h), _mm_cvtss_f32(_mm_movehdup_ps(h)))
 }
 
-impl<B: TileKernel> TileKernel for Raisr<B> {
-    type State = State<B::State>;
-    /// The base's halo plus the 2 pixels the hash reaches (1 for the 3x3
+impl<B: TileKernel, S: Secondary> TileKernel for Raisr<B, S> {
+    type State = State<B::State, S::State>;
+    /// The bases' halo plus the 2 pixels the hash reaches (1 for the 3x3
     /// sums, 1 for the central differences).
-    const HALO: usize = B::HALO + 2;
+    const HALO: usize = if B::HALO > S::HALO { B::HALO } else { S::HALO } + 2;
 
     fn state(&self, stride: usize, len: usize) -> Self::State {
         let plane = || vec![0.0f32; len];
         State {
             base: self.base.state(stride, len),
+            second: self.second.state(stride, len),
+            diff: [plane(), plane(), plane()],
             gx: plane(),
             gy: plane(),
             hxx: plane(),
@@ -313,6 +407,8 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
     fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3] {
         let State {
             base,
+            second,
+            diff,
             gx,
             gy,
             hxx,
@@ -329,19 +425,60 @@ impl<B: TileKernel> TileKernel for Raisr<B> {
                 *c = p.max(lo).min(hi);
             }
         }
+        let second = self.second.run(second, t, raw);
+        if let Some(planes) = second {
+            for ((d, p), c) in diff.iter_mut().zip(planes).zip(&*clamped) {
+                for ((d, p), c) in d[..len].iter_mut().zip(&p[..len]).zip(&c[..len]) {
+                    *d = p.max(lo).min(hi) - c;
+                }
+            }
+        }
         let planes = [&clamped[0][..], &clamped[1][..], &clamped[2][..]];
         let halo = Self::HALO;
         self.tensor(t, planes[1], [gx, gy], [hxx, hxy, hyy]);
         for ty in halo..t.rows - halo {
             self.classes(t, ty, [&**hxx, &**hxy, &**hyy], class);
-            self.refine_row(t, ty, planes, class, out);
+            let first = window_rows(planes, t.stride, ty);
+            let row = ty * t.stride..(ty + 1) * t.stride;
+            let [o_own, o_green, o_other] = &mut *out;
+            let mut dst = [
+                &mut o_own[row.clone()],
+                &mut o_green[row.clone()],
+                &mut o_other[row],
+            ];
+            for (d, s) in dst.iter_mut().zip(&first[3..6]) {
+                d.copy_from_slice(s);
+            }
+            if second.is_some() {
+                let d = window_rows([&diff[0][..], &diff[1][..], &diff[2][..]], t.stride, ty);
+                let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|k| {
+                    if k < WINDOWS {
+                        first[k]
+                    } else {
+                        d[k - WINDOWS]
+                    }
+                });
+                self.correct(t, ty, class, dst, &both);
+            } else {
+                self.correct(t, ty, class, dst, &first);
+            }
         }
         let [own, green, other] = out;
         [own, green, other]
     }
 }
 
-impl<B: TileKernel> Raisr<B> {
+/// The rows of the windows (see [`Taps`]) of tile row `ty` of `planes`:
+/// window `3 * r + p` is plane `p` on row `ty + r - 1`.
+#[inline(always)]
+fn window_rows(planes: [&[f32]; 3], stride: usize, ty: usize) -> [&[f32]; WINDOWS] {
+    std::array::from_fn(|k| {
+        let r = ty + k / 3 - 1;
+        &planes[k % 3][r * stride..(r + 1) * stride]
+    })
+}
+
+impl<B: TileKernel, S: Secondary> Raisr<B, S> {
     /// Gradients of green (central differences, scaled to [0, 1] data) over
     /// the output plus one pixel, and the horizontal 3-sums of their
     /// products over the output columns (rows plus one).
@@ -400,48 +537,22 @@ impl<B: TileKernel> Raisr<B> {
         }
     }
 
-    /// Copies the base's row `ty` and adds the filters' corrections.
-    #[inline(always)]
-    fn refine_row(
-        &self,
-        t: &Tile,
-        ty: usize,
-        base: [&[f32]; 3],
-        class: &[u32],
-        out: &mut [Vec<f32>; 3],
-    ) {
-        let stride = t.stride;
-        let row = |p: usize, r: usize| &base[p][r * stride..(r + 1) * stride];
-        let rows: [&[f32]; 9] = std::array::from_fn(|k| row(k % 3, ty + k / 3 - 1));
-        let r = ty * stride..(ty + 1) * stride;
-        let [o_own, o_green, o_other] = out;
-        let [own, green, other] = [
-            &mut o_own[r.clone()],
-            &mut o_green[r.clone()],
-            &mut o_other[r],
-        ];
-        own.copy_from_slice(rows[3]);
-        green.copy_from_slice(rows[4]);
-        other.copy_from_slice(rows[5]);
-        self.correct(t, ty, class, [own, green, other], &rows);
-    }
-
     /// Adds the corrections of the filters (of the class of each column)
     /// to the missing colours of the output columns of row `ty`: the first
     /// is green at a chroma site, the own chroma at a green site.
     #[inline(always)]
-    fn correct(
+    fn correct<const N: usize>(
         &self,
         t: &Tile,
         ty: usize,
         class: &[u32],
         [own, green, other]: [&mut [f32]; 3],
-        rows: &[&[f32]; 9],
+        rows: &[&[f32]; N],
     ) {
         let halo = Self::HALO;
         let chroma_parity = t.kind(self.phase, ty).chroma_parity;
         for x in halo..t.stride - halo {
-            let taps = &self.weights.taps[class[x] as usize];
+            let taps = self.weights.filter::<N>(class[x]);
             // A branch per pixel that always goes the same way: calling
             // `apply_avx2` directly here lets it inline into the AVX2 tile
             // loop, which a closure chosen per row prevented.
@@ -468,9 +579,14 @@ mod tests {
 
     #[test]
     fn the_shipped_weights_parse() {
-        let w = Weights::shipped();
-        assert_eq!(w.taps.len(), POSITIONS * ANGLES * STRENGTHS * COHERENCES);
-        assert!(w.taps.iter().flatten().flatten().all(|v| v.is_finite()));
+        for (w, windows) in [
+            (Weights::raisr(), WINDOWS),
+            (Weights::fusion(), 2 * WINDOWS),
+        ] {
+            let classes = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
+            assert_eq!(w.taps.len(), classes * windows);
+            assert!(w.taps.iter().flatten().all(|v| v.is_finite()));
+        }
     }
 
     #[test]
@@ -478,10 +594,14 @@ mod tests {
         let bytes = include_bytes!("raisr_weights.bin");
         assert!(Weights::parse(&bytes[..bytes.len() - 4]).is_none());
         assert!(Weights::parse(&bytes[1..]).is_none());
+        // A feature count of neither layout.
+        let mut odd = bytes.to_vec();
+        odd[20] = 27;
+        assert!(Weights::parse(&odd).is_none());
     }
 
-    /// The taps give the filter's value on the difference features (module
-    /// docs) of a window, up to rounding.
+    /// The taps give the filter's value on the features (module docs) of
+    /// a window, up to rounding: those of one base, and of two.
     #[test]
     fn taps_are_the_filter_on_the_features() {
         let mut seed = 7u32;
@@ -489,25 +609,41 @@ mod tests {
             seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
             (seed >> 8) as f32 / (1u32 << 24) as f32
         };
-        let filter: Filter = [(); 2].map(|_| [(); FEATURES].map(|_| next() - 0.5));
-        // Planes of 3 rows x 4 columns; the centre is row 1, column 1.
-        let planes: Vec<Vec<f32>> = (0..3).map(|_| (0..12).map(|_| next()).collect()).collect();
-        let colour = |j: usize, dy: isize, dx: isize| {
-            planes[plane_of(j, dy)][4 * (1 + dy) as usize + (1 + dx) as usize]
+        const ALL: usize = FEATURES + SECOND_FEATURES;
+        let filter: Vec<f32> = (0..2 * ALL).map(|_| next() - 0.5).collect();
+        // Planes of 3 rows x 4 columns, the first base's then the
+        // differences'; the centre is row 1, column 1.
+        let planes: Vec<Vec<f32>> = (0..6).map(|_| (0..12).map(|_| next()).collect()).collect();
+        let colour = |base: usize, j: usize, dy: isize, dx: isize| {
+            planes[3 * base + plane_of(j, dy)][4 * (1 + dy) as usize + (1 + dx) as usize]
         };
-        let mut f = [0.0f32; FEATURES];
+        let mut f = [0.0f32; ALL];
         for (k, &(dy, dx)) in NEIGHBOURS.iter().enumerate() {
             for j in 0..3 {
-                f[3 * k + j] = colour(j, dy, dx) - colour(j, 0, 0);
+                f[3 * k + j] = colour(0, j, dy, dx) - colour(0, j, 0, 0);
             }
         }
-        f[24] = colour(0, 0, 0) - colour(1, 0, 0);
-        f[25] = colour(2, 0, 0) - colour(1, 0, 0);
-        let rows: [&[f32]; 9] = std::array::from_fn(|k| &planes[k % 3][4 * (k / 3)..][..4]);
-        let (d0, d1) = apply(&taps(&filter), &rows, 1);
-        let dot = |w: &[f32; FEATURES]| w.iter().zip(&f).map(|(a, b)| a * b).sum::<f32>();
-        assert!((d0 - dot(&filter[0])).abs() < 1e-5, "{d0}");
-        assert!((d1 - dot(&filter[1])).abs() < 1e-5, "{d1}");
+        f[24] = colour(0, 0, 0, 0) - colour(0, 1, 0, 0);
+        f[25] = colour(0, 2, 0, 0) - colour(0, 1, 0, 0);
+        for m in 0..9 {
+            for j in 0..3 {
+                f[FEATURES + 3 * m + j] = colour(1, j, m as isize / 3 - 1, m as isize % 3 - 1);
+            }
+        }
+        let window = |k: usize| &planes[k / 9 * 3 + k % 3][4 * (k % 9 / 3)..][..4];
+        let dot = |w: &[f32], n: usize| w[..n].iter().zip(&f).map(|(a, b)| a * b).sum::<f32>();
+        let (w0, w1) = filter.split_at(ALL);
+        // One base: the first 26 features of each half.
+        let one = taps((&w0[..FEATURES], &w1[..FEATURES]), WINDOWS);
+        let rows: [&[f32]; WINDOWS] = std::array::from_fn(window);
+        let (d0, d1) = apply(one[..].try_into().unwrap(), &rows, 1);
+        assert!((d0 - dot(w0, FEATURES)).abs() < 1e-5, "{d0}");
+        assert!((d1 - dot(w1, FEATURES)).abs() < 1e-5, "{d1}");
+        let two = taps((w0, w1), 2 * WINDOWS);
+        let rows: [&[f32]; 2 * WINDOWS] = std::array::from_fn(window);
+        let (d0, d1) = apply(two[..].try_into().unwrap(), &rows, 1);
+        assert!((d0 - dot(w0, ALL)).abs() < 1e-5, "{d0}");
+        assert!((d1 - dot(w1, ALL)).abs() < 1e-5, "{d1}");
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -516,23 +652,26 @@ mod tests {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return;
         }
-        let w = Weights::shipped();
-        let planes: Vec<Vec<f32>> = (0..9)
+        let planes: Vec<Vec<f32>> = (0..2 * WINDOWS)
             .map(|k| {
                 (0..16)
                     .map(|i| ((i * 37 + k * 11) % 29) as f32 * 0.37)
                     .collect()
             })
             .collect();
-        let rows: [&[f32]; 9] = std::array::from_fn(|k| &planes[k][..]);
-        for (c, taps) in w.taps.iter().enumerate() {
-            let x = 1 + c % 12;
-            // SAFETY: AVX2 was detected above.
-            let fast = unsafe { apply_avx2(taps, &rows, x) };
-            let slow = apply(taps, &rows, x);
-            assert_eq!(fast.0.to_bits(), slow.0.to_bits());
-            assert_eq!(fast.1.to_bits(), slow.1.to_bits());
+        fn check<const N: usize>(w: &Weights, planes: &[Vec<f32>]) {
+            let rows: [&[f32]; N] = std::array::from_fn(|k| &planes[k][..]);
+            for c in 0..(w.taps.len() / N) as u32 {
+                let (taps, x) = (w.filter::<N>(c), 1 + c as usize % 12);
+                // SAFETY: AVX2 was detected by the caller.
+                let fast = unsafe { apply_avx2(taps, &rows, x) };
+                let slow = apply(taps, &rows, x);
+                assert_eq!(fast.0.to_bits(), slow.0.to_bits());
+                assert_eq!(fast.1.to_bits(), slow.1.to_bits());
+            }
         }
+        check::<WINDOWS>(Weights::raisr(), &planes);
+        check::<{ 2 * WINDOWS }>(Weights::fusion(), &planes);
     }
 
     #[test]

@@ -181,6 +181,76 @@ impl<K: TileKernel> StreamKernel for K {
     }
 }
 
+/// A [`StreamKernel`] run as a [`TileKernel`], so that a plane method can
+/// take its output as a base (the learned fusion refines MLRI next to the
+/// RCD / Menon mean): the stream reads the tile's raw plane and its rows
+/// are kept in three planes. It costs the planes, and its halo is
+/// recomputed for every tile of [`ROWS_PER_TILE`] rows, where the stream
+/// alone would take taller tiles.
+pub(crate) struct AsTile<K>(pub(crate) K);
+
+/// [`AsTile`]'s buffers: the stream's and the planes it fills.
+pub(crate) struct TilePlanes<S> {
+    stream: S,
+    planes: [Vec<f32>; 3],
+}
+
+/// Rows of a tile's raw plane, for a stream run on it.
+struct PlaneRows<'a> {
+    plane: &'a [f32],
+    stride: usize,
+}
+
+impl Load for PlaneRows<'_> {
+    #[inline(always)]
+    fn load(&self, ty: usize, dst: &mut [f32]) {
+        dst.copy_from_slice(&self.plane[ty * self.stride..(ty + 1) * self.stride]);
+    }
+}
+
+/// The emitted rows, written into their planes.
+struct IntoPlanes<'a> {
+    planes: &'a mut [Vec<f32>; 3],
+    stride: usize,
+}
+
+impl Emit for IntoPlanes<'_> {
+    #[inline(always)]
+    fn emit(&mut self, ty: usize, rows: [&[f32]; 3]) {
+        let r = ty * self.stride..(ty + 1) * self.stride;
+        for (p, row) in self.planes.iter_mut().zip(rows) {
+            p[r.clone()].copy_from_slice(row);
+        }
+    }
+}
+
+impl<K: StreamKernel> TileKernel for AsTile<K> {
+    type State = TilePlanes<K::State>;
+    const HALO: usize = K::HALO;
+
+    fn state(&self, stride: usize, len: usize) -> Self::State {
+        TilePlanes {
+            stream: self.0.state(stride, len / stride),
+            planes: [0; 3].map(|_| vec![0.0; len]),
+        }
+    }
+
+    #[inline(always)]
+    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3] {
+        let rows = PlaneRows {
+            plane: raw,
+            stride: t.stride,
+        };
+        let mut out = IntoPlanes {
+            planes: &mut st.planes,
+            stride: t.stride,
+        };
+        self.0.stream(&mut st.stream, t, &rows, &mut out);
+        let [own, green, other] = &st.planes;
+        [own, green, other]
+    }
+}
+
 /// The smallest and largest sample of `raw`, to clamp outputs into.
 /// Compared in the sample type, with comparisons that map to vector
 /// min / max instructions (the samples are finite): converting each to
