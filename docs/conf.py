@@ -52,7 +52,6 @@ nitpicky = False
 autosummary_generate = True
 autosummary_imported_members = True
 autodoc_typehints = "none"
-autodoc_default_options = {"members": False}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
@@ -81,8 +80,7 @@ sphinx_gallery_conf = {
 
 html_theme = "pydata_sphinx_theme"
 html_title = "imgform-rs"
-html_static_path = ["_static"]
-html_css_files = ["imgform.css"]
+html_static_path: list[str] = []
 html_show_sourcelink = False
 html_theme_options = {
     "navigation_with_keys": False,
@@ -95,3 +93,16 @@ html_context = {"default_mode": "light"}
 
 # Where the benchmark extension finds the committed results.
 benchmark_results = str(ROOT / "benchmarks" / "results")
+
+
+def _skip_tuple_fields(app, what, name, obj, skip, options):
+    """A NamedTuple's fields are described in its Attributes section; autodoc
+    would list each again as "Alias for field number N"."""
+    doc = getattr(obj, "__doc__", None) or ""
+    if what == "class" and doc.startswith("Alias for field number"):
+        return True
+    return None
+
+
+def setup(app):
+    app.connect("autodoc-skip-member", _skip_tuple_fields)
