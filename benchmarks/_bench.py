@@ -155,6 +155,7 @@ class _Record(io.TextIOBase):
         self.out = out
         self.since_table: list[str] = []
         self.tables: list[dict[str, Any]] = []
+        self.opening_notes: list[str] = []
         self.printing = ""
         self.started = datetime.datetime.now(datetime.timezone.utc)
         self.load_before = os.getloadavg() if hasattr(os, "getloadavg") else None
@@ -172,15 +173,18 @@ class _Record(io.TextIOBase):
         self.out.flush()
 
     def table(self, headers: list[str], rows: list[list[str]], text: str) -> None:
-        """Keeps a table with the paragraphs printed since the previous one:
-        the last Markdown heading's paragraph (else the last paragraph) is
-        its title, the others its notes."""
+        """Keeps a table with the paragraphs printed since the previous one.
+        The last Markdown heading's paragraph (else the last paragraph) is its
+        title and those after it its notes; those before it close the
+        previous table (or open the run)."""
         paragraphs = _paragraphs("".join(self.since_table))
         self.since_table = []
         headed = [i for i, p in enumerate(paragraphs) if p.startswith("#")]
         at = headed[-1] if headed else len(paragraphs) - 1
-        title = paragraphs.pop(at).lstrip("#").strip() if paragraphs else ""
-        self.tables.append({"title": title, "notes": paragraphs, "headers": headers, "rows": rows})
+        title = paragraphs[at].lstrip("#").strip() if paragraphs else ""
+        before, after = paragraphs[: max(at, 0)], paragraphs[at + 1 :]
+        (self.tables[-1]["notes"] if self.tables else self.opening_notes).extend(before)
+        self.tables.append({"title": title, "notes": after, "headers": headers, "rows": rows})
         self.printing = text
 
     def failed(self, kind, value, traceback) -> None:
@@ -203,6 +207,7 @@ class _Record(io.TextIOBase):
             "load_average_before": self.load_before,
             "load_average_after": os.getloadavg() if hasattr(os, "getloadavg") else None,
             **machine(),
+            "opening_notes": self.opening_notes,
             "tables": self.tables,
             "closing_notes": _paragraphs("".join(self.since_table)),
         }

@@ -223,7 +223,10 @@ def test_benchmark_tables_are_recorded(tmp_path):
     speed, quality = record["tables"]
     assert speed["title"] == "Speed: a title and its second line"
     assert speed["rows"] == [["ours best", "100"], ["LibRaw AHD", "30"]]
-    assert quality["notes"] == ["A note between the tables"]
+    # A paragraph before a heading closes the table above it.
+    assert speed["notes"] == ["A note between the tables"]
+    assert quality["notes"] == []
+    assert record["opening_notes"] == []
     assert record["closing_notes"] == ["closing line"]
 
 

@@ -105,6 +105,8 @@ class BenchmarkResults(SphinxDirective):
         run += nodes.strong("Run: ", "Run: ")
         run += nodes.Text(describe_run(result))
         out.append(run)
+        for note in result.get("opening_notes", []):
+            out.append(_paragraph(note))
         for spec in result["tables"]:
             if words and not any(w in spec["title"] for w in words):
                 continue
