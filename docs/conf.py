@@ -90,6 +90,8 @@ html_theme_options = {
     "footer_end": ["sphinx-version"],
 }
 html_context = {"default_mode": "light"}
+# Pages without sub-pages need no section navigation: their text gets the width.
+html_sidebars = {page: [] for page in ("index", "install", "benchmarks", "conventions", "api")}
 
 # Where the benchmark extension finds the committed results.
 benchmark_results = str(ROOT / "benchmarks" / "results")

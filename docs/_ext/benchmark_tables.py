@@ -41,12 +41,24 @@ def _paragraph(text: str) -> nodes.paragraph:
     return nodes.paragraph(text, text)
 
 
+def _rich(*parts: str) -> nodes.paragraph:
+    """A paragraph of text, with every other part set as code."""
+    paragraph = nodes.paragraph()
+    for i, part in enumerate(parts):
+        paragraph += nodes.literal(part, part) if i % 2 else nodes.Text(part)
+    return paragraph
+
+
 def _missing(name: str) -> list[nodes.Node]:
     note = nodes.note()
-    note += _paragraph(
-        f"No results of benchmarks/{name}.py are committed yet: `make bench` (or "
-        f".venv/bin/python benchmarks/{name}.py) writes benchmarks/results/{name}.json, "
-        "and the next docs build shows its tables here."
+    note += _rich(
+        f"No results of benchmarks/{name}.py are committed yet: ",
+        "make bench",
+        " (or ",
+        f".venv/bin/python benchmarks/{name}.py",
+        ") writes ",
+        f"benchmarks/results/{name}.json",
+        ", and the next docs build shows its tables here.",
     )
     return [note]
 
@@ -58,18 +70,25 @@ def describe_run(result: dict[str, Any]) -> str:
     load_text = f", load average {load[0]:.1f} at the start" if load else ""
     commit = result.get("commit")
     commit_text = f" at commit {commit}" if commit else ""
+    started = result["started"].replace("T", " ").removesuffix("+00:00")
     return (
-        f"`{result['command']}`{commit_text}, {result['started']} UTC, on "
+        f"{result['command']}{commit_text}, {started} UTC, on "
         f"{result['cpu']} ({result['cores']} cores{load_text}), Python {result['python']}; "
         f"versions: {versions}."
     )
 
 
-def _table(spec: dict[str, Any]) -> nodes.table:
+def _table(spec: dict[str, Any]) -> list[nodes.Node]:
+    """The table under its title (a paragraph: a caption would scroll away
+    with a wide table)."""
     headers, rows = spec["headers"], spec["rows"]
-    table = nodes.table(classes=["benchmark-table"])
+    out: list[nodes.Node] = []
     if spec.get("title"):
-        table += nodes.title(spec["title"], spec["title"])
+        title = nodes.paragraph(classes=["benchmark-title"])
+        title += nodes.strong(spec["title"], spec["title"])
+        out.append(title)
+    table = nodes.table(classes=["benchmark-table"])
+    out.append(table)
     group = nodes.tgroup(cols=len(headers))
     table += group
     for _ in headers:
@@ -85,7 +104,7 @@ def _table(spec: dict[str, Any]) -> nodes.table:
             entry += _paragraph(str(cell))
             row += entry
         parent += row
-    return table
+    return out
 
 
 class BenchmarkResults(SphinxDirective):
@@ -103,14 +122,15 @@ class BenchmarkResults(SphinxDirective):
         out: list[nodes.Node] = []
         run = nodes.paragraph()
         run += nodes.strong("Run: ", "Run: ")
-        run += nodes.Text(describe_run(result))
+        run += nodes.literal(result["command"], result["command"])
+        run += nodes.Text(describe_run(result).removeprefix(result["command"]))
         out.append(run)
         for note in result.get("opening_notes", []):
             out.append(_paragraph(note))
         for spec in result["tables"]:
             if words and not any(w in spec["title"] for w in words):
                 continue
-            out.append(_table(spec))
+            out.extend(_table(spec))
             for note in spec.get("notes", []):
                 out.append(_paragraph(note))
         for note in result.get("closing_notes", []):
@@ -160,10 +180,13 @@ class DemosaicSpeedQuality(SphinxDirective):
         points = speed_and_quality(result)
         if not points:
             note = nodes.note()
-            note += _paragraph(
-                "The committed benchmarks/results/demosaic.json lacks the speed or the quality "
-                "section (it was made with a section named on the command line); a full "
-                "`make bench` run has both, and the plot of one against the other appears here."
+            note += _rich(
+                "The committed ",
+                "benchmarks/results/demosaic.json",
+                " lacks the speed or the quality section (it was made with sections named on "
+                "the command line); a full ",
+                "make bench",
+                " run has both, and the plot of one against the other appears here.",
             )
             return [note]
         image = self._plot(points)
