@@ -143,6 +143,10 @@ def _number(text: str) -> float | None:
     return float(match.group()) if match else None
 
 
+# Names of other methods: plotted, they would sit on (or beside) their method.
+ALIASES = {"ours best", "ours quality"}
+
+
 def speed_and_quality(result: dict[str, Any]) -> list[tuple[str, float, float]]:
     """(method, MP/s, mean CPSNR dB) for each method in both the speed table
     and the per-image CPSNR table of a demosaic run."""
@@ -162,6 +166,8 @@ def speed_and_quality(result: dict[str, Any]) -> list[tuple[str, float, float]]:
     points = []
     for row in quality["rows"]:
         name, mean = row[0], _number(row[mean_at])
+        if name in ALIASES:
+            continue
         # The quality table names LibRaw's and OpenCV's methods as the speed
         # table does; colour-demosaicing's rows are "colour <method>" in both.
         rate = rates.get(name)
