@@ -43,7 +43,7 @@ print("box distances (mm):", [round(d) for d in focus])
 
 # Shown at about one screen pixel per image pixel, the part with the boxes:
 # the blur discs are a few pixels wide.
-view = (slice(90, 330), slice(60, 420))
+view = (slice(60, 400), slice(100, 640))
 fig, axes = plt.subplots(2, 3, figsize=(12, 5.6), layout="constrained")
 for ax, d in zip(axes[0], focus, strict=True):
     near, far = ig.depth_of_field(F_MM, 1.2, d, coc=0.03)
