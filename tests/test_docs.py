@@ -71,14 +71,17 @@ def _resolve(fullname: str):
 
 
 def test_public_modules_are_the_ones_checked():
-    """A new public submodule with an ``__all__`` must join PUBLIC (and the API)."""
-    with_all = {
-        f"imgform_rs.{path.stem}"
-        for path in (ROOT / "python" / "imgform_rs").glob("*.py")
-        if not path.stem.startswith("_") and re.search(r"^__all__ = ", path.read_text(), re.M)
-    }
-    assert with_all - set(PUBLIC) == {"imgform_rs.aberration"}  # re-exported by imgform_rs
-    assert set(importlib.import_module("imgform_rs.aberration").__all__) <= set(imgform_rs.__all__)
+    """A public submodule with an ``__all__`` of its own (not re-exported by
+    ``imgform_rs``) must join PUBLIC, and so the API reference."""
+    unchecked = []
+    for path in (ROOT / "python" / "imgform_rs").glob("*.py"):
+        name = f"imgform_rs.{path.stem}"
+        if path.stem.startswith("_") or name in PUBLIC or "__all__" not in path.read_text():
+            continue
+        own = set(getattr(importlib.import_module(name), "__all__", ())) - set(imgform_rs.__all__)
+        if own:
+            unchecked.append(f"{name}: {sorted(own)}")
+    assert not unchecked, f"public names missing from PUBLIC and docs/api.rst: {unchecked}"
 
 
 @pytest.mark.parametrize("module", sorted(PUBLIC))
