@@ -94,15 +94,30 @@ weights: $(BUILT) $(TRAINING_DATA)/.fetched ## retrain the "raisr" demosaicer an
 	$(PY) -m imgform_rs.training.demosaic --out out/raisr_weights.bin
 	cmp out/raisr_weights.bin $(RAISR_WEIGHTS) && echo "raisr weights reproduced bit for bit"
 
+# The docs extra (Sphinx and friends, named in pyproject.toml) on top of the
+# release build; maturin reinstalls the built extension with the extras, so
+# cargo has nothing to rebuild.
+$(VENV)/.docs-deps: $(BUILT)
+	$(BIN)/maturin develop --release --quiet -E test,docs
+	touch $@
+
+.PHONY: docs
+docs: $(VENV)/.docs-deps ## the documentation site into docs/_build/html, warnings as errors
+	# -E: every page is read afresh, so the API pages follow the docstrings;
+	# the gallery reruns every example, so the figures follow the code.
+	$(PY) -m sphinx -E -W --keep-going -b html docs docs/_build/html
+	@echo "open docs/_build/html/index.html"
+
 .PHONY: lint
 lint: $(VENV)/.deps ## cargo fmt, clippy -D warnings, ruff, stubtest
 	cargo fmt --all -- --check
 	cargo clippy --workspace --all-targets -- -D warnings
-	$(BIN)/ruff check python tests benchmarks
-	$(BIN)/ruff format --check python tests benchmarks
+	$(BIN)/ruff check python tests benchmarks docs
+	$(BIN)/ruff format --check python tests benchmarks docs
 	$(MAKE) --no-print-directory $(BUILT)
 	$(PY) -m mypy.stubtest imgform_rs._native --allowlist .mypy-stubtest-allowlist
 
 .PHONY: clean
 clean: ## remove build products and the venv
 	rm -rf target $(VENV) out python/imgform_rs/*.so
+	rm -rf docs/_build docs/generated docs/auto_examples docs/_generated docs/sg_execution_times.rst

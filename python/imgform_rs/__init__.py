@@ -2,8 +2,8 @@
 
 Camera geometry and lens optics, colour filter arrays and demosaicing,
 three-colour alignment and raw development. Conventions (axis order, colour
-order, camera frame, CFA patterns, shift sign) are documented in
-``CONVENTIONS.md``.
+order, camera frame, CFA patterns, shift sign) are set out in the
+documentation's conventions page, ``docs/conventions.rst``.
 """
 
 from ._native import RawError

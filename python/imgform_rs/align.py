@@ -1,7 +1,7 @@
 """Three-colour alignment (lecture section 4): similarity metrics, shift search
 and the colourisation of Prokudin-Gorskii glass-plate scans.
 
-Shifts follow ``CONVENTIONS.md``: ``(dy, dx)`` is what
+Shifts follow the conventions (``docs/conventions.rst``): ``(dy, dx)`` is what
 ``np.roll(moving, (dy, dx), axis=(0, 1))`` needs to land ``moving`` on
 ``reference``, the convention of scikit-image's ``phase_cross_correlation``.
 The published shifts of the cathedral plate, G (5, 2) and R (12, 3) relative

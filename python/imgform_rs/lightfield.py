@@ -10,7 +10,7 @@ looking along the same axis (parallel optical axes).
 
 Grid and sign convention
 ------------------------
-Array-axis order, as shifts ``(dy, dx)`` in CONVENTIONS.md: view ``(u, v)``
+Array-axis order, as shifts ``(dy, dx)`` in the conventions: view ``(u, v)``
 sits ``(u - u_c, v - v_c)`` grid steps *below and right of* the centre
 ``(u_c, v_c) = ((U - 1) / 2, (V - 1) / 2)``, one step being ``baseline``
 apart. A point at depth ``Z`` (along the optical axis) then appears in view

@@ -8,7 +8,7 @@ heights of objects standing on the ground can be compared through a cross ratio
 known height measures them all, and the camera's own height, without knowing
 the camera.
 
-Points are pixels ``(u, v)`` (column, row; y down) as in ``CONVENTIONS.md``.
+Points are pixels ``(u, v)`` (column, row; y down), as in ``docs/conventions.rst``.
 A vanishing point may be given as a pixel ``(2,)``, a homogeneous point ``(3,)``
 (``(du, dv, 0)`` is at infinity), or the result of :func:`fit_vanishing_point` or
 :func:`imgform_rs.vanishing_point`. Lines are homogeneous ``(a, b, c)``:

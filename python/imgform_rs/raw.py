@@ -9,7 +9,7 @@ does that.
 LibRaw describes a Bayer sensor with four colours ``R, G, B, G2``; per-channel
 values (black levels, white balance) are given in that order, and
 :attr:`RawImage.channel_tile` indexes into them. ``pattern`` is the same tile
-with both greens as G, in our usual form (see ``CONVENTIONS.md``).
+with both greens as G, in our usual form (see ``docs/conventions.rst``).
 
 Broken files never come back as garbage: a stub header, a truncated or
 stripped file, a format LibRaw cannot decode, or a file whose "pixels" are not
