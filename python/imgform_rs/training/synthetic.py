@@ -7,10 +7,10 @@ move together and a demosaicer trained on them learns to lean on that correlatio
 film scans whose channels are weakly correlated: a red flower on green leaves, blue
 print on a yellow sign, dyed cloth. These three generators add such content:
 
-- :func:`colour_field_image`: a natural photograph's luminance times a smooth random
-  field of highly saturated hues. Where the field is pure red there is no green or
-  blue detail to borrow, and where the hue turns, the channels change in opposite
-  directions.
+- :func:`colour_field_image`: a natural photograph's luminance times a field of
+  highly saturated hues that drift smoothly across the image and turn with the
+  brightness. Where the field is pure red there is no green or blue detail to borrow,
+  and where the hue turns, the channels change in opposite directions.
 - :func:`text_image`: coloured letters on coloured blocks, in contrasting hues
   (Pillow's built-in font; nothing is downloaded).
 - :func:`fabric_image`: woven cloth of saturated threads (plain, twill or basket
@@ -19,8 +19,8 @@ print on a yellow sign, dyed cloth. These three generators add such content:
 Every image is band-limited, so it is valid ground truth for demosaicing: text and
 cloth are drawn at :data:`SUPERSAMPLE` times their size and area-averaged down,
 which anti-aliases their edges as a sensor's pixel area does; the colour field is a
-cubic spline through a coarse grid and the photograph's luminance was already
-area-downsampled. Thread periods are 6 to 20 pixels, well below the 2-pixel
+cubic spline through a coarse grid plus the photograph's luminance, which was
+already area-downsampled. Thread periods are 6 to 20 pixels, well below the 2-pixel
 Nyquist period: the sinusoidal fabrics tried for raisr had near-Nyquist content,
 whose aliasing dominated the error (see :mod:`imgform_rs.training.demosaic`).
 
@@ -77,12 +77,19 @@ def smooth_noise(rng: np.random.Generator, shape: tuple[int, int], cells: int) -
 
 
 def colour_field_image(luminance: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """A photograph's luminance (H, W) times a smooth field of saturated hues, scaled
-    so that its brightest 0.5 % just clip; float32 (H, W, 3) in [0, 1]."""
+    """A photograph's luminance (H, W) times a field of saturated hues, scaled so that
+    its brightest 0.5 % just clip; float32 (H, W, 3) in [0, 1].
+
+    The hue is a smooth random field plus a multiple of the luminance itself: objects
+    differ in colour as well as in brightness (a yellow flower on dark leaves), so at
+    the photograph's edges the hue turns and the channels change in opposite
+    directions; inside an object the colour is one saturated hue.
+    """
     shape = luminance.shape
-    # Less than about one turn of the colour wheel across the image: a few broad hues,
+    # At most about two thirds of the colour wheel across the image: a few broad hues,
     # as in a scene, rather than a rainbow.
-    hue = rng.random() + rng.uniform(0.4, 1.2) * smooth_noise(rng, shape, int(rng.integers(2, 6)))
+    hue = rng.random() + rng.uniform(0.25, 0.7) * smooth_noise(rng, shape, int(rng.integers(2, 5)))
+    hue += rng.uniform(0.2, 0.6) * luminance
     saturation = 0.85 + 0.15 * smooth_noise(rng, shape, 3)
     field = hsv_to_rgb(hue, saturation, np.ones(shape))
     image = luminance[..., None] * field
