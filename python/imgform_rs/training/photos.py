@@ -32,6 +32,10 @@ The photographs and their licences (the Debian packages' ``copyright`` files):
 - matplotlib's ``mpl-data/sample_data/grace_hopper.jpg``: US Navy photograph, public
   domain.
 
+The extended set for the other learned demosaicers (these photographs and 266 more)
+is in :mod:`imgform_rs.training.catalogue`; :mod:`imgform_rs.training.sets` turns it
+into training images.
+
 JPEG compression and the camera's own demosaicing leave artefacts at the pixel scale
 that a demosaicer must not learn as truth, so each photo is downsampled by an integer
 factor with an area average: the shorter side over 500, at least 2.
