@@ -26,10 +26,10 @@ Decoding the JPEG and WebP files and downsampling them in float64, and drawing t
 synthetic images at four times their size, take most of the time, so both are
 cached in ``<data>/cache``: each photograph's float32 array under its SHA-256 prefix
 (checked by ``load`` when the cache is written) and the downsampling rule; the
-synthetic images under a hash of the seed and of the code that draws them, so an
-edit to the generators never serves stale images. Everything is drawn from
-generators seeded by ``seed`` and the image's index, so two calls give identical
-arrays.
+synthetic images under a hash of the seed and of the code that draws them (and of
+the photograph list), so an edit to either never serves stale images. Everything is
+drawn from generators seeded by ``seed`` and the image's index, so two calls give
+identical arrays.
 """
 
 from __future__ import annotations
@@ -119,7 +119,9 @@ def _luminance_crop(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def _synthetic(data: Path, seed: int) -> list[np.ndarray]:
-    code = Path(synthetic.__file__).read_bytes() + Path(__file__).read_bytes()
+    # The colour fields depend on the photograph list too.
+    modules = (synthetic.__file__, catalogue.__file__, __file__)
+    code = b"".join(Path(module).read_bytes() for module in modules)
     key = hashlib.sha256(code + str(seed).encode()).hexdigest()[:16]
     cache = data / "cache" / f"synthetic-{key}.npz"
     if cache.is_file():
