@@ -194,6 +194,35 @@ def test_colour_fields_are_less_correlated_than_the_photographs():
     assert field_correlation < photo_correlation - 0.2
 
 
+def _thumbnail(rgb: np.ndarray) -> np.ndarray:
+    """A 24x24 grey area average, zero-mean and unit-norm: a fingerprint that survives
+    re-encoding and resizing."""
+    from PIL import Image
+
+    grey = Image.fromarray(np.round(np.clip(rgb, 0, 1) * 255).astype(np.uint8)).convert("L")
+    t = np.asarray(grey.resize((24, 24), Image.Resampling.BOX), dtype=np.float64).ravel()
+    t -= t.mean()
+    return t / max(np.linalg.norm(t), 1e-9)
+
+
+@needs_data
+def test_no_validation_image_is_among_the_photographs_even_re_encoded():
+    import imageio.v3 as iio
+
+    folder = shared_path("data/demosaic-val")
+    if folder is None:
+        pytest.skip("../shared/data/demosaic-val is absent")
+    validation = []
+    for file in sorted(folder.glob("*/*.png")):
+        rgb = iio.imread(file)[..., :3] / 255.0
+        validation += [_thumbnail(rgb), _thumbnail(np.rot90(rgb))]
+    validation = np.array(validation)
+    for photo in ALL_PHOTOS:
+        # Unrelated photographs with a horizon in the same place reach about 0.91.
+        similarity = validation @ _thumbnail(sets.cached_load(photo))
+        assert similarity.max() < 0.97, f"{photo.name} looks like a validation image"
+
+
 @needs_data
 def test_the_raisr_set_is_what_load_gives():
     photo = photos.TRAINING[0]
