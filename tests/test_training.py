@@ -108,6 +108,16 @@ def test_photographs_are_read_from_qt_resource_files():
         photos.read_rcc(b"PK\x03\x04" + bytes(20), "/d/a.webp")
 
 
+def test_a_broken_resource_file_is_named(tmp_path):
+    photo = photos.Photo("p", "/d/a.webp", "0" * 16, rcc="gcompris.rcc")
+    (tmp_path / "gcompris.rcc").write_bytes(_resource_file({"a.webp": b"x"})[:30])
+    with pytest.raises(ValueError, match=r"^p: .*gcompris\.rcc: unpack"):
+        photos.load(photo, tmp_path)
+    (tmp_path / "gcompris.rcc").write_bytes(_resource_file({"b.webp": b"x"}))
+    with pytest.raises(ValueError, match=r"gcompris\.rcc: /d/a\.webp is not in"):
+        photos.load(photo, tmp_path)
+
+
 def test_a_missing_data_folder_says_how_to_fetch_it(tmp_path):
     with pytest.raises(FileNotFoundError, match="make training-data"):
         sets.training_images("photos", data=tmp_path / "absent")

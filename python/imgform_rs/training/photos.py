@@ -180,7 +180,12 @@ def _read_bytes(photo: Photo, data: Path) -> bytes:
         if not file.is_file():
             raise FileNotFoundError(f"{file} is missing: run `make training-data`")
         raw = file.read_bytes()
-        return raw if photo.rcc is None else read_rcc(raw, photo.path)
+        if photo.rcc is None:
+            return raw
+        try:
+            return read_rcc(raw, photo.path)
+        except (KeyError, ValueError, struct.error) as error:
+            raise ValueError(f"{photo.name}: {file}: {error.args[0]}") from error
     wheels = sorted(data.glob(f"{photo.wheel}-*.whl"))
     if not wheels:
         raise FileNotFoundError(f"no {photo.wheel} wheel in {data}: run `make training-data`")
