@@ -85,8 +85,21 @@ $(TRAINING_DATA)/.fetched: | $(PY)
 		scikit-learn==1.9.1 matplotlib==3.11.2
 	touch $@
 
+# The extended set (python/imgform_rs/training/catalogue.py, licences there): 266
+# more photographs from five Debian packages, at pinned versions.
+$(TRAINING_DATA)/.fetched-extended: $(TRAINING_DATA)/.fetched
+	cd $(TRAINING_DATA) && apt-get download gcompris-qt-data=3.1-2 kphotoalbum=5.9.1-1 \
+		tuxpaint-data=1:0.9.28-sdl2-1 palapeli-data=4:22.12.3-1 \
+		lomiri-wallpapers-20.04=20.04.0-2
+	dpkg -x $(TRAINING_DATA)/gcompris-qt-data_*.deb $(TRAINING_DATA)/gcompris
+	dpkg -x $(TRAINING_DATA)/kphotoalbum_*.deb $(TRAINING_DATA)/kphotoalbum
+	dpkg -x $(TRAINING_DATA)/tuxpaint-data_*.deb $(TRAINING_DATA)/tuxpaint
+	dpkg -x $(TRAINING_DATA)/palapeli-data_*.deb $(TRAINING_DATA)/palapeli
+	dpkg -x $(TRAINING_DATA)/lomiri-wallpapers-20.04_*.deb $(TRAINING_DATA)/lomiri-20.04
+	touch $@
+
 .PHONY: training-data
-training-data: $(TRAINING_DATA)/.fetched ## fetch raisr's training photographs (Debian + PyPI)
+training-data: $(TRAINING_DATA)/.fetched-extended ## fetch the training photographs (Debian + PyPI)
 
 .PHONY: weights
 weights: $(BUILT) $(TRAINING_DATA)/.fetched ## retrain the "raisr" demosaicer and check the shipped weights bit for bit

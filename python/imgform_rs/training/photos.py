@@ -32,6 +32,10 @@ The photographs and their licences (the Debian packages' ``copyright`` files):
 - matplotlib's ``mpl-data/sample_data/grace_hopper.jpg``: US Navy photograph, public
   domain.
 
+The extended set for the other learned demosaicers (these photographs and 266 more)
+is in :mod:`imgform_rs.training.catalogue`; :mod:`imgform_rs.training.sets` turns it
+into training images.
+
 JPEG compression and the camera's own demosaicing leave artefacts at the pixel scale
 that a demosaicer must not learn as truth, so each photo is downsampled by an integer
 factor with an area average: the shorter side over 500, at least 2.
@@ -41,6 +45,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import struct
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,13 +59,14 @@ SIDE_PER_FACTOR = 500
 
 @dataclass(frozen=True)
 class Photo:
-    """A photograph: where it lives under the data folder (inside ``wheel``'s zip if
-    that is given) and its SHA-256 prefix."""
+    """A photograph: where it lives under the data folder (inside ``wheel``'s zip, or
+    inside the Qt resource file ``rcc``, if one is given) and its SHA-256 prefix."""
 
     name: str
     path: str
     sha256: str
     wheel: str | None = None
+    rcc: str | None = None
 
 
 def _plasma(name: str, sha256: str) -> Photo:
@@ -123,9 +129,63 @@ HELD_OUT = [
 ]
 
 
+#: Flags of a node in a Qt resource file (Qt's ``rcc`` format).
+_RCC_COMPRESSED, _RCC_DIRECTORY, _RCC_ZSTD = 1, 2, 4
+#: A node: name offset, flags, then (child count, first child) for a directory or
+#: (locale, data offset) for a file.
+_RCC_NODE = struct.Struct(">IHII")
+
+
+def read_rcc(archive: bytes, member: str) -> bytes:
+    """The bytes of ``member`` (a path such as ``"/a/b.webp"``) in a Qt resource file.
+
+    The format (Qt's ``rcc``): the magic ``qres``, a version and the offsets of a
+    tree of fixed-size nodes, of the file data and of the names; node 0 is the root.
+    GCompris ships its photographs this way, stored uncompressed (WebP is compressed
+    already), so compressed members are refused rather than decoded.
+    """
+    if archive[:4] != b"qres":
+        raise ValueError("not a Qt resource file (no 'qres' magic)")
+    version, tree, data, names = struct.unpack_from(">4I", archive, 4)
+    node_size = 14 if version == 1 else 22  # version 2 added a modification time
+
+    def node(index: int) -> tuple[int, int, int, int]:
+        return _RCC_NODE.unpack_from(archive, tree + index * node_size)
+
+    def name(offset: int) -> str:
+        (length,) = struct.unpack_from(">H", archive, names + offset)
+        start = names + offset + 6  # after the length and the name's hash
+        return archive[start : start + 2 * length].decode("utf-16-be")
+
+    index = 0
+    for part in member.strip("/").split("/"):
+        _, flags, count, first = node(index)
+        children = range(first, first + count) if flags & _RCC_DIRECTORY else range(0)
+        found = [child for child in children if name(node(child)[0]) == part]
+        if not found:
+            raise KeyError(f"{member} is not in the resource file")
+        index = found[0]
+    _, flags, _, offset = node(index)
+    if flags & _RCC_DIRECTORY:
+        raise KeyError(f"{member} is a folder of the resource file")
+    if flags & (_RCC_COMPRESSED | _RCC_ZSTD):
+        raise ValueError(f"{member} is stored compressed in the resource file")
+    (size,) = struct.unpack_from(">I", archive, data + offset)
+    return archive[data + offset + 4 : data + offset + 4 + size]
+
+
 def _read_bytes(photo: Photo, data: Path) -> bytes:
     if photo.wheel is None:
-        return (data / photo.path).read_bytes()
+        file = data / (photo.rcc or photo.path)
+        if not file.is_file():
+            raise FileNotFoundError(f"{file} is missing: run `make training-data`")
+        raw = file.read_bytes()
+        if photo.rcc is None:
+            return raw
+        try:
+            return read_rcc(raw, photo.path)
+        except (KeyError, ValueError, struct.error) as error:
+            raise ValueError(f"{photo.name}: {file}: {error.args[0]}") from error
     wheels = sorted(data.glob(f"{photo.wheel}-*.whl"))
     if not wheels:
         raise FileNotFoundError(f"no {photo.wheel} wheel in {data}: run `make training-data`")
