@@ -63,7 +63,7 @@ def test_methods_are_exactly_the_documented_ones():
     )
 
 
-@pytest.mark.parametrize(("alias", "method"), [("best", "mlri"), ("quality", "mlri")])
+@pytest.mark.parametrize(("alias", "method"), [("best", "mlri"), ("quality", "fusion")])
 def test_aliases_name_a_method(alias, method):
     raw = np.random.default_rng(4).integers(0, 4096, (40, 52)).astype(np.uint16)
     for pattern in ["RGGB", "GBRG"]:
