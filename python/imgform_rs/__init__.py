@@ -6,6 +6,7 @@ order, camera frame, CFA patterns, shift sign) are documented in
 ``CONVENTIONS.md``.
 """
 
+from . import spectral
 from ._native import RawError
 from .aberration import (
     SpotDiagram,
@@ -127,6 +128,7 @@ __all__ = [
     "shift_pattern",
     "similarity",
     "simulate_sensor",
+    "spectral",
     "spot_diagram",
     "stack_channels",
     "strehl_ratio",
