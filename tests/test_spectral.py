@@ -10,7 +10,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import imgform_rs.spectral as sp
-
 from conftest import output_with_threads
 
 with warnings.catch_warnings():
