@@ -292,4 +292,3 @@ def test_colorchecker_scene_to_dng_to_develop_gives_the_chart_colours(tmp_path):
     white = weights.sum(axis=0)
     de = sp.delta_e2000(got @ to_xyz.T, want @ to_xyz.T, white)
     assert de.mean() < fit.mean_delta_e + 0.5, (de.mean(), fit.mean_delta_e)
-

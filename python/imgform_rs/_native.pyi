@@ -242,6 +242,7 @@ def spectral_integrate(
 def flat_pair_stats(
     a: npt.NDArray[np.uint16], b: npt.NDArray[np.uint16]
 ) -> tuple[float, float, float]: ...
+
 @final
 class NativeSensor:
     def __new__(
