@@ -6,6 +6,7 @@ order, camera frame, CFA patterns, shift sign) are set out in the
 documentation's conventions page, ``docs/conventions.rst``.
 """
 
+from . import spectral
 from ._native import RawError
 from .aberration import (
     SpotDiagram,

@@ -230,3 +230,53 @@ def focal_stack(
     alphas: list[float],
     aperture: list[bool],
 ) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
+
+# --- spectral ---
+def spectral_weights(wavelengths: list[float], rule: str) -> list[float]: ...
+def check_wavelengths(wavelengths: list[float]) -> None: ...
+def check_spectra(name: str, spectra: list[float], grid_len: int) -> int: ...
+def blackbody(wavelengths: list[float], temperature: float) -> list[float]: ...
+def spectral_integrate(
+    spectra: npt.NDArray[np.float32], response: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float32]: ...
+def flat_pair_stats(
+    a: npt.NDArray[np.uint16], b: npt.NDArray[np.uint16]
+) -> tuple[float, float, float]: ...
+
+@final
+class NativeSensor:
+    def __new__(
+        cls,
+        *,
+        exposure_time: float,
+        full_well: float,
+        read_noise: float,
+        electrons_per_dn: float,
+        analog_gain: float,
+        black_level: int,
+        bit_depth: int,
+        dark_current: float,
+        temperature: float,
+        reference_temperature: float,
+        doubling_temperature: float,
+        dsnu: float,
+        prnu: float,
+        column_noise: float,
+        seed: int,
+        pattern_seed: int,
+    ) -> NativeSensor: ...
+    def with_frame(self, seed: int, exposure_time: float) -> NativeSensor: ...
+    def dark_rate(self) -> float: ...
+    def capture_rates(self, rates: npt.NDArray[np.float32]) -> npt.NDArray[np.uint16]: ...
+    def capture_spectral(
+        self,
+        spectra: npt.NDArray[np.float32],
+        response: npt.NDArray[np.float64],
+        pattern: str | npt.NDArray[np.int64],
+    ) -> npt.NDArray[np.uint16]: ...
+    def capture_rgb(
+        self,
+        rgb: npt.NDArray[np.float32],
+        matrix: npt.NDArray[np.float64],
+        pattern: str | npt.NDArray[np.int64],
+    ) -> npt.NDArray[np.uint16]: ...

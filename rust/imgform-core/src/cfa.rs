@@ -421,13 +421,13 @@ impl SplitMix64 {
     }
 
     /// Uniform in [0, 1) with 53 random bits.
-    fn uniform(&mut self) -> f64 {
+    pub(crate) fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
     /// Standard normal by Box-Muller (one of the pair; the generator is
     /// per pixel, so keeping the other would not be reused).
-    fn normal(&mut self) -> f64 {
+    pub(crate) fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform(); // in (0, 1], so ln is finite
         let u2 = self.uniform();
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
@@ -460,7 +460,7 @@ fn ln_factorial(k: f64) -> f64 {
 /// A Poisson variate of mean `lam`: inversion by sequential search for small
 /// means, Hörmann's transformed rejection with squeeze (PTRS, 1993) above,
 /// where the search would take ~`lam` steps.
-fn poisson(rng: &mut SplitMix64, lam: f64) -> f64 {
+pub(crate) fn poisson(rng: &mut SplitMix64, lam: f64) -> f64 {
     if lam <= 0.0 {
         return 0.0;
     }

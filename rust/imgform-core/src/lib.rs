@@ -25,5 +25,6 @@ pub mod metrology;
 pub mod optics;
 pub mod projection;
 pub mod remap;
+pub mod spectral;
 
 pub use error::{CoreError, Result};

@@ -21,6 +21,7 @@ mod metrology;
 mod optics;
 mod projection;
 mod remap;
+mod spectral;
 
 use pyo3::prelude::*;
 
@@ -41,5 +42,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     optics::register(m)?;
     projection::register(m)?;
     remap::register(m)?;
+    spectral::register(m)?;
     Ok(())
 }

@@ -1,0 +1,908 @@
+"""Spectral image formation: light, not RGB, onto the sensor (lecture sections 3.3 and 6).
+
+A scene is spectral radiance ``L(λ)`` (W m⁻² sr⁻¹ nm⁻¹) sampled on a wavelength
+grid in nanometres, as (H, W, L) float32 arrays. A camera channel ``c`` counts
+photo-electrons at the rate
+
+``r_c = A π T / (4 N²) ∫ L(λ) QE_c(λ) λ / (h c) dλ``
+
+(pixel area ``A``, lens transmittance ``T`` and f-number ``N``, on axis; ``QE_c``
+the channel's quantum efficiency x colour filter x IR-cut filter), a weighted
+sum of samples computed in Rust. :class:`Sensor` turns rates into a raw frame
+with exact Poisson shot noise, dark current, fixed patterns, read noise, full
+well, gain and ADC; :func:`photon_transfer` measures a sensor back from flat
+fields, as EMVA 1288 does for a real camera.
+
+Data (CIE illuminants and colour matching functions, the ColorChecker's
+reflectances, measured camera sensitivities, the Mallett-Yuksel 2019 basis)
+come from colour-science, imported on first use only: ``import imgform_rs``
+does not need it; install ``imgform-rs[spectral]`` for these functions.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Literal, NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _native
+from ._arrays import Float64Array, as_float_array
+from .cfa import as_pattern
+
+Float32Array = npt.NDArray[np.float32]
+Rule = Literal["trapezoid", "riemann"]
+
+#: Planck constant, J s, and speed of light, m/s (SI, exact).
+PLANCK_H = 6.626_070_15e-34
+SPEED_OF_LIGHT = 299_792_458.0
+
+#: ColorChecker data set used by default: Ohta's measurements as colour-science ships them.
+COLORCHECKER = "ColorChecker N Ohta"
+#: Default camera of colour-science's measured sensitivities.
+DEFAULT_CAMERA = "Nikon 5100 (NPL)"
+
+
+def _colour() -> Any:
+    """colour-science, imported on first use (it warns about matplotlib on import)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            import colour
+    except ImportError as exc:  # pragma: no cover - the test extra installs it
+        raise ImportError(
+            "imgform_rs.spectral needs colour-science for its data sets; "
+            "install it with `pip install imgform-rs[spectral]`"
+        ) from exc
+    return colour
+
+
+def wavelengths(start: float = 380.0, stop: float = 780.0, step: float = 10.0) -> Float64Array:
+    """A uniform wavelength grid in nm, ``start`` to ``stop`` inclusive.
+
+    Examples
+    --------
+    >>> wl = wavelengths()
+    >>> len(wl), wl[0], wl[-1]
+    (41, np.float64(380.0), np.float64(780.0))
+    """
+    n = round((stop - start) / step)
+    if not (n >= 1 and abs(start + n * step - stop) <= 1e-9 * abs(stop)):
+        raise ValueError(
+            f"stop - start must be a positive multiple of step, got start={start}, "
+            f"stop={stop}, step={step}"
+        )
+    return start + step * np.arange(n + 1, dtype=np.float64)
+
+
+def check_wavelengths(wl: Any) -> Float64Array:
+    """``wl`` as a checked 1-D float64 grid: >= 2 finite, positive, strictly
+    increasing samples (nm); any spacing is accepted.
+
+    Raises
+    ------
+    ValueError
+        Naming the offending sample.
+
+    Examples
+    --------
+    >>> check_wavelengths([400, 500, 650]).tolist()
+    [400.0, 500.0, 650.0]
+    """
+    arr = as_float_array(wl, "wavelengths")
+    if arr.ndim != 1:
+        raise ValueError(f"wavelengths must be a 1-D array, got shape {arr.shape}")
+    _native.check_wavelengths(arr.tolist())
+    return np.ascontiguousarray(arr)
+
+
+def _spectra(values: Any, wl: Float64Array, name: str) -> Float64Array:
+    """A table (..., L) of spectra on ``wl``, finite and >= 0, as float64."""
+    arr = as_float_array(values, name)
+    if arr.ndim == 0 or arr.shape[-1] != len(wl):
+        raise ValueError(
+            f"{name} must have {len(wl)} samples along its last axis, one per "
+            f"wavelength, got shape {arr.shape}"
+        )
+    _native.check_spectra(name, arr.ravel().tolist(), len(wl))
+    return arr
+
+
+def quadrature_weights(wl: Any, rule: Rule = "trapezoid") -> Float64Array:
+    """Weights (nm) such that ``∫ f dλ ≈ Σ w_i f(λ_i)``.
+
+    ``"trapezoid"`` works on any grid; ``"riemann"`` (each sample times the
+    step, CIE 15 and colour-science's rule) needs a uniform one.
+
+    Examples
+    --------
+    >>> quadrature_weights([400, 410, 430]).tolist()
+    [5.0, 15.0, 10.0]
+    """
+    return np.array(_native.spectral_weights(check_wavelengths(wl).tolist(), rule))
+
+
+def _resample(domain: Any, values: Any, wl: Float64Array, name: str) -> Float64Array:
+    """Linear interpolation of tabulated data (domain (K,), values (K,) or
+    (K, C)) onto ``wl``, refusing to extrapolate."""
+    domain = np.asarray(domain, np.float64)
+    values = np.asarray(values, np.float64)
+    lo, hi = domain[0], domain[-1]
+    if wl[0] < lo - 1e-9 or wl[-1] > hi + 1e-9:
+        raise ValueError(
+            f"{name} is tabulated from {lo:g} to {hi:g} nm; the grid {wl[0]:g}..{wl[-1]:g} nm "
+            "reaches outside it"
+        )
+    if values.ndim == 1:
+        return np.interp(wl, domain, values)
+    return np.stack([np.interp(wl, domain, v) for v in values.T], axis=-1)
+
+
+def _grid_or_default(wl: Any) -> Float64Array:
+    return wavelengths() if wl is None else check_wavelengths(wl)
+
+
+def blackbody(wl: Any, temperature: float) -> Float64Array:
+    """Planck's spectral radiance of a black body, W m⁻² sr⁻¹ nm⁻¹.
+
+    Computed in Rust with the CODATA 2018 radiation constants.
+
+    Examples
+    --------
+    >>> L = blackbody([500.0, 600.0], 5778.0)  # the Sun's surface
+    >>> (L / 1e4).round(3).tolist()
+    [2.638, 2.453]
+    """
+    grid = check_wavelengths(wl)
+    return np.array(_native.blackbody(grid.tolist(), float(temperature)))
+
+
+def illuminant(name: str, wl: Any = None) -> Float64Array:
+    """A CIE illuminant's relative spectral power (100 at 560 nm) on ``wl``.
+
+    Parameters
+    ----------
+    name : str
+        A key of colour-science's ``SDS_ILLUMINANTS``: "A", "D50", "D65",
+        "FL1" .. "FL12", "LED-B1" .. "LED-V2", ...
+    wl : array_like, optional
+        Wavelength grid (nm); 380..780 nm in 10 nm steps by default.
+
+    Examples
+    --------
+    >>> round(float(illuminant("D65", [560.0, 600.0])[0]), 6)
+    100.0
+    """
+    grid = _grid_or_default(wl)
+    colour = _colour()
+    if name not in colour.SDS_ILLUMINANTS:
+        raise ValueError(
+            f"unknown illuminant {name!r}; accepted: {', '.join(colour.SDS_ILLUMINANTS)}"
+        )
+    sd = colour.SDS_ILLUMINANTS[name]
+    return _resample(sd.wavelengths, sd.values, grid, f"illuminant {name}")
+
+
+def colorchecker(wl: Any = None, name: str = COLORCHECKER) -> tuple[tuple[str, ...], Float64Array]:
+    """The 24 ColorChecker patches' reflectances, row by row from dark skin.
+
+    Returns
+    -------
+    names : tuple of str
+    reflectance : ndarray, float64, shape (24, L)
+
+    Examples
+    --------
+    >>> names, R = colorchecker()
+    >>> names[18], R.shape, bool((R >= 0).all() and (R <= 1).all())
+    ('white 9.5 (.05 D)', (24, 41), True)
+    """
+    grid = _grid_or_default(wl)
+    colour = _colour()
+    if name not in colour.SDS_COLOURCHECKERS:
+        raise ValueError(
+            f"unknown ColorChecker {name!r}; accepted: {', '.join(colour.SDS_COLOURCHECKERS)}"
+        )
+    sds = colour.SDS_COLOURCHECKERS[name]
+    refl = [_resample(sd.wavelengths, sd.values, grid, f"{name}") for sd in sds.values()]
+    return tuple(sds), np.stack(refl)
+
+
+def camera_sensitivities(name: str = DEFAULT_CAMERA, wl: Any = None) -> Float64Array:
+    """A camera's measured relative spectral sensitivities (R, G, B), shape (L, 3).
+
+    From colour-science's ``MSDS_CAMERA_SENSITIVITIES`` (each channel's peak
+    is about 1): the product of quantum efficiency, colour filter and IR-cut
+    filter up to one scale, which :class:`SpectralCamera` sets with its peak
+    quantum efficiency.
+
+    Examples
+    --------
+    >>> camera_sensitivities().shape
+    (41, 3)
+    """
+    grid = _grid_or_default(wl)
+    colour = _colour()
+    if name not in colour.MSDS_CAMERA_SENSITIVITIES:
+        raise ValueError(
+            f"unknown camera {name!r}; accepted: {', '.join(colour.MSDS_CAMERA_SENSITIVITIES)}"
+        )
+    msds = colour.MSDS_CAMERA_SENSITIVITIES[name]
+    return _resample(msds.wavelengths, msds.values, grid, f"camera {name}")
+
+
+def cie_cmfs(wl: Any = None) -> Float64Array:
+    """The CIE 1931 2° colour matching functions x̄, ȳ, z̄ on ``wl``, shape (L, 3)."""
+    grid = _grid_or_default(wl)
+    cmfs = _colour().MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return _resample(cmfs.wavelengths, cmfs.values, grid, "the CIE 1931 CMFs")
+
+
+def integrate(spectra: Any, wl: Any, sensitivities: Any, *, rule: Rule = "trapezoid") -> Any:
+    """``∫ spectrum(λ) s_c(λ) dλ`` for every spectrum and channel, in Rust.
+
+    Parameters
+    ----------
+    spectra : ndarray, shape (H, W, L), (N, L) or (L,)
+        Non-negative spectra on ``wl``. float32 (H, W, L) images go to the
+        kernel without a copy; anything else is converted to float32 first.
+    wl : array_like, shape (L,)
+        Wavelength grid, nm.
+    sensitivities : array_like, shape (L, C)
+        Channel sensitivities (colour-science's layout), non-negative.
+    rule : {"trapezoid", "riemann"}
+        Quadrature, see :func:`quadrature_weights`.
+
+    Returns
+    -------
+    ndarray, float32, shape (..., C)
+        Accumulated in float64 per pixel, rounded once to float32.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Wrong shapes or dtypes, mismatched grids, negative or NaN samples
+        (the first bad pixel is named).
+
+    Examples
+    --------
+    >>> wl = wavelengths(400, 700, 100)
+    >>> integrate(np.ones((1, 1, 4), np.float32), wl, np.ones((4, 1))).item()
+    300.0
+    """
+    grid = check_wavelengths(wl)
+    sens = as_float_array(sensitivities, "sensitivities")
+    if sens.ndim != 2 or sens.shape[0] != len(grid):
+        raise ValueError(
+            f"sensitivities must have shape (L, C) = ({len(grid)}, C) for a grid of "
+            f"{len(grid)} wavelengths, got {sens.shape}"
+        )
+    arr = np.asarray(spectra)
+    if arr.ndim not in (1, 2, 3):
+        raise ValueError(f"spectra must have shape (H, W, L), (N, L) or (L,), got {arr.shape}")
+    if arr.shape[-1] != len(grid):
+        raise ValueError(
+            f"spectra have {arr.shape[-1]} samples per pixel but the grid has {len(grid)} "
+            "wavelengths"
+        )
+    if arr.dtype.kind not in "iuf":
+        raise TypeError(f"spectra must be real numbers, got dtype {arr.dtype}")
+    lead = arr.shape[:-1]
+    flat = arr.astype(np.float32, copy=False)
+    cube = flat.reshape((-1, 1, len(grid))) if arr.ndim < 3 else flat
+    response = np.ascontiguousarray((sens * quadrature_weights(grid, rule)[:, None]).T)
+    out = _native.spectral_integrate(cube, response)
+    return out.reshape(*lead, sens.shape[1])
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A sensor's noise and read-out model (charges in e-, levels in DN).
+
+    Per pixel: the signal (rate x exposure time) times the fixed gain
+    ``1 + prnu z``, plus dark charge, is drawn as an exact Poisson count and
+    clipped at ``full_well``; the fixed offsets (``dsnu`` per pixel,
+    ``column_noise`` per column) and Gaussian read noise are added; the ADC
+    multiplies by ``analog_gain / electrons_per_dn``, adds ``black_level``,
+    rounds and clips to ``2**bit_depth - 1``. Fixed patterns depend on
+    ``pattern_seed`` only (one sensor), temporal noise on the frame's seed.
+
+    The defaults are a 4 µm CMOS pixel: 20 000 e- full well, 2.5 e- read noise,
+    14 bits with 1.25 e-/DN (16 000 DN span above a black level of 512).
+
+    Examples
+    --------
+    >>> s = Sensor(read_noise=0.0)
+    >>> raw = s.capture_rates(np.full((4, 4), 1000.0, np.float32), exposure_time=0.01)
+    >>> raw.dtype, bool(abs(raw.mean() - (512 + 10 / 1.25)) < 5)
+    (dtype('uint16'), True)
+    """
+
+    full_well: float = 20_000.0
+    read_noise: float = 2.5
+    electrons_per_dn: float = 1.25
+    analog_gain: float = 1.0
+    black_level: int = 512
+    bit_depth: int = 14
+    dark_current: float = 0.5
+    temperature: float = 25.0
+    reference_temperature: float = 25.0
+    doubling_temperature: float = 6.3
+    dsnu: float = 0.0
+    prnu: float = 0.0
+    column_noise: float = 0.0
+    pattern_seed: int = 0
+
+    def __post_init__(self) -> None:
+        self.native(seed=0, exposure_time=1.0)  # validates every parameter
+
+    @property
+    def white_level(self) -> int:
+        """The largest raw value, ``2**bit_depth - 1``."""
+        return (1 << self.bit_depth) - 1
+
+    @property
+    def dn_per_electron(self) -> float:
+        """EMVA 1288's system gain ``K``: ``analog_gain / electrons_per_dn``."""
+        return self.analog_gain / self.electrons_per_dn
+
+    def native(self, *, seed: int, exposure_time: float) -> _native.NativeSensor:
+        """The validated native sensor for one frame."""
+        for name, value in (("seed", seed), ("pattern_seed", self.pattern_seed)):
+            if not isinstance(value, (int, np.integer)) or not 0 <= value < 2**64:
+                raise ValueError(f"{name} must be an int in [0, 2**64), got {value!r}")
+        return _native.NativeSensor(
+            exposure_time=float(exposure_time),
+            full_well=float(self.full_well),
+            read_noise=float(self.read_noise),
+            electrons_per_dn=float(self.electrons_per_dn),
+            analog_gain=float(self.analog_gain),
+            black_level=int(self.black_level),
+            bit_depth=int(self.bit_depth),
+            dark_current=float(self.dark_current),
+            temperature=float(self.temperature),
+            reference_temperature=float(self.reference_temperature),
+            doubling_temperature=float(self.doubling_temperature),
+            dsnu=float(self.dsnu),
+            prnu=float(self.prnu),
+            column_noise=float(self.column_noise),
+            seed=int(seed),
+            pattern_seed=int(self.pattern_seed),
+        )
+
+    def capture_rates(
+        self, rates: Any, *, exposure_time: float, seed: int = 0
+    ) -> npt.NDArray[np.uint16]:
+        """One frame of a field of mean photo-electron rates (e-/s), shape (H, W).
+
+        Examples
+        --------
+        >>> Sensor(read_noise=0, dark_current=0).capture_rates(
+        ...     np.zeros((2, 2), np.float32), exposure_time=1.0).tolist()
+        [[512, 512], [512, 512]]
+        """
+        arr = np.asarray(rates)
+        if arr.dtype.kind not in "iuf":
+            raise TypeError(f"rates must be real numbers, got dtype {arr.dtype}")
+        native = self.native(seed=seed, exposure_time=exposure_time)
+        return native.capture_rates(arr.astype(np.float32, copy=False))
+
+
+def flat_pair_stats(a: Any, b: Any) -> tuple[float, float, float]:
+    """Mean, temporal variance and spatial variance (DN, DN², DN²) of two
+    frames of one flat field.
+
+    The temporal variance is ``var(a - b) / 2`` (fixed patterns cancel in
+    the difference); the spatial one is that of ``(a + b) / 2`` over the
+    pixels. Sums are exact integers, so results do not depend on threads.
+
+    Examples
+    --------
+    >>> a = np.array([[10, 12]], np.uint16); b = np.array([[12, 10]], np.uint16)
+    >>> flat_pair_stats(a, b)
+    (11.0, 2.0, 0.0)
+    """
+    frames = []
+    for name, f in (("a", a), ("b", b)):
+        arr = np.asarray(f)
+        if arr.dtype != np.uint16:
+            raise TypeError(f"frame {name} must be a uint16 raw, got dtype {arr.dtype}")
+        frames.append(arr)
+    return _native.flat_pair_stats(frames[0], frames[1])
+
+
+class PhotonTransfer(NamedTuple):
+    """The result of :func:`photon_transfer` (EMVA 1288 names in brackets).
+
+    Attributes
+    ----------
+    mean : ndarray, float64
+        Dark-subtracted mean signal per exposure, DN (μ_y - μ_y.dark).
+    variance : ndarray, float64
+        Temporal variance per exposure, DN² (σ²_y).
+    conversion_gain : float
+        Fitted slope, DN per e- (the system gain K).
+    read_noise : float
+        From the intercept of the fit, ``sqrt(b - 1/12) / K``, e- (σ_d; the
+        1/12 DN² is the ADC's quantisation noise).
+    full_well : float
+        Mean signal where the variance peaks, over K, e- (μ_e.sat).
+    dsnu : float
+        Spatial standard deviation of the dark pair's mean minus its residual
+        temporal part, e- (DSNU1288).
+    prnu : float
+        Same for the brightest fitted exposure, over its mean signal, as a
+        fraction (PRNU1288 / 100).
+    fitted : ndarray, bool
+        The exposures inside the fit (mean up to 70 % of saturation).
+    """
+
+    mean: Float64Array
+    variance: Float64Array
+    conversion_gain: float
+    read_noise: float
+    full_well: float
+    dsnu: float
+    prnu: float
+    fitted: npt.NDArray[np.bool_]
+
+
+def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
+    """Photon-transfer analysis of flat-field and dark frame pairs.
+
+    Parameters
+    ----------
+    flats, darks : sequence of (ndarray, ndarray)
+        For each exposure, two uint16 frames of a uniform field and two dark
+        frames at the same exposure time (EMVA 1288's sensitivity
+        measurement). Exposures must reach saturation for the full well.
+
+    Returns
+    -------
+    PhotonTransfer
+
+    Notes
+    -----
+    The mean-variance line ``σ²_y = K (μ_y - μ_dark) + σ²_y.dark`` is fitted by
+    least squares over the exposures whose mean lies below 70 % of the
+    saturation mean (where the variance peaks), as EMVA 1288 prescribes.
+
+    Raises
+    ------
+    ValueError
+        Fewer than three exposures, mismatched pair counts, or no exposure
+        below 70 % of saturation.
+    """
+    flats, darks = list(flats), list(darks)
+    if len(flats) != len(darks) or len(flats) < 3:
+        raise ValueError(
+            "photon_transfer needs one dark pair per flat pair and at least 3 exposures, "
+            f"got {len(flats)} flat and {len(darks)} dark pairs"
+        )
+    f = np.array([flat_pair_stats(a, b) for a, b in flats])
+    d = np.array([flat_pair_stats(a, b) for a, b in darks])
+    mean = f[:, 0] - d[:, 0]
+    var = f[:, 1]
+    sat = int(np.argmax(var))
+    fitted = mean <= 0.7 * mean[sat]
+    if fitted.sum() < 2:
+        raise ValueError("photon_transfer needs at least 2 exposures below 70 % of saturation")
+    slope, intercept = np.polyfit(mean[fitted], var[fitted], 1)
+    K = float(slope)
+    read_noise = float(np.sqrt(max(intercept - 1.0 / 12.0, 0.0)) / K)
+    # The pair mean keeps half of each frame's temporal variance.
+    dsnu = float(np.sqrt(max(d[0, 2] - d[0, 1] / 2.0, 0.0)) / K)
+    bright = int(np.flatnonzero(fitted)[np.argmax(mean[fitted])])
+    spatial = f[bright, 2] - f[bright, 1] / 2.0 - (d[bright, 2] - d[bright, 1] / 2.0)
+    prnu = float(np.sqrt(max(spatial, 0.0)) / mean[bright])
+    return PhotonTransfer(mean, var, K, read_noise, float(mean[sat] / K), dsnu, prnu, fitted)
+
+
+@dataclass(frozen=True)
+class SpectralCamera:
+    """A camera: lens, spectral sensitivities and :class:`Sensor`.
+
+    Parameters
+    ----------
+    wavelengths : array_like, shape (L,)
+        The grid of ``sensitivities`` and of every spectral image captured.
+    sensitivities : array_like, shape (L, 3)
+        R, G, B relative sensitivity (QE x colour filter x IR-cut) with peak
+        ``peak_qe`` after scaling; e.g. :func:`camera_sensitivities`.
+    sensor : Sensor
+    pattern : str or array_like
+        CFA pattern of pixel (0, 0) (Bayer names, "XTRANS", or a tile).
+    pixel_pitch : float
+        Pixel pitch, µm (the photodiode area is its square: fill factor 1,
+        microlenses assumed).
+    f_number, transmittance : float
+        The lens: image-plane irradiance is ``π T L / (4 N²)`` on axis.
+    peak_qe : float
+        Quantum efficiency at the sensitivities' maximum.
+    rule : {"trapezoid", "riemann"}
+        Quadrature over the grid.
+    """
+
+    wavelengths: Any = field(default_factory=wavelengths)
+    sensitivities: Any = None
+    sensor: Sensor = field(default_factory=Sensor)
+    pattern: Any = "RGGB"
+    pixel_pitch: float = 4.0
+    f_number: float = 4.0
+    transmittance: float = 0.9
+    peak_qe: float = 0.5
+    rule: Rule = "trapezoid"
+
+    def __post_init__(self) -> None:
+        grid = check_wavelengths(self.wavelengths)
+        sens = (
+            camera_sensitivities(DEFAULT_CAMERA, grid)
+            if self.sensitivities is None
+            else _spectra(np.asarray(self.sensitivities, np.float64).T, grid, "sensitivities").T
+        )
+        if sens.shape != (len(grid), 3):
+            raise ValueError(f"sensitivities must have shape (L, 3), got {sens.shape}")
+        for name in ("pixel_pitch", "f_number", "peak_qe"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if not (np.isfinite(self.transmittance) and 0 < self.transmittance <= 1):
+            raise ValueError(f"transmittance must be in (0, 1], got {self.transmittance!r}")
+        object.__setattr__(self, "wavelengths", grid)
+        object.__setattr__(self, "sensitivities", sens)
+
+    def response(self) -> Float64Array:
+        """Electrons per second per unit of radiance sample, shape (3, L).
+
+        ``π T / (4 N²) · A · peak_qe · s_c(λ) / max s · λ / (h c) · w(λ)``, with
+        radiance in W m⁻² sr⁻¹ nm⁻¹ and ``w`` the quadrature weights (nm).
+        """
+        grid = self.wavelengths
+        qe = self.peak_qe * self.sensitivities / self.sensitivities.max()
+        area = (self.pixel_pitch * 1e-6) ** 2
+        irradiance = np.pi * self.transmittance / (4.0 * self.f_number**2)
+        photons_per_joule = grid * 1e-9 / (PLANCK_H * SPEED_OF_LIGHT)
+        w = quadrature_weights(grid, self.rule)
+        return np.ascontiguousarray((qe * (irradiance * area * photons_per_joule * w)[:, None]).T)
+
+    def capture(
+        self, radiance: Any, *, exposure_time: float, seed: int = 0
+    ) -> npt.NDArray[np.uint16]:
+        """A raw frame of spectral radiance (H, W, L) float32, W m⁻² sr⁻¹ nm⁻¹.
+
+        The (H, W, L) array is read once, in Rust; no float64 copy is made.
+
+        Raises
+        ------
+        TypeError
+            A dtype other than float32.
+        ValueError
+            A grid mismatch, a wrong shape, or negative / NaN radiance.
+        """
+        native = self.sensor.native(seed=seed, exposure_time=exposure_time)
+        return native.capture_spectral(radiance, self.response(), as_pattern(self.pattern))
+
+    def camera_rates(self, radiance: Any) -> Float32Array:
+        """Noise-free mean electron rates (e-/s) of every channel, shape (..., 3),
+        of radiance (..., L): what the sensor's photodiodes average to."""
+        arr = np.asarray(radiance, np.float32)
+        lead = arr.shape[:-1]
+        cube = arr.reshape((-1, 1, arr.shape[-1]) if arr.ndim < 3 else arr.shape)
+        return _native.spectral_integrate(cube, self.response()).reshape(*lead, 3)
+
+    def rgb_matrix(self, illuminant_radiance: Any) -> Float64Array:
+        """Electrons per second per unit of linear sRGB, shape (3, 3).
+
+        An RGB pixel upsampled with :func:`upsampling_basis` ``B`` and lit by
+        ``E`` has the spectrum ``E(λ) B(λ) rgb``, linear in ``rgb``; so the
+        camera's rates are ``response @ (E B) @ rgb``: this 3x3 matrix, computed
+        once, replaces the per-pixel spectra.
+        """
+        spd = _spectra(illuminant_radiance, self.wavelengths, "illuminant_radiance")
+        return self.response() @ (spd[:, None] * upsampling_basis(self.wavelengths, self.rule))
+
+    def capture_rgb(
+        self,
+        rgb: Any,
+        *,
+        illuminant_radiance: Any,
+        exposure_time: float,
+        seed: int = 0,
+    ) -> npt.NDArray[np.uint16]:
+        """A raw frame of a linear sRGB image (H, W, 3) float32 taken as
+        reflectances under ``illuminant_radiance`` (W m⁻² sr⁻¹ nm⁻¹ of the
+        perfect white, shape (L,)).
+
+        Upsampled on the fly: each pixel's spectrum is never built, because
+        the camera response of the three-function basis is the 3x3
+        :meth:`rgb_matrix` (so this costs one 3-term dot product per pixel
+        whatever the number of wavelengths). Negative components (out of
+        gamut) count as 0.
+        """
+        arr = np.asarray(rgb)
+        if arr.dtype != np.float32:
+            raise TypeError(f"rgb must be a float32 (H, W, 3) image, got dtype {arr.dtype}")
+        native = self.sensor.native(seed=seed, exposure_time=exposure_time)
+        matrix = np.ascontiguousarray(self.rgb_matrix(illuminant_radiance))
+        return native.capture_rgb(arr, matrix, as_pattern(self.pattern))
+
+
+# --- RGB -> spectrum ----------------------------------------------------------------------
+
+#: XYZ (D65) -> linear sRGB, IEC 61966-2-1 (the matrix colour-science uses).
+XYZ_TO_SRGB = np.array(
+    [
+        [3.2404542, -1.5371385, -0.4985314],
+        [-0.9692660, 1.8760108, 0.0415560],
+        [0.0556434, -0.2040259, 1.0572252],
+    ]
+)
+
+
+def xyz_weights(wl: Any, illuminant_spd: Any, rule: Rule = "trapezoid") -> Float64Array:
+    """Per-sample weights (L, 3) that turn a reflectance under
+    ``illuminant_spd`` into XYZ with the illuminant's Y = 1:
+    ``XYZ = reflectance @ weights``, the weights ``x̄ȳz̄ S w / Σ ȳ S w``
+    (``w`` the quadrature weights)."""
+    grid = check_wavelengths(wl)
+    spd = _spectra(illuminant_spd, grid, "illuminant_spd")
+    cmfs = cie_cmfs(grid)
+    w = quadrature_weights(grid, rule)
+    return cmfs * (spd * w)[:, None] / np.sum(cmfs[:, 1] * spd * w)
+
+
+def upsampling_basis(wl: Any = None, rule: Rule = "trapezoid") -> Float64Array:
+    """The three reflectance spectra (L, 3) that linear sRGB components scale.
+
+    Mallett and Yuksel's 2019 basis (shipped in colour-science; non-negative,
+    summing to 1, so ``rgb`` in [0, 1] gives a reflectance in [0, 1]), times
+    the inverse of its own sRGB under D65 on this grid and rule (within 1 % of
+    the identity): then ``spectrum -> sRGB`` gives ``rgb`` back exactly on this
+    grid. The corrected functions stay >= 0; their sum departs from 1 by
+    < 0.1 % at 10 nm (0.02 % at 5 nm), so sRGB white reflects at most 1.0009.
+
+    Examples
+    --------
+    >>> B = upsampling_basis()
+    >>> B.shape, bool(B.min() >= 0), bool(abs(B.sum(1) - 1).max() < 1e-3)
+    ((41, 3), True, True)
+    """
+    grid = _grid_or_default(wl)
+    from colour.recovery import MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019 as basis
+
+    _colour()
+    b = _resample(basis.wavelengths, basis.values, grid, "the Mallett-Yuksel basis")
+    srgb_of_basis = XYZ_TO_SRGB @ (b.T @ xyz_weights(grid, illuminant("D65", grid), rule)).T
+    return b @ np.linalg.inv(srgb_of_basis)
+
+
+def rgb_to_reflectance(rgb: Any, wl: Any = None, rule: Rule = "trapezoid") -> Float64Array:
+    """Reflectance spectra (..., L) of linear sRGB colours (..., 3).
+
+    Negative components (colours outside sRGB) are clipped to 0: the basis
+    has no negative reflectance to offer them. The spectra are materialised:
+    for images, :meth:`SpectralCamera.capture_rgb` folds the basis into a 3x3
+    matrix instead.
+
+    Examples
+    --------
+    >>> R = rgb_to_reflectance([0.2, 0.5, 0.1])
+    >>> R.shape, bool((R >= 0).all())
+    ((41,), True)
+    """
+    arr = as_float_array(rgb, "rgb")
+    if arr.shape[-1:] != (3,):
+        raise ValueError(f"rgb must have shape (..., 3), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError("rgb must be finite")
+    return np.clip(arr, 0.0, None) @ upsampling_basis(wl, rule).T
+
+
+def reflectance_to_rgb(reflectance: Any, wl: Any = None, rule: Rule = "trapezoid") -> Float64Array:
+    """Linear sRGB (..., 3) of reflectances (..., L) under D65 (white Y = 1)."""
+    grid = _grid_or_default(wl)
+    refl = _spectra(reflectance, grid, "reflectance")
+    return refl @ xyz_weights(grid, illuminant("D65", grid), rule) @ XYZ_TO_SRGB.T
+
+
+def luminance_scale(spd: Any, wl: Any, luminance: float) -> Float64Array:
+    """``spd`` scaled to a spectral radiance (W m⁻² sr⁻¹ nm⁻¹) of ``luminance``
+    cd/m² (683 lm/W x ∫ L ȳ dλ, trapezoidal)."""
+    grid = check_wavelengths(wl)
+    spd = _spectra(spd, grid, "spd")
+    lum = 683.0 * np.sum(spd * cie_cmfs(grid)[:, 1] * quadrature_weights(grid))
+    if not lum > 0:
+        raise ValueError("spd has no luminance: it is zero where the eye sees")
+    return spd * (float(luminance) / lum)
+
+
+# --- characterisation ---------------------------------------------------------------------
+
+
+def xyz_to_lab(xyz: Any, white_xyz: Any) -> Float64Array:
+    """CIE L*a*b* of XYZ relative to ``white_xyz`` (CIE 15; colour-science)."""
+    colour = _colour()
+    white = as_float_array(white_xyz, "white_xyz")
+    return colour.XYZ_to_Lab(as_float_array(xyz, "xyz") / white[1], colour.XYZ_to_xy(white))
+
+
+def delta_e2000(xyz: Any, xyz_ref: Any, white_xyz: Any) -> Float64Array:
+    """CIEDE2000 colour differences between XYZ rows (white ``white_xyz``)."""
+    colour = _colour()
+    lab, lab_ref = xyz_to_lab(xyz, white_xyz), xyz_to_lab(xyz_ref, white_xyz)
+    return np.asarray(colour.delta_E(lab, lab_ref, method="CIE 2000"))
+
+
+class ColorFit(NamedTuple):
+    """A fitted colour matrix and its errors on the training patches.
+
+    Attributes
+    ----------
+    matrix : ndarray, float64, shape (3, 3)
+        Camera RGB (not white-balanced) -> XYZ.
+    delta_e : ndarray, float64, shape (N,)
+        CIEDE2000 of each patch.
+    """
+
+    matrix: Float64Array
+    delta_e: Float64Array
+
+    @property
+    def mean_delta_e(self) -> float:
+        """Mean CIEDE2000 over the patches."""
+        return float(self.delta_e.mean())
+
+    @property
+    def max_delta_e(self) -> float:
+        """Largest CIEDE2000 of a patch."""
+        return float(self.delta_e.max())
+
+
+def fit_color_matrix(
+    camera_rgb: Any,
+    xyz: Any,
+    white_xyz: Any,
+    *,
+    method: Literal["least_squares", "de2000"] = "least_squares",
+) -> ColorFit:
+    """The 3x3 matrix ``M`` with ``xyz ≈ camera_rgb @ M.T``.
+
+    ``"least_squares"`` minimises the squared XYZ error over the patches;
+    ``"de2000"`` starts there and refines all nine entries by
+    Levenberg-Marquardt on the patches' CIEDE2000 (scipy's ``least_squares``).
+
+    Parameters
+    ----------
+    camera_rgb, xyz : array_like, shape (N, 3)
+        Training patches (N >= 3), e.g. a simulated ColorChecker.
+    white_xyz : array_like, shape (3,)
+        The white the Lab differences refer to.
+    """
+    rgb = as_float_array(camera_rgb, "camera_rgb")
+    target = as_float_array(xyz, "xyz")
+    if rgb.ndim != 2 or rgb.shape[1] != 3 or rgb.shape != target.shape or len(rgb) < 3:
+        raise ValueError(
+            "camera_rgb and xyz must both have shape (N, 3) with N >= 3, got "
+            f"{rgb.shape} and {target.shape}"
+        )
+    if method not in ("least_squares", "de2000"):
+        raise ValueError(f'method must be "least_squares" or "de2000", got {method!r}')
+    # Camera values in e-/s are ~1e10 times XYZ; fitting on values scaled to
+    # order 1 keeps the optimiser's steps and tolerances meaningful.
+    scale = float(np.abs(rgb).max()) or 1.0
+    unit = rgb / scale
+    matrix = np.linalg.lstsq(unit, target, rcond=None)[0].T
+    if method == "de2000":
+        from scipy.optimize import least_squares
+
+        def residuals(m: Float64Array) -> Float64Array:
+            return delta_e2000(unit @ m.reshape(3, 3).T, target, white_xyz)
+
+        matrix = least_squares(residuals, matrix.ravel(), method="lm").x.reshape(3, 3)
+    return ColorFit(matrix / scale, delta_e2000(unit @ matrix.T, target, white_xyz))
+
+
+def characterise(
+    camera: SpectralCamera,
+    illuminant_name: str = "D65",
+    *,
+    method: Literal["least_squares", "de2000"] = "least_squares",
+) -> ColorFit:
+    """Fit ``camera``'s colour matrix on a simulated, noise-free ColorChecker.
+
+    The 24 patches lit by the CIE illuminant give the camera's mean rates
+    (integrated in Rust) and their XYZ (white Y = 1), and
+    :func:`fit_color_matrix` relates them.
+
+    Examples
+    --------
+    >>> fit = characterise(SpectralCamera())
+    >>> fit.matrix.shape, bool(fit.mean_delta_e < 3)
+    ((3, 3), True)
+    """
+    wl = camera.wavelengths
+    spd = illuminant(illuminant_name, wl)
+    _, refl = colorchecker(wl)
+    weights = xyz_weights(wl, spd, camera.rule)
+    xyz = refl @ weights
+    white = weights.sum(axis=0)
+    return fit_color_matrix(camera.camera_rates(refl * spd), xyz, white, method=method)
+
+
+def dng_color_tags(fit: ColorFit, white_xyz: Any) -> tuple[Float64Array, Float64Array]:
+    """DNG ``ColorMatrix1`` (XYZ -> camera RGB) and ``AsShotNeutral`` (the
+    camera RGB of ``white_xyz``) of a fitted matrix.
+
+    ``ColorMatrix1`` is scaled as the DNG specification asks: the white maps
+    to camera RGB whose largest component is 1, which is ``AsShotNeutral``.
+    """
+    cam_from_xyz = np.linalg.inv(fit.matrix)
+    neutral = cam_from_xyz @ as_float_array(white_xyz, "white_xyz")
+    scale = 1.0 / neutral.max()
+    return cam_from_xyz * scale, neutral * scale
+
+
+def colorchecker_scene(
+    wl: Any, illuminant_radiance: Any, *, patch: int = 32, gap: int = 8
+) -> tuple[Float32Array, list[tuple[slice, slice]]]:
+    """A ColorChecker as a spectral radiance image (H, W, L) float32.
+
+    Six columns by four rows of ``patch``-pixel squares, ``gap`` pixels apart
+    on a black surround (reflectance 0.03), lit by ``illuminant_radiance``
+    (the radiance of a perfect white, shape (L,)).
+
+    Returns
+    -------
+    radiance : ndarray, float32, shape (4 patch + 5 gap, 6 patch + 7 gap, L)
+    boxes : list of (slice, slice)
+        Each patch's rows and columns, in the chart's order.
+    """
+    grid = check_wavelengths(wl)
+    spd = _spectra(illuminant_radiance, grid, "illuminant_radiance")
+    _, refl = colorchecker(grid)
+    h, w = 4 * patch + 5 * gap, 6 * patch + 7 * gap
+    image = np.empty((h, w, len(grid)), np.float32)
+    image[:] = (0.03 * spd).astype(np.float32)
+    boxes = []
+    for i, r in enumerate(refl):
+        y, x = gap + (i // 6) * (patch + gap), gap + (i % 6) * (patch + gap)
+        box = (slice(y, y + patch), slice(x, x + patch))
+        image[box] = (r * spd).astype(np.float32)
+        boxes.append(box)
+    return image, boxes
+
+
+def write_dng(
+    path: Any,
+    raw: Any,
+    camera: SpectralCamera,
+    fit: ColorFit,
+    *,
+    white_xyz: Any = None,
+) -> None:
+    """Write a raw frame of ``camera`` as a DNG that rawpy / LibRaw and
+    :func:`imgform_rs.develop` develop with the right colours.
+
+    ``ColorMatrix1`` and ``AsShotNeutral`` come from :func:`dng_color_tags`
+    (the scene white defaults to D65's XYZ, the calibration illuminant the
+    writer declares); black and white levels and the CFA pattern from the
+    camera.
+    """
+    from .dng import write_dng as _write
+
+    if white_xyz is None:
+        wl = camera.wavelengths
+        white_xyz = xyz_weights(wl, illuminant("D65", wl), camera.rule).sum(axis=0)
+    color_matrix, neutral = dng_color_tags(fit, white_xyz)
+    _write(
+        path,
+        raw,
+        camera.pattern,
+        white_level=camera.sensor.white_level,
+        black_level=camera.sensor.black_level,
+        color_matrix=color_matrix,
+        as_shot_neutral=neutral,
+        model="imgform-rs spectral camera",
+    )

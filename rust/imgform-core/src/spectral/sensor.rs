@@ -1,0 +1,539 @@
+//! The sensor: mean photo-electron rates in, digital numbers out.
+//!
+//! For each pixel, with rate `r` (e-/s) and exposure time `t`:
+//!
+//! 1. the signal `r t` is scaled by the pixel's fixed gain `1 + prnu z1`
+//!    (photo-response non-uniformity) and the dark charge `d t` is added,
+//!    `d` the dark current at the sensor's temperature (doubling every
+//!    `doubling_temperature` kelvin);
+//! 2. the collected charge is an exact Poisson variate of that mean (shot
+//!    noise of light and dark current alike), clipped at the full well;
+//! 3. read-out adds the pixel's fixed offset `dsnu z2` (dark-signal
+//!    non-uniformity), its column's fixed offset `column_noise z3` and
+//!    Gaussian read noise, all in electrons;
+//! 4. the amplifier and ADC map electrons to digital numbers with
+//!    `analog_gain / electrons_per_dn`, add the black level, round to the
+//!    nearest integer and clip to `0 ..= 2^bit_depth - 1`.
+//!
+//! `z1, z2` come from a generator seeded by `(pattern_seed, y, x)` and `z3` by
+//! `(pattern_seed, column)`, so the fixed patterns are the same in every
+//! frame of one sensor; the temporal noise comes from `(seed, y, x)`, so a new
+//! seed is a new frame. Either way a frame does not depend on the thread count.
+
+use super::integrate::{bad_pixel, check_response};
+use super::{all_valid, bands_first_bad, dot, is_valid_sample};
+use crate::cfa::{check_out_len, poisson, CfaPattern, SplitMix64};
+use crate::error::{CoreError, Result};
+use crate::invalid;
+
+/// Mixed into the pattern seed for the column offsets, so that they are not
+/// the row-0 pixel offsets in disguise.
+const COLUMN_STREAM: u64 = 0xC01C_0FF5_E7C0_1005;
+
+/// A sensor's parameters. Charges are in electrons, levels in digital
+/// numbers (DN), times in seconds, temperatures in degrees Celsius.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sensor {
+    /// Exposure time, s (> 0).
+    pub exposure_time: f64,
+    /// Charge at which a photodiode saturates, e- (> 0).
+    pub full_well: f64,
+    /// Standard deviation of the read noise, e- (>= 0).
+    pub read_noise: f64,
+    /// Electrons per DN at unity analog gain (the inverse of EMVA's system
+    /// gain `K` at base ISO), > 0.
+    pub electrons_per_dn: f64,
+    /// Analog gain before the ADC (ISO / base ISO), > 0.
+    pub analog_gain: f64,
+    /// Offset added before clipping, DN; below the white level.
+    pub black_level: u32,
+    /// ADC resolution, 1..=16 bits.
+    pub bit_depth: u32,
+    /// Mean dark current at `reference_temperature`, e-/s (>= 0).
+    pub dark_current: f64,
+    /// Sensor temperature, °C.
+    pub temperature: f64,
+    /// Temperature at which `dark_current` holds, °C.
+    pub reference_temperature: f64,
+    /// Warming by this many kelvin doubles the dark current (> 0).
+    pub doubling_temperature: f64,
+    /// Standard deviation of the fixed per-pixel offset, e- (>= 0).
+    pub dsnu: f64,
+    /// Standard deviation of the fixed per-pixel gain, relative (0 <= prnu < 1).
+    pub prnu: f64,
+    /// Standard deviation of the fixed per-column offset, e- (>= 0).
+    pub column_noise: f64,
+    /// Seed of the temporal noise (a new seed is a new frame).
+    pub seed: u64,
+    /// Seed of the fixed patterns (a new seed is another sensor of the model).
+    pub pattern_seed: u64,
+}
+
+fn check_input_len(name: &str, got: usize, expected: usize) -> Result<()> {
+    if got == expected {
+        Ok(())
+    } else {
+        Err(CoreError::Shape(format!(
+            "{name} must hold {expected} values for the frame, got {got}"
+        )))
+    }
+}
+
+fn non_negative(name: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid!("{name} must be a finite number >= 0, got {value}"))
+    }
+}
+
+impl Sensor {
+    /// Checks every parameter.
+    ///
+    /// # Errors
+    /// [`CoreError::InvalidArgument`] naming the first bad parameter and its
+    /// accepted range.
+    pub fn validate(&self) -> Result<()> {
+        use crate::error::{finite, positive};
+        positive("exposure_time", self.exposure_time)?;
+        positive("full_well", self.full_well)?;
+        non_negative("read_noise", self.read_noise)?;
+        positive("electrons_per_dn", self.electrons_per_dn)?;
+        positive("analog_gain", self.analog_gain)?;
+        non_negative("dark_current", self.dark_current)?;
+        finite("temperature", self.temperature)?;
+        finite("reference_temperature", self.reference_temperature)?;
+        positive("doubling_temperature", self.doubling_temperature)?;
+        non_negative("dsnu", self.dsnu)?;
+        non_negative("column_noise", self.column_noise)?;
+        if !(self.prnu.is_finite() && (0.0..1.0).contains(&self.prnu)) {
+            return Err(invalid!(
+                "prnu must be a relative standard deviation in [0, 1), got {}",
+                self.prnu
+            ));
+        }
+        if !(1..=16).contains(&self.bit_depth) {
+            return Err(invalid!(
+                "bit_depth must be between 1 and 16, got {}",
+                self.bit_depth
+            ));
+        }
+        if self.black_level >= self.white_level() {
+            return Err(invalid!(
+                "black_level must be below the white level {} of {} bits, got {}",
+                self.white_level(),
+                self.bit_depth,
+                self.black_level
+            ));
+        }
+        if !self.dark_rate().is_finite() {
+            return Err(invalid!(
+                "the dark current at {} °C overflows: {} e-/s doubling every {} K from {} °C",
+                self.temperature,
+                self.dark_current,
+                self.doubling_temperature,
+                self.reference_temperature
+            ));
+        }
+        Ok(())
+    }
+
+    /// The largest output value, `2^bit_depth - 1`.
+    pub fn white_level(&self) -> u32 {
+        (1u32 << self.bit_depth.min(16)) - 1
+    }
+
+    /// Digital numbers per electron: `analog_gain / electrons_per_dn` (EMVA
+    /// 1288's system gain `K`).
+    pub fn dn_per_electron(&self) -> f64 {
+        self.analog_gain / self.electrons_per_dn
+    }
+
+    /// The mean dark current at the sensor's temperature, e-/s.
+    pub fn dark_rate(&self) -> f64 {
+        let warming = self.temperature - self.reference_temperature;
+        self.dark_current * (warming / self.doubling_temperature).exp2()
+    }
+
+    /// The fixed offset of every column, e-.
+    fn column_offsets(&self, width: usize) -> Vec<f64> {
+        if self.column_noise == 0.0 {
+            return vec![0.0; width];
+        }
+        (0..width)
+            .map(|x| {
+                let mut g = SplitMix64::for_site(self.pattern_seed ^ COLUMN_STREAM, 0, x);
+                self.column_noise * g.normal()
+            })
+            .collect()
+    }
+
+    /// One pixel's reading of a signal of mean `rate` e-/s.
+    #[inline(always)]
+    fn read_pixel(&self, y: usize, x: usize, rate: f64, column_offset: f64) -> u16 {
+        let mut signal = rate * self.exposure_time;
+        let mut offset = column_offset;
+        if self.prnu > 0.0 || self.dsnu > 0.0 {
+            let mut g = SplitMix64::for_site(self.pattern_seed, y, x);
+            // A gain below zero needs a draw beyond 1/prnu sigma; such a
+            // pixel is dead (gain 0): it cannot un-collect light.
+            signal *= (1.0 + self.prnu * g.normal()).max(0.0);
+            offset += self.dsnu * g.normal();
+        }
+        let mean = signal + self.dark_rate() * self.exposure_time;
+        let mut rng = SplitMix64::for_site(self.seed, y, x);
+        let mut electrons = poisson(&mut rng, mean).min(self.full_well) + offset;
+        if self.read_noise > 0.0 {
+            electrons += self.read_noise * rng.normal();
+        }
+        let dn = f64::from(self.black_level) + electrons * self.dn_per_electron();
+        // Round half away from zero, then clip: the ADC has no negative codes.
+        dn.round().clamp(0.0, f64::from(self.white_level())) as u16
+    }
+
+    /// Reads a `height x width` frame whose pixel `(y, x)` has the mean rate
+    /// `rate(y, x)`, or `None` when the input there is bad.
+    fn read_frame<F>(&self, width: usize, height: usize, out: &mut [u16], rate: F) -> Result<()>
+    where
+        F: Fn(usize, usize) -> Option<f64> + Sync,
+    {
+        self.validate()?;
+        check_out_len(out.len(), width * height, "the sensor")?;
+        let columns = self.column_offsets(width);
+        let bad = bands_first_bad(out, width, |y0, rows| {
+            let mut first_bad = None;
+            for (dy, row) in rows.chunks_exact_mut(width).enumerate() {
+                let y = y0 + dy;
+                for (x, (o, &col)) in row.iter_mut().zip(&columns).enumerate() {
+                    let r = rate(y, x).unwrap_or_else(|| {
+                        first_bad = first_bad.or(Some(y * width + x));
+                        0.0
+                    });
+                    *o = self.read_pixel(y, x, r, col);
+                }
+            }
+            first_bad
+        });
+        match bad {
+            None => Ok(()),
+            Some(p) => Err(bad_pixel("the input", p, width)),
+        }
+    }
+
+    /// A frame of mean photo-electron rates `rates` `(height, width)`, e-/s:
+    /// flat fields, or a scene already integrated per pixel.
+    ///
+    /// # Errors
+    /// A bad parameter, mismatched lengths, or a negative or non-finite rate.
+    pub fn capture_rates(
+        &self,
+        rates: &[f32],
+        width: usize,
+        height: usize,
+        out: &mut [u16],
+    ) -> Result<()> {
+        check_input_len("rates", rates.len(), width * height)?;
+        self.read_frame(width, height, out, |y, x| {
+            let r = rates[y * width + x];
+            is_valid_sample(r).then_some(f64::from(r))
+        })
+    }
+
+    /// A raw capture of a spectral image `(height, width, grid_len)` through
+    /// a colour filter array: pixel `(y, x)` integrates its spectrum against
+    /// `response[c]`, `c` its filter's channel (0 = R, 1 = G, 2 = B), the
+    /// response in e-/s per unit of the image.
+    ///
+    /// # Errors
+    /// A bad parameter or response, mismatched lengths, or a pixel with a
+    /// negative or non-finite sample.
+    // The slice-kernel convention (a buffer, its dimensions, its output)
+    // plus the response and the pattern: grouping them into a struct for
+    // one function would only move the list.
+    #[allow(clippy::too_many_arguments)]
+    pub fn capture_spectral(
+        &self,
+        spectra: &[f32],
+        width: usize,
+        height: usize,
+        grid_len: usize,
+        response: &[f64],
+        pattern: &CfaPattern,
+        out: &mut [u16],
+    ) -> Result<()> {
+        check_response(response, 3, grid_len)?;
+        if spectra.len() != width * height * grid_len {
+            return Err(CoreError::Shape(format!(
+                "a {height} x {width} image of {grid_len} wavelengths needs {} samples, got {}",
+                width * height * grid_len,
+                spectra.len()
+            )));
+        }
+        self.read_frame(width, height, out, |y, x| {
+            let i = (y * width + x) * grid_len;
+            let px = &spectra[i..i + grid_len];
+            let c = usize::from(pattern.color_at(y, x));
+            let r = &response[c * grid_len..(c + 1) * grid_len];
+            all_valid(px).then(|| dot(px, r))
+        })
+    }
+
+    /// A raw capture of an RGB image `(height, width, 3)` whose pixels stand
+    /// for spectra linear in RGB (a three-function basis): channel `c` of
+    /// the camera then sees `matrix[c] · rgb`, with `matrix` row-major 3x3
+    /// in e-/s per unit of RGB. Negative components are out of the basis'
+    /// gamut and count as 0.
+    ///
+    /// # Errors
+    /// A bad parameter, a non-finite or negative matrix entry, mismatched
+    /// lengths, or a non-finite pixel.
+    pub fn capture_rgb(
+        &self,
+        rgb: &[f32],
+        width: usize,
+        height: usize,
+        matrix: &[f64; 9],
+        pattern: &CfaPattern,
+        out: &mut [u16],
+    ) -> Result<()> {
+        check_response(matrix, 3, 3)?;
+        check_input_len("rgb", rgb.len(), 3 * width * height)?;
+        self.read_frame(width, height, out, |y, x| {
+            let i = 3 * (y * width + x);
+            let px = &rgb[i..i + 3];
+            let c = 3 * usize::from(pattern.color_at(y, x));
+            let m = &matrix[c..c + 3];
+            let finite = px.iter().fold(true, |ok, v| ok & v.is_finite());
+            let [r, g, b] = [px[0], px[1], px[2]].map(|v| f64::from(v.max(0.0)));
+            finite.then_some(m[0] * r + m[1] * g + m[2] * b)
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An ideal sensor: 1 e- per DN, 16 bits, no offset, no noise but shot
+    /// noise, a full well no test reaches.
+    pub(crate) fn ideal() -> Sensor {
+        Sensor {
+            exposure_time: 1.0,
+            full_well: 1e9,
+            read_noise: 0.0,
+            electrons_per_dn: 1.0,
+            analog_gain: 1.0,
+            black_level: 0,
+            bit_depth: 16,
+            dark_current: 0.0,
+            temperature: 25.0,
+            reference_temperature: 25.0,
+            doubling_temperature: 6.0,
+            dsnu: 0.0,
+            prnu: 0.0,
+            column_noise: 0.0,
+            seed: 1,
+            pattern_seed: 2,
+        }
+    }
+
+    fn mean_var(v: &[u16]) -> (f64, f64) {
+        let n = v.len() as f64;
+        let mean = v.iter().map(|&d| f64::from(d)).sum::<f64>() / n;
+        let var = v
+            .iter()
+            .map(|&d| (f64::from(d) - mean).powi(2))
+            .sum::<f64>()
+            / (n - 1.0);
+        (mean, var)
+    }
+
+    #[test]
+    fn poisson_counts_have_variance_equal_to_mean_from_0_3_to_1e5() {
+        // 2e5 samples: the standard error of var/mean is <= 0.8 % at 0.3 e-
+        // (fourth cumulant of a Poisson variate) and ~0.3 % above, so 2 % is
+        // a > 2.5-sigma margin everywhere. 1e5 e- needs 2 e- per DN in 16 bits.
+        let n = 200_000;
+        for mean in [0.3, 1.0, 3.0, 9.9, 10.0, 30.0, 100.0, 1e3, 1e4, 1e5] {
+            let per_dn = if mean > 3e4 { 2.0 } else { 1.0 };
+            let s = Sensor {
+                electrons_per_dn: per_dn,
+                ..ideal()
+            };
+            let mut out = vec![0u16; n];
+            s.capture_rates(&vec![mean as f32; n], 1000, n / 1000, &mut out)
+                .unwrap();
+            let (m, v) = mean_var(&out);
+            let (m, v) = (m * per_dn, v * per_dn * per_dn);
+            assert!((m / mean - 1.0).abs() < 0.01, "mean {mean}: got {m}");
+            // Halving then rounding adds ~1/12 DN² (4/12 e-²), 3e-6 of 1e5.
+            assert!(
+                (v / m - 1.0).abs() < 0.02,
+                "mean {mean}: var/mean {}",
+                v / m
+            );
+        }
+    }
+
+    #[test]
+    fn the_adc_maps_electrons_with_gain_black_level_and_clipping() {
+        let s = Sensor {
+            electrons_per_dn: 4.0,
+            analog_gain: 2.0,
+            black_level: 100,
+            bit_depth: 12,
+            full_well: 5000.0,
+            ..ideal()
+        };
+        let mut out = vec![0u16; 3];
+        s.capture_rates(&[0.0, 400.0, 1e7], 3, 1, &mut out).unwrap();
+        assert_eq!(out[0], 100);
+        // 400 e- ± 20 at 0.5 DN/e-: 300 ± 10 DN.
+        assert!((260..=340).contains(&out[1]), "{}", out[1]);
+        // 5000 e- (the full well) -> 100 + 2500 DN, below the 4095 white.
+        assert_eq!(out[2], 2600);
+    }
+
+    #[test]
+    fn dark_current_doubles_every_doubling_temperature() {
+        let s = Sensor {
+            dark_current: 10.0,
+            temperature: 37.0,
+            reference_temperature: 25.0,
+            doubling_temperature: 6.0,
+            ..ideal()
+        };
+        assert!((s.dark_rate() - 40.0).abs() < 1e-12);
+        let n = 100_000;
+        let mut out = vec![0u16; n];
+        s.capture_rates(&vec![0.0; n], 1000, 100, &mut out).unwrap();
+        let (m, v) = mean_var(&out);
+        assert!(
+            (m - 40.0).abs() < 0.2 && (v / m - 1.0).abs() < 0.03,
+            "{m} {v}"
+        );
+    }
+
+    #[test]
+    fn fixed_patterns_repeat_across_frames_and_temporal_noise_does_not() {
+        let s = Sensor {
+            prnu: 0.01,
+            dsnu: 2.0,
+            column_noise: 1.0,
+            read_noise: 2.0,
+            black_level: 200,
+            ..ideal()
+        };
+        let n = 64 * 64;
+        let rates = vec![1000.0f32; n];
+        let mut frames = Vec::new();
+        for seed in 0..16 {
+            let mut out = vec![0u16; n];
+            Sensor { seed, ..s }
+                .capture_rates(&rates, 64, 64, &mut out)
+                .unwrap();
+            frames.push(out);
+        }
+        let frame_mean = |p: usize| frames.iter().map(|f| f64::from(f[p])).sum::<f64>() / 16.0;
+        let means: Vec<f64> = (0..n).map(frame_mean).collect();
+        let mm = means.iter().sum::<f64>() / n as f64;
+        let spatial = means.iter().map(|m| (m - mm).powi(2)).sum::<f64>() / (n - 1) as f64;
+        // Fixed: prnu (0.01 x 1000)² = 100 e² + dsnu 4 + columns 1; the
+        // 16-frame mean keeps 1/16 of the temporal 1000 + 4 + 1/12 e²:
+        // ~ 167.8 e² in all (4096 pixels: standard error ~ 4 e²).
+        assert!((spatial - 167.8).abs() < 12.0, "{spatial}");
+        assert_ne!(frames[0], frames[1]);
+        let mut again = vec![0u16; n];
+        Sensor { seed: 0, ..s }
+            .capture_rates(&rates, 64, 64, &mut again)
+            .unwrap();
+        assert_eq!(again, frames[0]);
+    }
+
+    #[test]
+    fn frames_do_not_depend_on_the_thread_count() {
+        let s = Sensor {
+            prnu: 0.01,
+            dsnu: 2.0,
+            column_noise: 1.0,
+            read_noise: 2.0,
+            ..ideal()
+        };
+        let (w, h) = (37, 53);
+        let rates: Vec<f32> = (0..w * h).map(|i| (i % 97) as f32 * 3.7).collect();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut out = vec![0u16; w * h];
+            pool.install(|| s.capture_rates(&rates, w, h, &mut out))
+                .unwrap();
+            out
+        };
+        assert_eq!(run(1), run(2));
+        assert_eq!(run(1), run(3));
+    }
+
+    #[test]
+    fn spectral_and_rgb_captures_pick_the_channel_of_each_pixel() {
+        let pattern = CfaPattern::from_name("GRBG").unwrap();
+        let (w, h, l) = (4, 2, 3);
+        // Every pixel's spectrum is (1, 2, 3); channel c responds to sample c.
+        let spectra: Vec<f32> = (0..w * h).flat_map(|_| [1.0f32, 2.0, 3.0]).collect();
+        let mut response = vec![0.0; 3 * l];
+        for c in 0..3 {
+            response[c * l + c] = 100.0;
+        }
+        let s = Sensor {
+            full_well: 1e9,
+            ..ideal()
+        };
+        let mut spec = vec![0u16; w * h];
+        s.capture_spectral(&spectra, w, h, l, &response, &pattern, &mut spec)
+            .unwrap();
+        let rgb: Vec<f32> = (0..w * h).flat_map(|_| [1.0f32, 2.0, 3.0]).collect();
+        let eye = [100.0, 0.0, 0.0, 0.0, 100.0, 0.0, 0.0, 0.0, 100.0];
+        let mut from_rgb = vec![0u16; w * h];
+        s.capture_rgb(&rgb, w, h, &eye, &pattern, &mut from_rgb)
+            .unwrap();
+        // Same means, same seeds: the same frame.
+        assert_eq!(spec, from_rgb);
+        // G R / B G: means 200 100 / 300 200, each within 5 sigma.
+        for (i, &v) in spec.iter().enumerate() {
+            let c = usize::from(pattern.color_at(i / w, i % w));
+            let mean = 100.0 * (c + 1) as f64;
+            assert!((f64::from(v) - mean).abs() < 5.0 * mean.sqrt(), "{i}: {v}");
+        }
+    }
+
+    #[test]
+    fn bad_input_and_parameters_are_named() {
+        let pattern = CfaPattern::from_name("RGGB").unwrap();
+        let mut out = vec![0u16; 4];
+        let mut spectra = vec![1.0f32; 4 * 2];
+        spectra[3 * 2 + 1] = f32::NAN;
+        let err = ideal()
+            .capture_spectral(&spectra, 2, 2, 2, &[1.0; 6], &pattern, &mut out)
+            .unwrap_err();
+        assert!(err.to_string().contains("row 1, column 1"), "{err}");
+        let err = Sensor {
+            prnu: 1.5,
+            ..ideal()
+        }
+        .capture_rates(&[1.0; 4], 2, 2, &mut out)
+        .unwrap_err();
+        assert!(err.to_string().starts_with("prnu must be"), "{err}");
+        let err = Sensor {
+            black_level: 70_000,
+            ..ideal()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(err.to_string().contains("white level 65535"), "{err}");
+        let err = ideal()
+            .capture_rates(&[1.0; 3], 2, 2, &mut out)
+            .unwrap_err();
+        assert!(matches!(err, CoreError::Shape(_)), "{err}");
+    }
+}

@@ -1,0 +1,294 @@
+"""Spectral image formation: grids, data, integration, the sensor, photon transfer."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import imgform_rs.spectral as sp
+from conftest import output_with_threads
+
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    colour = pytest.importorskip("colour")
+
+
+# --- grids and light -------------------------------------------------------------------
+
+
+def test_grids_are_checked_with_a_clear_message():
+    assert sp.check_wavelengths([380, 385.5, 700]).dtype == np.float64
+    for bad, msg in [
+        ([500.0], "at least 2"),
+        ([500.0, np.nan], "finite"),
+        ([500.0, 400.0], "strictly increasing"),
+        ([[400.0, 500.0]], "1-D"),
+    ]:
+        with pytest.raises(ValueError, match=msg):
+            sp.check_wavelengths(bad)
+    with pytest.raises(ValueError, match="uniform grid"):
+        sp.quadrature_weights([400, 410, 415], "riemann")
+    with pytest.raises(ValueError, match="quadrature must be"):
+        sp.quadrature_weights([400, 410], "simpson")  # type: ignore[arg-type]
+
+
+@given(st.lists(st.floats(1.0, 50.0), min_size=1, max_size=30), st.floats(200.0, 900.0))
+def test_trapezoid_weights_sum_to_the_span_on_any_grid(steps, start):
+    wl = start + np.concatenate([[0.0], np.cumsum(steps)])
+    w = sp.quadrature_weights(wl)
+    assert w.sum() == pytest.approx(wl[-1] - wl[0], rel=1e-12)
+    assert (w > 0).all()
+
+
+def test_blackbody_matches_colour_science_planck_law():
+    wl = sp.wavelengths(300, 1000, 5)
+    for t in (1000.0, 2856.0, 6504.0, 20000.0):
+        ours = sp.blackbody(wl, t)
+        # colour takes metres, c1 = 2 pi h c^2 (exitance) and returns
+        # W m^-2 sr^-1 m^-1; the same constants.
+        theirs = colour.colorimetry.planck_law(
+            wl * 1e-9, t, c1=np.pi * 1.191042972e-16, c2=1.438776877e-2
+        )
+        np.testing.assert_allclose(ours, theirs * 1e-9, rtol=1e-12)
+    with pytest.raises(ValueError, match="temperature"):
+        sp.blackbody(wl, -5.0)
+
+
+def test_data_sets_come_from_colour_science_on_any_grid():
+    wl = np.array([400.0, 433.3, 560.0, 700.0])
+    d65 = sp.illuminant("D65", wl)
+    assert d65[2] == pytest.approx(100.0)
+    names, refl = sp.colorchecker(wl)
+    assert len(names) == 24 and refl.shape == (24, 4)
+    sd = colour.SDS_COLOURCHECKERS[sp.COLORCHECKER][names[5]]
+    assert refl[5, 1] == pytest.approx(np.interp(433.3, sd.wavelengths, sd.values))
+    assert sp.camera_sensitivities(wl=wl).shape == (4, 3)
+    with pytest.raises(ValueError, match="unknown illuminant 'D66'"):
+        sp.illuminant("D66")
+    with pytest.raises(ValueError, match="reaches outside"):
+        sp.colorchecker([300.0, 400.0])
+
+
+# --- integration ------------------------------------------------------------------------
+
+
+def _chart_radiance(wl):
+    _, refl = sp.colorchecker(wl)
+    return (refl * sp.illuminant("D65", wl)).astype(np.float32).reshape(4, 6, -1)
+
+
+def test_integration_equals_colour_science_on_the_colorchecker():
+    """colour-science's ``sd_to_XYZ`` ("Integration" method, 5 nm, D65, CIE 1931)
+    and ours on the same float32 radiance: equal to 1e-6 relative."""
+    shape = colour.SpectralShape(380, 780, 5)
+    wl = shape.wavelengths
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(shape)
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(shape)
+    radiance = _chart_radiance(wl)
+    k = 100.0 / np.sum(cmfs.values[:, 1] * d65.values * 5.0)
+    ours = sp.integrate(radiance, wl, cmfs.values * k, rule="riemann")
+    for i, r in enumerate(radiance.reshape(24, -1)):
+        # The reflectance whose product with D65 is exactly our float32 radiance.
+        sd = colour.SpectralDistribution(r.astype(np.float64) / d65.values, wl)
+        theirs = colour.sd_to_XYZ(sd, cmfs, d65, method="Integration", k=k)
+        # colour-science 0.4.7 returns k Σ R S x̄ Δλ / 100 when given k (its
+        # [0, 1] range); the sum itself is what we compare.
+        np.testing.assert_allclose(ours.reshape(24, 3)[i], 100 * theirs, rtol=1e-6, atol=1e-9)
+
+
+def test_integration_is_exact_against_float64_numpy_and_refuses_bad_input():
+    rng = np.random.default_rng(3)
+    wl = sp.wavelengths(400, 700, 7.5)
+    cube = rng.random((13, 11, len(wl)), dtype=np.float32)
+    sens = rng.random((len(wl), 4))
+    weighted = sens * sp.quadrature_weights(wl)[:, None]
+    want = np.einsum("hwl,lc->hwc", cube.astype(np.float64), weighted)
+    np.testing.assert_allclose(sp.integrate(cube, wl, sens), want, rtol=1e-6)
+    assert sp.integrate(cube[0], wl, sens).shape == (11, 4)
+    assert sp.integrate(cube[0, 0], wl, sens).shape == (4,)
+    bad = cube.copy()
+    bad[5, 7, 3] = -1.0
+    with pytest.raises(ValueError, match=r"row 5, column 7"):
+        sp.integrate(bad, wl, sens)
+    bad[5, 7, 3] = np.nan
+    with pytest.raises(ValueError, match=r"finite and >= 0"):
+        sp.integrate(bad, wl, sens)
+    with pytest.raises(ValueError, match="grid has 81"):
+        sp.integrate(cube, sp.wavelengths(380, 780, 5), np.ones((81, 4)))
+    with pytest.raises(ValueError, match=r"sensitivities must have shape \(L, C\)"):
+        sp.integrate(cube, wl, sens.T)
+    with pytest.raises(ValueError, match="spectral response must be finite"):
+        sp.integrate(cube, wl, -sens)
+    with pytest.raises(TypeError, match="real numbers"):
+        sp.integrate(cube.astype(complex), wl, sens)
+
+
+# --- sensor -----------------------------------------------------------------------------
+
+
+def _ideal(**kw):
+    base = dict(read_noise=0.0, dark_current=0.0, black_level=0, bit_depth=16, electrons_per_dn=1.0)
+    base.update(kw)
+    return sp.Sensor(full_well=1e9, **base)
+
+
+@pytest.mark.parametrize("mean", [0.3, 1.0, 7.0, 10.0, 60.0, 1e3, 1e4, 1e5])
+def test_poisson_counts_are_exact_at_every_mean(mean):
+    """var/mean = 1 within 2 % (2e5 samples: >= 2.5 standard errors)."""
+    per_dn = 2.0 if mean > 3e4 else 1.0
+    s = _ideal(electrons_per_dn=per_dn)
+    raw = s.capture_rates(np.full((200, 1000), mean, np.float32), exposure_time=1.0, seed=7)
+    e = raw.astype(np.float64) * per_dn
+    assert e.mean() == pytest.approx(mean, rel=0.01)
+    assert e.var(ddof=1) / e.mean() == pytest.approx(1.0, abs=0.02)
+
+
+def test_frames_do_not_depend_on_the_thread_count():
+    code = """
+        import sys, numpy as np, imgform_rs.spectral as sp
+        s = sp.Sensor(prnu=0.01, dsnu=1.5, column_noise=0.7, pattern_seed=3)
+        rates = np.linspace(0, 5e5, 301 * 257, dtype=np.float32).reshape(301, 257)
+        sys.stdout.buffer.write(s.capture_rates(rates, exposure_time=0.02, seed=11).tobytes())
+    """
+    assert output_with_threads(code, 1) == output_with_threads(code, 2)
+
+
+def test_sensor_parameters_are_checked_by_name():
+    for kw, msg in [
+        (dict(full_well=0.0), "full_well must be"),
+        (dict(prnu=1.0), "prnu must be"),
+        (dict(bit_depth=17), "bit_depth must be"),
+        (dict(black_level=20_000), "black_level must be below"),
+        (dict(read_noise=np.nan), "read_noise must be"),
+    ]:
+        with pytest.raises(ValueError, match=msg):
+            sp.Sensor(**kw)
+    with pytest.raises(ValueError, match="exposure_time"):
+        sp.Sensor().capture_rates(np.ones((2, 2), np.float32), exposure_time=0.0)
+    with pytest.raises(ValueError, match=r"row 1, column 0"):
+        sp.Sensor().capture_rates(np.array([[1.0, 2.0], [-3.0, 4.0]]), exposure_time=1.0)
+    with pytest.raises(ValueError, match=r"shape \(H, W\)"):
+        sp.Sensor().capture_rates(np.ones(4, np.float32), exposure_time=1.0)
+
+
+# --- photon transfer --------------------------------------------------------------------
+
+
+def _ptc_frames(sensor, rate, times, shape=(256, 256)):
+    flats, darks = [], []
+    ones = np.full(shape, rate, np.float32)
+    zeros = np.zeros(shape, np.float32)
+    for i, t in enumerate(times):
+        flats.append([sensor.capture_rates(ones, exposure_time=t, seed=4 * i + k) for k in (0, 1)])
+        darks.append([sensor.capture_rates(zeros, exposure_time=t, seed=4 * i + k) for k in (2, 3)])
+    return flats, darks
+
+
+def test_photon_transfer_recovers_gain_read_noise_and_full_well():
+    sensor = sp.Sensor(
+        full_well=12_000.0,
+        read_noise=4.0,
+        electrons_per_dn=0.8,
+        bit_depth=16,
+        black_level=1000,
+        dark_current=0.0,
+        dsnu=3.0,
+        prnu=0.01,
+        pattern_seed=5,
+    )
+    # Geometric steps up to the linear range's end, then dense ones across the knee.
+    times = np.concatenate([np.geomspace(1e-4, 0.9, 16), np.linspace(1.0, 1.4, 17)])
+    ptc = sp.photon_transfer(*_ptc_frames(sensor, 1e4, times))
+    assert ptc.conversion_gain == pytest.approx(1 / 0.8, rel=0.01)
+    assert ptc.read_noise == pytest.approx(4.0, rel=0.03)
+    assert ptc.full_well == pytest.approx(12_000.0, rel=0.05)
+    assert ptc.dsnu == pytest.approx(3.0, rel=0.1)
+    assert ptc.prnu == pytest.approx(0.01, rel=0.1)
+
+
+# --- RGB -> spectrum ----------------------------------------------------------------------
+
+
+@given(
+    st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
+    st.sampled_from([5.0, 10.0]),
+)
+def test_rgb_round_trips_through_a_reflectance_in_0_1(rgb, step):
+    wl = sp.wavelengths(380, 780, step)
+    refl = sp.rgb_to_reflectance(rgb, wl)
+    assert refl.min() >= 0.0 and refl.max() <= 1.001
+    back = sp.reflectance_to_rgb(refl, wl)
+    m = sp.XYZ_TO_SRGB
+    white = np.linalg.solve(m, np.ones(3))
+    de = sp.delta_e2000(np.linalg.solve(m, back), np.linalg.solve(m, np.array(rgb)), white)
+    assert de < 1e-3
+
+
+def test_out_of_gamut_rgb_is_clipped_not_blown_up():
+    refl = sp.rgb_to_reflectance([[-0.5, 0.2, 1.0], [0.0, 0.2, 1.0]])
+    np.testing.assert_array_equal(refl[0], refl[1])
+    with pytest.raises(ValueError, match="finite"):
+        sp.rgb_to_reflectance([np.nan, 0, 0])
+    with pytest.raises(ValueError, match=r"shape \(\.\.\., 3\)"):
+        sp.rgb_to_reflectance([0.1, 0.2])
+
+
+def test_fused_rgb_capture_sees_what_the_materialised_spectra_give():
+    cam = sp.SpectralCamera()
+    wl = cam.wavelengths
+    light = sp.luminance_scale(sp.illuminant("D65", wl), wl, 200.0)
+    rgb = np.random.default_rng(1).random((5, 7, 3)).astype(np.float32)
+    spectra = sp.rgb_to_reflectance(rgb, wl) * light
+    np.testing.assert_allclose(
+        rgb.astype(np.float64) @ cam.rgb_matrix(light).T, cam.camera_rates(spectra), rtol=2e-6
+    )
+    raw = cam.capture_rgb(rgb, illuminant_radiance=light, exposure_time=0.01)
+    assert raw.shape == (5, 7) and raw.dtype == np.uint16
+    with pytest.raises(TypeError, match="float32"):
+        cam.capture_rgb(rgb.astype(np.float64), illuminant_radiance=light, exposure_time=0.01)
+
+
+# --- characterisation and the end-to-end chain --------------------------------------------
+
+
+def test_the_colour_matrix_fit_is_reported_and_the_de2000_variant_improves_it():
+    cam = sp.SpectralCamera()
+    ls = sp.characterise(cam)
+    de = sp.characterise(cam, method="de2000")
+    assert ls.delta_e.shape == (24,)
+    assert de.mean_delta_e < ls.mean_delta_e
+    assert ls.mean_delta_e < 3.0
+
+
+def test_colorchecker_scene_to_dng_to_develop_gives_the_chart_colours(tmp_path):
+    """Scene -> lens -> sensor -> DNG -> develop: the mean CIEDE2000 of the
+    patches against the chart's own (sRGB-clipped) colours stays within the
+    matrix fit's own error plus 0.5 for noise, demosaicing and clipping."""
+    from imgform_rs import develop
+
+    cam = sp.SpectralCamera(sensor=sp.Sensor(prnu=0.005, dsnu=1.0, pattern_seed=2))
+    wl = cam.wavelengths
+    spd = sp.illuminant("D65", wl)
+    light = sp.luminance_scale(spd, wl, 300.0)
+    scene, boxes = sp.colorchecker_scene(wl, light)
+    fit = sp.characterise(cam)
+    # Auto-exposure: the white patch's brightest channel at 60 % of the full well.
+    white_rate = cam.camera_rates(light).max()
+    t = 0.6 * cam.sensor.full_well / float(white_rate)
+    raw = cam.capture(scene, exposure_time=t, seed=3)
+    weights = sp.xyz_weights(wl, spd)
+    path = tmp_path / "chart.dng"
+    sp.write_dng(path, raw, cam, fit)
+    rgb = develop(path, tone="linear", bps="float", demosaic="bilinear")
+    got = np.array([rgb[ys, xs][6:-6, 6:-6].reshape(-1, 3).mean(0) for ys, xs in boxes])
+    _, refl = sp.colorchecker(wl)
+    want = np.clip((refl @ weights) @ sp.XYZ_TO_SRGB.T, 0.0, 1.0)
+    got *= want[18, 1] / got[18, 1]  # exposure: the white patch's green
+    to_xyz = np.linalg.inv(sp.XYZ_TO_SRGB)
+    white = weights.sum(axis=0)
+    de = sp.delta_e2000(got @ to_xyz.T, want @ to_xyz.T, white)
+    assert de.mean() < fit.mean_delta_e + 0.5, (de.mean(), fit.mean_delta_e)
