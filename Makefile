@@ -66,9 +66,9 @@ bench: $(BUILT) $(VENV)/.bench-peers ## side-by-side benchmarks against the peer
 filters: $(BUILT) ## rebuild the leung2011 demosaicer's least-squares filters
 	$(PY) -m imgform_rs.training.leung2011
 
-RAISR_WEIGHTS := rust/imgform-core/src/demosaic/raisr_weights.bin
+WEIGHTS := $(addprefix rust/imgform-core/src/demosaic/,raisr_weights.bin fusion_weights.bin)
 # include_bytes! makes the weights part of the extension.
-$(BUILT): $(RAISR_WEIGHTS)
+$(BUILT): $(WEIGHTS)
 
 # The photographs the "raisr" demosaicer is trained on (licences in
 # python/imgform_rs/training/photos.py), at pinned versions: the training
@@ -102,10 +102,13 @@ $(TRAINING_DATA)/.fetched-extended: $(TRAINING_DATA)/.fetched
 training-data: $(TRAINING_DATA)/.fetched-extended ## fetch the training photographs (Debian + PyPI)
 
 .PHONY: weights
-weights: $(BUILT) $(TRAINING_DATA)/.fetched ## retrain the "raisr" demosaicer and check the shipped weights bit for bit
+weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "fusion") and check the shipped weights bit for bit
 	mkdir -p out
-	$(PY) -m imgform_rs.training.demosaic --out out/raisr_weights.bin
-	cmp out/raisr_weights.bin $(RAISR_WEIGHTS) && echo "raisr weights reproduced bit for bit"
+	for m in raisr fusion; do \
+		$(PY) -m imgform_rs.training.demosaic --method $$m --out out/$${m}_weights.bin && \
+		cmp out/$${m}_weights.bin rust/imgform-core/src/demosaic/$${m}_weights.bin && \
+		echo "$$m weights reproduced bit for bit" || exit 1; \
+	done
 
 # The docs extra (Sphinx and friends, named in pyproject.toml) on top of the
 # release build; maturin reinstalls the built extension with the extras, so

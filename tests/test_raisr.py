@@ -83,9 +83,10 @@ def test_the_shipped_weights_are_what_training_gives():
     from imgform_rs.training.demosaic import train
     from imgform_rs.training.photos import DEFAULT_DATA
 
-    if not (DEFAULT_DATA / ".fetched").exists():
+    if not (DEFAULT_DATA / ".fetched-extended").exists():
         pytest.skip("the training photographs are not fetched (make training-data)")
-    assert train("raisr") == WEIGHTS.read_bytes()
+    for method in LEARNED:
+        assert train(method) == (KERNELS / f"{method}_weights.bin").read_bytes()
 
 
 def test_photos_are_downsampled_by_area_averages():

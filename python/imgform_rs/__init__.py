@@ -6,7 +6,7 @@ order, camera frame, CFA patterns, shift sign) are set out in the
 documentation's conventions page, ``docs/conventions.rst``.
 """
 
-from . import spectral
+from . import spectral as spectral  # a submodule with its own API page, not in __all__
 from ._native import RawError
 from .aberration import (
     SpotDiagram,
