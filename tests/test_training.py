@@ -66,6 +66,10 @@ def test_every_new_photograph_is_openly_licensed():
     new = [photo for photo in ALL_PHOTOS if photo not in [*photos.TRAINING, *photos.HELD_OUT]]
     assert {photo.name for photo in new} == set(catalogue.LICENCES)
     assert set(catalogue.LICENCES.values()) <= FREE_LICENCES
+    # Licences that ask for attribution get it, and only they are credited.
+    credited = {name for name, licence in catalogue.LICENCES.items() if "BY" in licence}
+    assert credited == set(catalogue.ATTRIBUTION)
+    assert all(author and source for author, source in catalogue.ATTRIBUTION.values())
 
 
 def _resource_file(files: dict[str, bytes], compressed: bool = False) -> bytes:

@@ -19,7 +19,8 @@ The photographs and their licences, as each package's ``copyright`` file states 
   (GPL-3+); upstream's README in each resource folder names the photographer, the
   Wikimedia Commons source and the licence of every file, and that licence is the one
   in :data:`LICENCES`: public domain (115), CC0-1.0 (63), CC-BY-SA-4.0 (29),
-  CC-BY-2.0 (5), CC-BY-3.0 (2).
+  CC-BY-2.0 (5), CC-BY-3.0 (2); the photographer and source of each of the 36 CC-BY
+  and CC-BY-SA ones, as the README gives them, in :data:`ATTRIBUTION`.
 - KPhotoAlbum's demo album (Debian ``kphotoalbum`` 5.9.1-1, ``/usr/share/kphotoalbum/
   demo``), 24 photographs of people, pets, beaches and the Grand Canyon by the
   KPhotoAlbum authors; the ``copyright`` file: GPL-2+ for the whole package.
@@ -398,6 +399,158 @@ _NEW = [
 ]
 #: The licence of every photograph added by the extended set, by name.
 LICENCES = {photo.name: licence for photo, licence in _NEW}
+#: The photographer and source of every photograph whose licence asks for
+#: attribution (CC-BY and CC-BY-SA), from upstream's README beside it.
+ATTRIBUTION = {
+    "lomiri-20.04/Kleiber_by_Lukas_Baubkus": (
+        "Lukas Baubkus",
+        "Ubuntu Touch 20.04 wallpapers (lomiri-wallpapers-20.04 20.04.0-2)",
+    ),
+    "gcompris/categorization/images/alphabets/alphabets": (
+        "Divyam Madaan",
+        "GCompris (gcompris-qt-data 3.1-2)",
+    ),
+    "gcompris/categorization/images/numbers/numbers": (
+        "Divyam Madaan",
+        "GCompris (gcompris-qt-data 3.1-2)",
+    ),
+    "gcompris/erase/alpaca": (
+        "Dietmar Rabich",
+        "https://commons.wikimedia.org/wiki/File:D%C3%BClmen,_B%C3%B6rnste,_Alpakas_--_2020_--_5338.jpg",
+    ),
+    "gcompris/erase/bee": (
+        "aussiegall",
+        "https://commons.wikimedia.org/wiki/File:Pollinationn.jpg",
+    ),
+    "gcompris/erase/butterfly": (
+        "Jee & Rani Nature Photography",
+        "https://commons.wikimedia.org/wiki/File:Parantica_aglea_at_Nayikayam_Thattu.jpg",
+    ),
+    "gcompris/erase/calf": (
+        "Basile Morin",
+        "https://commons.wikimedia.org/wiki/File:Close-up_photograph_of_a_calf%27s_head_looking_at_the_viewer_with_pricked_ears_in_Don_Det_Laos.jpg",
+    ),
+    "gcompris/erase/camels": (
+        "Alexandr frolov",
+        "https://commons.wikimedia.org/wiki/File:Camelus_bactrianus_in_western_Mongolia_02.jpg",
+    ),
+    "gcompris/erase/caterpillar": (
+        "Ivar Leidus",
+        "https://commons.wikimedia.org/wiki/File:Papilio_machaon_-_Daucus_carota_-_Keila.jpg",
+    ),
+    "gcompris/erase/chamaeleon": (
+        "Benny Trapp",
+        "https://commons.wikimedia.org/wiki/File:BennyTrapp_Chamaeleo_chamaeleon_Samos_Griechenland.jpg",
+    ),
+    "gcompris/erase/cheetah": (
+        "Charles J. Sharp",
+        "https://commons.wikimedia.org/wiki/File:Cheetah_(Acinonyx_jubatus)_female_2.jpg",
+    ),
+    "gcompris/erase/dolphin": (
+        "טל שמע",
+        "https://commons.wikimedia.org/wiki/File:Eilat_Dolphin_Reef_(3).jpg",
+    ),
+    "gcompris/erase/flying_fox": (
+        "Andrew Mercer",
+        "https://commons.wikimedia.org/wiki/File:Grey_headed_flying_fox_-_AndrewMercer_IMG41848.jpg",
+    ),
+    "gcompris/erase/gibbon": (
+        "JJ Harrison",
+        "https://commons.wikimedia.org/wiki/File:Hylobates_lar_-_Kaeng_Krachan_WB.jpg",
+    ),
+    "gcompris/erase/goat": (
+        "JoachimKohlerBremen",
+        "https://commons.wikimedia.org/wiki/File:Walliser_Schwarzhalsziege,_Belalp_2014.jpg",
+    ),
+    "gcompris/erase/gorilla": (
+        "Charles J. Sharp",
+        "https://commons.wikimedia.org/wiki/File:Mountain_gorilla_(Gorilla_beringei_beringei)_female_2.jpg",
+    ),
+    "gcompris/erase/gosling": (
+        "Stephan Sprinz",
+        "https://commons.wikimedia.org/wiki/File:Graugans-G%C3%B6ssel_(anser_anser)_im_Naturschutzgebiet_Wagbachniederung.jpg",
+    ),
+    "gcompris/erase/heron": (
+        "Stephan Sprinz",
+        "https://commons.wikimedia.org/wiki/File:Purpurreiher_(ardea_purpurea)_im_Flug_-_NSG_Wagbachniederung_1.jpg",
+    ),
+    "gcompris/erase/horse": (
+        "Eatcha",
+        "https://commons.wikimedia.org/wiki/File:Zaniskari_Horse_in_Ladakh.jpg",
+    ),
+    "gcompris/erase/kitten": (
+        "GalgenTX",
+        "https://commons.wikimedia.org/wiki/File:A_posing_kitten_(Flickr).jpg",
+    ),
+    "gcompris/erase/long_nosed_monkey": (
+        "Charles J. Sharp",
+        "https://commons.wikimedia.org/wiki/File:Proboscis_monkey_(Nasalis_larvatus)_female_and_baby.jpg",
+    ),
+    "gcompris/erase/macaque": (
+        "PJeganathan",
+        "https://commons.wikimedia.org/wiki/File:Bonnet_macaques_in_anaimalai_hills_JEG2730.jpg",
+    ),
+    "gcompris/erase/meerkats": (
+        "Charles J. Sharp",
+        "https://commons.wikimedia.org/wiki/File:Meerkat_(Suricata_suricatta)_Tswalu.jpg",
+    ),
+    "gcompris/erase/northern_harrier": (
+        "Frank Schulenburg",
+        "https://commons.wikimedia.org/wiki/File:Female_northern_harrier_in_flight-1142.jpg",
+    ),
+    "gcompris/erase/nubian_ibex": (
+        "Rhododendrites",
+        "https://commons.wikimedia.org/wiki/File:Juvenile_Nubian_ibex_in_Mitzpe_Ramon_(40409).jpg",
+    ),
+    "gcompris/erase/penguin": (
+        "Gordon Leggett",
+        "https://commons.wikimedia.org/wiki/File:2019-03-03_Chinstrap_penguin_on_Barrientos_Island,_Antarctica.jpg",
+    ),
+    "gcompris/erase/rhinoceros": (
+        "Charles J. Sharp",
+        "https://commons.wikimedia.org/wiki/File:Indian_rhinoceros_(Rhinoceros_unicornis)_4.jpg",
+    ),
+    "gcompris/erase/spoonbills": (
+        "Ryzhkov Sergey",
+        "https://commons.wikimedia.org/wiki/File:%D0%9A%D0%BE%D1%81%D0%B0%D1%80%D1%96_%D0%B2_%D0%B4%D0%B5%D0%BB%D1%8C%D1%82%D1%96_%D0%94%D1%83%D0%BD%D0%B0%D1%8E.jpg",
+    ),
+    "gcompris/erase/squirrel": (
+        "Роман Наумов",
+        "https://commons.wikimedia.org/wiki/File:%D0%91%D1%96%D0%BB%D0%BA%D0%B0_%D0%BD%D0%B0_%D0%B4%D0%B5%D1%80%D0%B5%D0%B2%D1%96_%D0%B2_%D0%B4%D0%B5%D0%BD%D0%B4%D1%80%D0%BE%D0%BF%D0%B0%D1%80%D0%BA%D1%83_%D0%9E%D0%BB%D0%B5%D0%BA%D1%81%D0%B0%D0%BD%D0%B4%D1%80%D1%96%D1%8F.jpg",
+    ),
+    "gcompris/erase/swans": (
+        "Charles J. Sharp",
+        "https://commons.wikimedia.org/wiki/File:Mute_swans_(Cygnus_olor)_and_cygnets.jpg",
+    ),
+    "gcompris/erase/toucan": (
+        "LG Nyqvist",
+        "https://commons.wikimedia.org/wiki/File:Pteroglossus_torquatus_Costa_Rica.jpg",
+    ),
+    "gcompris/explore_monuments/wonders/chichenItza": (
+        "Daniel Schwen",
+        "https://commons.wikimedia.org/wiki/File:Chichen_Itza_3.jpg",
+    ),
+    "gcompris/explore_monuments/wonders/christTheRedeemer": (
+        "Chensiyuan",
+        "https://commons.wikimedia.org/wiki/File:1_cristor_redentor_2014.jpg",
+    ),
+    "gcompris/explore_monuments/wonders/tajMahal": (
+        "Yann",
+        "https://commons.wikimedia.org/wiki/File:Taj_Mahal,_Agra,_India.jpg",
+    ),
+    "gcompris/explore_world_music/music/america": (
+        "Tom Harpel",
+        "https://commons.wikimedia.org/wiki/File:Onalaska-Practice6.jpg",
+    ),
+    "gcompris/explore_world_music/music/australia": (
+        "Steve Evans",
+        "https://commons.wikimedia.org/wiki/File:Australia_Aboriginal_Culture_009.jpg",
+    ),
+    "gcompris/explore_world_music/music/ireland": (
+        "candyschwartz",
+        "https://commons.wikimedia.org/wiki/File:Lunny_irvine_o_flynn_glackin.jpg",
+    ),
+}
 _HELD_OUT_NAMES = {
     "gcompris/erase/toucan",
     "gcompris/explore_monuments/wonders/petra",

@@ -24,6 +24,7 @@ mod ahd;
 mod bilinear;
 mod boxsum;
 mod ensemble;
+mod fusion;
 mod hamilton_adams;
 mod leung2011;
 mod malvar2004;
@@ -222,7 +223,7 @@ impl Method {
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
             Method::Mlri => <mlri::Mlri as tiled::StreamKernel>::HALO,
             Method::Raisr => <raisr::Raisr<ensemble::Ensemble> as TileKernel>::HALO,
-            Method::Fusion => <Fusion as TileKernel>::HALO,
+            Method::Fusion => <fusion::Fusion as tiled::StreamKernel>::HALO,
             Method::Markesteijn => markesteijn::HALO,
         }
     }
@@ -600,10 +601,18 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Fusion => {
-            let base = tiled::AsTile(mlri::Mlri::new(phase, T::FULL_SCALE));
             let second = raisr::Against(rcd_menon(phase, T::FULL_SCALE));
-            let k: Fusion =
-                learned::<T, _, _>(base, second, raisr::Weights::fusion(), raw, phase, isa);
+            let k = fusion::Fusion {
+                mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
+                refine: learned::<T, _, _>(
+                    raisr::Given,
+                    second,
+                    raisr::Weights::fusion(),
+                    raw,
+                    phase,
+                    isa,
+                ),
+            };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
     }
@@ -628,10 +637,6 @@ fn learned<T: Sample, B, S>(
         isa,
     }
 }
-
-/// The kernel of [`Method::Fusion`]: MLRI refined, seeing the RCD / Menon
-/// mean.
-type Fusion = raisr::Raisr<tiled::AsTile<mlri::Mlri>, raisr::Against<ensemble::Ensemble>>;
 
 /// The mean of RCD and Menon 2007 ([`Method::RcdMenon`]), also the base of
 /// the learned methods.

@@ -322,6 +322,30 @@ impl<K: TileKernel> Secondary for Against<K> {
     }
 }
 
+/// A first base computed elsewhere: its planes are filled before each run
+/// ([`State::given`]), as the fusion does with MLRI's streamed rows.
+pub(super) struct Given;
+
+impl TileKernel for Given {
+    type State = [Vec<f32>; 3];
+    const HALO: usize = 0;
+    fn state(&self, _: usize, len: usize) -> Self::State {
+        [0; 3].map(|_| vec![0.0; len])
+    }
+    #[inline(always)]
+    fn run<'s>(&self, st: &'s mut Self::State, _: &Tile, _: &[f32]) -> [&'s [f32]; 3] {
+        let [own, green, other] = st;
+        [own, green, other]
+    }
+}
+
+impl<S> State<[Vec<f32>; 3], S> {
+    /// The planes of a [`Given`] base, to fill before a run.
+    pub(super) fn given(&mut self) -> &mut [Vec<f32>; 3] {
+        &mut self.base
+    }
+}
+
 /// The 3x3 neighbours in feature order (row by row, centre excluded).
 const NEIGHBOURS: [(isize, isize); 8] = [
     (-1, -1),
