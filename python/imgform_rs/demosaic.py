@@ -98,8 +98,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   plate than ``"mlri"`` but twice ``"rcd_menon"``'s; the least zipper on the Siemens
   star of ours. ``"mlri"`` streams down tiles as tall as the image, as it does alone;
   its rows are refined in chunks of 64 rows, where ``"rcd_menon"`` and the filters
-  run on sub-tiles 384 columns wide: 4.0x the CPU time of ``"mlri"`` at 24 MP (one
-  thread, 2026-11-27) and 13 % of the output in extra memory. The 36 training
+  run on sub-tiles 384 columns wide: 3.3-3.4x the CPU time of ``"mlri"`` at 24 MP
+  (one thread, 2026-11-27) and 13 % of the output in extra memory. The 36 training
   photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"best"``: our most accurate method at the speed of the fast ones, currently
