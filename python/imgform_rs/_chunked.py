@@ -260,8 +260,8 @@ def develop_dask(
     TypeError
         For something other than a RawImage.
     ValueError
-        For non-square photosites (``pixel_aspect != 1``), or options that
-        :func:`imgform_rs.develop` refuses.
+        For non-square photosites (``pixel_aspect != 1``), ``exposure="auto"``,
+        or options that :func:`imgform_rs.develop` refuses.
 
     Examples
     --------
@@ -286,6 +286,12 @@ def develop_dask(
         )
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
+    if isinstance(develop_kwargs.get("exposure"), str):
+        # Each chunk would brighten by its own histogram.
+        raise ValueError(
+            'develop_dask takes exposure in stops; exposure="auto" needs the whole '
+            "image's histogram: use develop"
+        )
     cfa = raw.cfa if isinstance(raw.cfa, da.Array) else da.from_array(raw.cfa, chunks=chunks)
     _check_mosaic(cfa, (np.uint16,))
     period = raw.channel_tile.shape[0]
