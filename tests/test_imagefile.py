@@ -80,6 +80,14 @@ def test_lossless_files_keep_every_sample_and_carry_profile_and_exif(tmp_path, n
         assert tags["Orientation"] == 1
 
 
+def test_exif_without_its_app1_prefix_is_accepted(tmp_path):
+    bare = exif_bytes(SHOT, 0, True).removeprefix(b"Exif\0\0")
+    for name in ("a.jpg", "a.png", "a.tif"):
+        path = ig.write_image(tmp_path / name, rgb(np.uint8), exif=bare)
+        with Image.open(path) as im:
+            assert im.getexif()[271] == "Canon"
+
+
 @pytest.mark.parametrize("quality", [30, 95])
 def test_jpeg_quality_trades_size_for_fidelity(tmp_path, quality):
     smooth = np.stack(np.mgrid[0:64, 0:96] / 192.0, -1).sum(-1, keepdims=True)
@@ -180,9 +188,31 @@ def test_develop_file_writes_profile_and_exif(tmp_path):
         ("a.png", rgb(np.uint8), {"color": "cmyk"}, ValueError, "color must be one of"),
         ("a.png", rgb(np.uint8), {"tone": "gamma"}, ValueError, "tone must be one of"),
         ("a.png", rgb(np.uint8), {"exif": "Exif"}, TypeError, "exif must be bytes"),
+        ("a.jpg", rgb(np.uint8), {"exif": b"Exif\0\0garbage"}, ValueError, "exif must be EXIF"),
     ],
 )
 def test_write_image_refuses_what_it_cannot_write(tmp_path, name, image, kwargs, exc, match):
     with pytest.raises(exc, match=match):
         ig.write_image(tmp_path / name, image, **kwargs)
     assert not (tmp_path / name).exists()
+
+
+@pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
+def test_a_real_raw_keeps_its_shot_details_in_every_format(tmp_path):
+    source = RAW_DIR / "canon_powershot_s40_CRW_0113.CRW"
+    raw = ig.load_raw(source)
+    for name, bps in [("s40.jpg", 8), ("s40.png", 16), ("s40.tif", "float")]:
+        tone = "linear" if bps == "float" else "auto"
+        out = ig.develop_file(raw, tmp_path / name, bps=bps, tone=tone, demosaic="bilinear")
+        if out.suffix == ".tif":
+            with tifffile.TiffFile(out) as tif:
+                tags = {t.name: t.value for t in tif.pages[0].tags.values()}
+                assert tif.pages[0].dtype == np.float32
+            assert tags["DateTime"] == "2021:03:26 21:14:52"
+            assert description(tags["InterColorProfile"]) == "sRGB, linear (imgform-rs)"
+            continue
+        with Image.open(out) as im:
+            sub = im.getexif().get_ifd(0x8769)
+            assert sub[36867] == "2021:03:26 21:14:52" and sub[34855] == 50
+            assert float(sub[33437]) == pytest.approx(2.8, abs=0.01)
+            assert description(im.info["icc_profile"]) == "sRGB, srgb curve (imgform-rs)"

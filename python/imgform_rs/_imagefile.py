@@ -52,6 +52,24 @@ def check_format(kind: str, bps: Any) -> None:
         raise ValueError(f"{kind.upper()} files take bps {accepted}, got bps={bps!r}")
 
 
+def _check_exif(exif: Any) -> bytes:
+    """``exif`` led by ``Exif\\0\\0`` as JPEG's APP1 needs it; TypeError /
+    ValueError unless it is EXIF that Pillow reads (a file must not carry
+    bytes that viewers choke on)."""
+    if not isinstance(exif, bytes):
+        raise TypeError(f"exif must be bytes (see raw_exif) or None, got {type(exif).__name__}")
+    from PIL import Image
+
+    try:
+        Image.Exif().load(exif)
+        readable = exif.removeprefix(b"Exif\0\0")[:4] in (b"II*\0", b"MM\0*")
+    except Exception:  # Pillow's parse errors are of several classes
+        readable = False
+    if not readable:
+        raise ValueError("exif must be EXIF data (a TIFF header, optionally after Exif\\0\\0)")
+    return b"Exif\0\0" + exif.removeprefix(b"Exif\0\0")
+
+
 def _check_image(img: np.ndarray, kind: str) -> None:
     allowed = _DTYPES[kind]
     if img.dtype not in allowed or not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3)):
@@ -166,8 +184,8 @@ def write_image(
     if tone != "auto" and tone not in TONES:
         raise ValueError(f"tone must be one of {('auto', *TONES)}, got {tone!r}")
     quality = check_quality(quality)
-    if exif is not None and not isinstance(exif, bytes):
-        raise TypeError(f"exif must be bytes (see raw_exif) or None, got {type(exif).__name__}")
+    if exif is not None:
+        exif = _check_exif(exif)
     img = np.asarray(image)
     _check_image(img, kind)
     if target.exists() and not overwrite:
