@@ -29,6 +29,14 @@ _DTYPES = {
     "tiff": (np.uint8, np.uint16, np.float32),
     "jpeg": (np.uint8,),
 }
+# Integer TIFFs: zlib at level 1 with the horizontal predictor, and PNG at
+# level 1 (Pillow also picks each row's filter): on a 4 MP picture level 6
+# cost 2-6x the time for 5-15 % smaller files (Pillow's default PNG: 13 s
+# against 2.3 s on our shared 2-core machine). Float TIFFs stay uncompressed:
+# without the floating-point predictor (tifffile needs imagecodecs for it)
+# zlib saved 18 % in 8.8 s.
+_ZLIB = {"compression": "zlib", "compressionargs": {"level": 1}, "predictor": True}
+_PNG_LEVEL = 1
 # Baseline TIFF tags copied from the EXIF's IFD0, with their TIFF types
 # (Software, 305, goes through tifffile's own argument).
 _TIFF_TAGS = {271: "s", 272: "s", 274: "H", 306: "s", 315: "s"}
@@ -85,7 +93,9 @@ def _pillow(
 ) -> None:
     import imageio.v3 as iio
 
-    options: dict[str, Any] = {"quality": quality} if kind == "jpeg" else {}
+    options: dict[str, Any] = {"compress_level": _PNG_LEVEL}
+    if kind == "jpeg":
+        options = {"quality": quality}
     if icc:
         options["icc_profile"] = icc
     if exif:
@@ -114,8 +124,8 @@ def _tiff(target: Path, img: np.ndarray, icc: bytes | None, exif: bytes | None) 
         iccprofile=icc,
         software=software,
         extratags=extratags,
-        compression="zlib" if img.dtype != np.float32 else None,
         metadata=None,
+        **({} if img.dtype == np.float32 else _ZLIB),
     )
 
 
@@ -135,7 +145,7 @@ def write_image(
     ----------
     path : str or PathLike
         Ends in ``.jpg`` / ``.jpeg`` (8 bit), ``.png`` (8 or 16 bit) or
-        ``.tif`` / ``.tiff`` (8, 16 bit or float32, zlib-compressed integers).
+        ``.tif`` / ``.tiff`` (8, 16 bit, zlib-compressed, or float32).
     image : ndarray, shape (H, W) or (H, W, 3)
         uint8, uint16 or float32 as the format allows.
     color, tone : str
