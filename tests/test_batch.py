@@ -258,6 +258,26 @@ def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_p
     assert [os.stat(f.output).st_mtime_ns for f in again.files] == stamps
 
 
+def test_develop_many_writes_what_develop_file_writes(tmp_path, client, raws):
+    import io
+    from pathlib import Path
+
+    from PIL import Image, ImageCms
+
+    from imgform_rs import develop_file
+
+    paths, _ = raws
+    options = dict(quality=80, exposure="auto", color="display_p3")
+    out = tmp_path / "out"
+    report = batch.develop_many(paths[:1], out, client=client, format="jpeg", **options)
+    assert [f.status for f in report.files] == ["ok"]
+    want = develop_file(paths[0], tmp_path / "one.jpg", **options)
+    assert Path(report.files[0].output).read_bytes() == want.read_bytes()
+    with Image.open(want) as im:
+        profile = ImageCms.ImageCmsProfile(io.BytesIO(im.info["icc_profile"]))
+    assert ImageCms.getProfileDescription(profile).startswith("Display P3, srgb curve")
+
+
 def test_a_batch_removes_the_partial_files_of_its_own_outputs_only(tmp_path, client, raws):
     paths, _ = raws
     out = tmp_path / "out"

@@ -418,7 +418,9 @@ def test_result_does_not_depend_on_thread_count(grey_card):
     path, _ = grey_card
     code = f"""
         import sys, imgform_rs as ig
-        sys.stdout.buffer.write(ig.develop({str(path)!r}, bps=16).tobytes())
+        for options in ({{}}, {{"exposure": "auto", "color": "adobe_rgb"}}):
+            rgb = ig.develop({str(path)!r}, bps=16, **options)
+            sys.stdout.buffer.write(rgb.tobytes())
     """
     assert output_with_threads(code, 1) == output_with_threads(code, 2)
 
