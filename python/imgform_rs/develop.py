@@ -62,7 +62,9 @@ DEFAULT_DEMOSAIC = "best" if "best" in DEMOSAIC_METHODS else "hamilton_adams"
 """The demosaicer :func:`develop` uses unless told otherwise."""
 
 TONES: tuple[str, ...] = tuple(_native.TONES)
-"""Every tone curve :func:`develop` accepts."""
+"""Every tone curve :func:`develop` accepts (besides ``"auto"``, the colour
+space's own): ``"srgb"``, ``"linear"``, ``"bt709"``, ``"gamma22"`` (Adobe RGB's
+563/256 power), ``"romm"`` (ProPhoto's)."""
 
 WHITE_BALANCES = ("camera", "daylight", "auto", "none")
 HIGHLIGHTS = ("clip", "unclip")
