@@ -16,8 +16,12 @@ decoding is LibRaw's on both sides and would only dilute the ratio):
   unpacks the data), with ``demosaic_algorithm`` AHD (its default) and
   LINEAR.
 
-The last column compares each result with LibRaw AHD's, so it shows how far
-the demosaicers (and nothing else) differ.
+The ``+auto`` rows brighten as LibRaw does by default: ours with
+``exposure="auto"`` (a second, linear development finds the level), LibRaw
+without ``no_auto_bright``; they show what the automatic exposure costs.
+
+The last column compares each result with LibRaw AHD's (with the same
+brightening), so it shows how far the demosaicers (and nothing else) differ.
 
 Each contender runs in a fresh interpreter, so the peak resident memory it
 reports (``VmHWM`` minus the resident size after decoding, just before the
@@ -66,17 +70,19 @@ def status(key):
         return next(int(l.split()[1]) * 1024 for l in f if l.startswith(key + ":"))
 
 path, who, repeat = sys.argv[1], sys.argv[2], int(sys.argv[4])
-if who.startswith("ours:"):
+side, _, method = who.partition(":")
+method, _, auto = method.partition("+")
+if side == "ours":
     raw = ig.load_raw(path)
     def run():
-        return ig.develop(raw, demosaic=who[5:], bps=16)
+        return ig.develop(raw, demosaic=method, bps=16, exposure="auto" if auto else 0.0)
 else:
-    algo = getattr(rawpy.DemosaicAlgorithm, who[7:])
+    algo = getattr(rawpy.DemosaicAlgorithm, method)
     raw = rawpy.imread(path)
     def run():
         return raw.postprocess(
             demosaic_algorithm=algo, use_camera_wb=True, output_bps=16,
-            gamma=(2.4, 12.92), no_auto_bright=True,
+            gamma=(2.4, 12.92), no_auto_bright=not auto,
         )
 before = status("VmRSS")
 times, cpu, out = [], [], None
@@ -122,6 +128,7 @@ def main() -> None:
     methods = ig.BAYER_DEMOSAIC_METHODS
     best = "best" if "best" in methods else "hamilton_adams"
     contenders = [f"ours:{best}", "ours:bilinear", "libraw:AHD", "libraw:LINEAR"]
+    contenders += [f"ours:{best}+auto", "libraw:AHD+auto"]
     with tempfile.TemporaryDirectory() as d:
         path = Path(d) / "24mp.dng"
         cfa = ig.simulate_sensor(scene(), "RGGB", bit_depth=14, black_level=512, full_well=30000)
@@ -139,11 +146,15 @@ def main() -> None:
         results = {}
         for who in contenders:
             results[who] = run(path, who, Path(d) / f"{who.replace(':', '_')}.npy", repeat)
-        ref = np.load(Path(d) / "libraw_AHD.npy").astype(np.float64)
+        refs = {
+            auto: np.load(Path(d) / f"libraw_AHD{auto}.npy").astype(np.float64)
+            for auto in ("", "+auto")
+        }
         ahd, linear = results["libraw:AHD"], results["libraw:LINEAR"]
         rows = []
         for who in contenders:
             r = results[who]
+            ref = refs["+auto" if who.endswith("+auto") else ""]
             out = np.load(Path(d) / f"{who.replace(':', '_')}.npy").astype(np.float64)
             err = np.mean((out[8:-8, 8:-8] - ref[8:-8, 8:-8]) ** 2)
             psnr = "inf" if err == 0 else f"{10 * np.log10(65535**2 / err):.1f}"

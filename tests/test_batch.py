@@ -137,8 +137,22 @@ def test_demosaic_dask_chunks_sit_on_the_cfa_period():
 def test_demosaic_dask_refuses_bad_input():
     with pytest.raises(TypeError, match=r"dask\.array"):
         batch.demosaic_dask(np.zeros((8, 8), np.uint16), "RGGB")
-    with pytest.raises(TypeError, match="int32"):
-        batch.demosaic_dask(da.zeros((8, 8), dtype=np.int32), "RGGB")
+    with pytest.raises(TypeError, match=r"integer or float.*bool"):
+        batch.demosaic_dask(da.zeros((8, 8), dtype=bool), "RGGB")
+    negative = da.from_array(np.arange(-1, 63, dtype=np.int32).reshape(8, 8), chunks=4)
+    with pytest.raises(ValueError, match=r"0\.\.65535.*got -1\.\.62"):
+        batch.demosaic_dask(negative, "RGGB")
+
+
+@pytest.mark.parametrize("dtype", [np.int32, np.uint64, np.float64])
+def test_demosaic_dask_converts_other_dtypes_as_demosaic_does(dtype):
+    rng = np.random.default_rng(5)
+    raw = rng.integers(0, 4096, (40, 36))
+    raw = (raw / 4095 if dtype == np.float64 else raw).astype(dtype)
+    lazy = batch.demosaic_dask(da.from_array(raw, chunks=(14, 11)), "GBRG", "rcd")
+    got = lazy.compute(scheduler="synchronous")
+    assert got.dtype == dtype
+    np.testing.assert_array_equal(got, demosaic(raw, "GBRG", "rcd"))
     with pytest.raises(ValueError, match=r"\(H, W\)"):
         batch.demosaic_dask(da.zeros((8, 8, 3), dtype=np.uint16), "RGGB")
     with pytest.raises(ValueError, match="unknown demosaicing method"):
@@ -242,6 +256,26 @@ def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_p
     again = batch.develop_many(paths, out, client=client, bps=16, format="tiff")
     assert [f.status for f in again.files] == ["skipped"] * 4
     assert [os.stat(f.output).st_mtime_ns for f in again.files] == stamps
+
+
+def test_develop_many_writes_what_develop_file_writes(tmp_path, client, raws):
+    import io
+    from pathlib import Path
+
+    from PIL import Image, ImageCms
+
+    from imgform_rs import develop_file
+
+    paths, _ = raws
+    options = dict(quality=80, exposure="auto", color="display_p3")
+    out = tmp_path / "out"
+    report = batch.develop_many(paths[:1], out, client=client, format="jpeg", **options)
+    assert [f.status for f in report.files] == ["ok"]
+    want = develop_file(paths[0], tmp_path / "one.jpg", **options)
+    assert Path(report.files[0].output).read_bytes() == want.read_bytes()
+    with Image.open(want) as im:
+        profile = ImageCms.ImageCmsProfile(io.BytesIO(im.info["icc_profile"]))
+    assert ImageCms.getProfileDescription(profile).startswith("Display P3, srgb curve")
 
 
 def test_a_batch_removes_the_partial_files_of_its_own_outputs_only(tmp_path, client, raws):

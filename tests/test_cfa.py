@@ -98,8 +98,10 @@ def test_bad_patterns_say_what_is_accepted(pattern, exc, match):
     [
         (np.zeros((4, 4), np.uint8), ValueError, r"shape \(H, W, 3\), got \[4, 4\]"),
         (np.zeros((4, 4, 4), np.uint8), ValueError, r"\(H, W, 3\)"),
-        (np.zeros((4, 4, 3), np.int64), TypeError, "uint8, uint16 or float32.*int64"),
+        (np.zeros((4, 4, 3), np.complex64), TypeError, "integer or float.*complex64"),
         (np.zeros((4, 4, 3), bool), TypeError, "dtype bool"),
+        (np.zeros((4, 4), np.int64), ValueError, r"shape \(H, W, 3\), got \[4, 4\]"),
+        (np.zeros((0, 4, 3), np.float64), ValueError, "must not be empty"),
         (np.zeros((0, 4, 3), np.uint8), ValueError, "must not be empty"),
         (None, TypeError, "got None"),
     ],

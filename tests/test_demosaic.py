@@ -379,7 +379,7 @@ def test_a_bad_out_names_what_is_wrong(raw, out, exc, match):
 
 Z8 = np.zeros((4, 4), np.uint8)
 SHAPE = r"\(2, 2\) or \(6, 6\), got \(3, 3\)"
-DTYPE = "uint8, uint16 or float32"
+DTYPE = "integer or float array"
 
 
 def float_with(value, shape, at):
@@ -392,8 +392,18 @@ def float_with(value, shape, at):
     ("raw", "pattern", "method", "exc", "match"),
     [
         (np.zeros((4, 4, 3), np.uint8), "RGGB", "bilinear", ValueError, r"shape \(H, W\), got"),
-        (np.zeros((4, 4), np.int64), "RGGB", "bilinear", TypeError, DTYPE + ".*int64"),
+        (np.zeros((4, 4), np.complex128), "RGGB", "bilinear", TypeError, DTYPE + ".*complex128"),
         (np.zeros((4, 4), bool), "RGGB", "bilinear", TypeError, DTYPE + ".*bool"),
+        (np.full((4, 4), -3, np.int16), "RGGB", "rcd", ValueError, r"0\.\.65535.*got -3\.\.-3"),
+        (np.full((4, 4), 70000, np.int32), "RGGB", "rcd", ValueError, r"int32.*70000"),
+        (np.full((4, 4), 1e39), "RGGB", "rcd", ValueError, "beyond float32's range"),
+        (
+            float_with(np.nan, (4, 4), (2, 3)).astype(np.float64),
+            "RGGB",
+            "rcd",
+            ValueError,
+            "NaN at row 2, column 3",
+        ),
         (Z8, "RGBX", "bilinear", ValueError, "unknown CFA pattern.*accepted"),
         (Z8, "RGGB", "vng", ValueError, r'unknown demosaicing method "vng"; accepted: \["nearest"'),
         (Z8, "RGGB", None, TypeError, "method must be a str"),
@@ -436,3 +446,80 @@ def test_mlri_beats_colour_demosaicing_menon2007():
 
     # 37.1 dB against 36.1 on this image.
     assert cpsnr(ig.demosaic(raw, "RGGB", "mlri")) > cpsnr(peer) + 0.5
+
+
+# Other dtypes: converted on the way in and back out (imgform_rs._samples).
+
+OTHER_INTS = [np.int8, np.int16, np.int32, np.int64, np.uint32, np.uint64, np.dtype(">u2")]
+
+
+@given(
+    dtype=st.sampled_from(OTHER_INTS),
+    method=st.sampled_from(METHODS),
+    pattern=st.sampled_from(BAYER),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_other_integers_demosaic_exactly_as_uint16(dtype, method, pattern, seed):
+    top = min(np.iinfo(dtype).max, 65535)
+    raw = np.random.default_rng(seed).integers(0, top, (9, 12), endpoint=True)
+    got = ig.demosaic(raw.astype(dtype), pattern, method)
+    want = ig.demosaic(raw.astype(np.uint16), pattern, method)
+    assert got.dtype == np.dtype(dtype)
+    # The uint16 result, only clamped to the narrower top of int8 / int16.
+    np.testing.assert_array_equal(got, np.minimum(want, top))
+
+
+@given(method=st.sampled_from(METHODS), seed=st.integers(0, 2**32 - 1))
+def test_float64_demosaics_with_float32_precision(method, seed):
+    raw = np.random.default_rng(seed).random((10, 14))
+    got = ig.demosaic(raw, "GRBG", method)
+    assert got.dtype == np.float64
+    np.testing.assert_array_equal(got, ig.demosaic(raw.astype(np.float32), "GRBG", method))
+    # Each sample comes back at its own site to float32's precision.
+    np.testing.assert_allclose(ig.mosaic(got, "GRBG"), raw, rtol=6e-8, atol=0)
+
+
+def test_float16_goes_through_float32_exactly():
+    raw = np.random.default_rng(3).random((8, 8)).astype(np.float16)
+    got = ig.demosaic(raw, "RGGB", "bilinear")
+    assert got.dtype == np.float16
+    want = ig.demosaic(raw.astype(np.float32), "RGGB", "bilinear").astype(np.float16)
+    np.testing.assert_array_equal(got, want)
+
+
+def test_scikit_image_float_images_demosaic():
+    skimage = pytest.importorskip("skimage")
+    rgb = skimage.util.img_as_float(skimage.data.astronaut()[100:164, 100:164])
+    assert rgb.dtype == np.float64
+    out = ig.demosaic(ig.mosaic(rgb, "RGGB"), "RGGB", "best")
+    assert out.dtype == np.float64 and out.shape == rgb.shape
+    mse = ((out - rgb)[4:-4, 4:-4] ** 2).mean()
+    assert 10 * np.log10(1 / mse) > 28
+
+
+def test_out_takes_the_dtype_given():
+    raw = np.random.default_rng(4).integers(0, 1000, (8, 10)).astype(np.int32)
+    out = np.full((8, 10, 3), -1, np.int32)
+    assert ig.demosaic(raw, "RGGB", "rcd", out=out) is out
+    np.testing.assert_array_equal(out, ig.demosaic(raw, "RGGB", "rcd"))
+    for bad, exc, match in [
+        (np.empty((8, 10, 3), np.uint16), TypeError, "dtype int32, got dtype uint16"),
+        (np.empty((8, 10, 4), np.int32), ValueError, r"shape \[8, 10, 3\], got \[8, 10, 4\]"),
+        (np.empty((8, 10, 3), np.int32, order="F"), ValueError, "C-contiguous"),
+        (read_only(np.empty((8, 10, 3), np.int32)), ValueError, "not writeable"),
+    ]:
+        with pytest.raises(exc, match=match):
+            ig.demosaic(raw, "RGGB", "rcd", out=bad)
+
+
+@given(
+    dtype=st.sampled_from([np.float64, np.float16, np.int64, np.int8, np.uint32]),
+    pattern=st.sampled_from([*BAYER, "XTRANS"]),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_mosaic_of_any_dtype_samples_exactly(dtype, pattern, seed):
+    rgb = (np.random.default_rng(seed).random((7, 13, 3)) * 100).astype(dtype)
+    got = ig.mosaic(rgb, pattern)
+    assert got.dtype == np.dtype(dtype) and got.flags.c_contiguous
+    masks = ig.channel_masks((7, 13), pattern)
+    np.testing.assert_array_equal(got, rgb[masks].reshape(7, 13))

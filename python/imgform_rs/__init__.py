@@ -7,6 +7,7 @@ documentation's conventions page, ``docs/conventions.rst``.
 """
 
 from . import spectral as spectral  # a submodule with its own API page, not in __all__
+from ._exif import ShotInfo
 from ._native import RawError
 from .aberration import (
     SpotDiagram,
@@ -42,7 +43,7 @@ from .demosaic import (
     demosaic,
     demosaic_halo,
 )
-from .develop import TONES, develop, write_image
+from .develop import COLORS, TONES, develop, develop_file, raw_exif, write_image
 from .distortion import distort_points, undistort_points
 from .lightfield import focal_stack, refocus, render_light_field, view_disparity
 from .metrology import (
@@ -75,6 +76,7 @@ from .remap import (
 
 __all__ = [
     "BAYER_DEMOSAIC_METHODS",
+    "COLORS",
     "DEMOSAIC_METHODS",
     "TONES",
     "XTRANS_DEMOSAIC_METHODS",
@@ -83,6 +85,7 @@ __all__ = [
     "RawError",
     "RawImage",
     "RemapMap",
+    "ShotInfo",
     "SpotDiagram",
     "VanishingPoint",
     "VanishingPointFit",
@@ -99,6 +102,7 @@ __all__ = [
     "demosaic_halo",
     "depth_of_field",
     "develop",
+    "develop_file",
     "distort_image",
     "distort_map",
     "distort_points",
@@ -118,6 +122,7 @@ __all__ = [
     "project_orthographic",
     "project_pinhole",
     "pupil_psf",
+    "raw_exif",
     "read_plate",
     "refocus",
     "relative_height",

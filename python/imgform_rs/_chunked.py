@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from . import _samples
 from .cfa import as_pattern, pattern_cells
 from .demosaic import demosaic, demosaic_halo
 from .develop import (
@@ -39,8 +40,6 @@ from .develop import (
     develop,
 )
 from .raw import RawImage
-
-_DTYPES = (np.uint8, np.uint16, np.float32)
 
 
 def require_dask() -> Any:
@@ -117,6 +116,9 @@ def map_cfa(mosaic: Any, period: int, halo: int, step: int, block_fn: Any, dtype
     if chunks != mosaic.chunks:
         mosaic = mosaic.rechunk(chunks)
     extremes = phase_extremes(mosaic, period)
+    # Other dtypes are converted block by block (elementwise, so the chunks
+    # still agree bit for bit); their range is checked here, before any worker.
+    _samples.check_range(extremes[0].min(), extremes[1].max(), mosaic.dtype, "mosaic")
 
     def run(block: np.ndarray, block_info: Any = None) -> np.ndarray:
         info = block_info[0]
@@ -133,13 +135,17 @@ def map_cfa(mosaic: Any, period: int, halo: int, step: int, block_fn: Any, dtype
     return da.overlap.trim_internal(rgb, {**depths, 2: 0}, boundary="none")
 
 
-def _check_mosaic(mosaic: Any, dtypes: tuple) -> None:
+def _check_mosaic(mosaic: Any, dtypes: tuple | None) -> None:
+    """Refuses what is not a 2-D dask array of ``dtypes`` (None: any dtype
+    :func:`imgform_rs.demosaic` takes)."""
     da = require_dask()
     if not isinstance(mosaic, da.Array):
         raise TypeError(f"mosaic must be a dask.array.Array, got {type(mosaic).__name__}")
     if mosaic.ndim != 2:
         raise ValueError(f"mosaic must have shape (H, W), got shape {mosaic.shape}")
-    if mosaic.dtype not in dtypes:
+    if dtypes is None:
+        _samples.check_dtype(mosaic.dtype, "mosaic")
+    elif mosaic.dtype not in dtypes:
         names = ", ".join(np.dtype(t).name for t in dtypes)
         raise TypeError(f"mosaic must be {names}, got dtype {mosaic.dtype}")
 
@@ -155,7 +161,8 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
 
     Parameters
     ----------
-    mosaic : dask.array.Array, shape (H, W), uint8, uint16 or float32
+    mosaic : dask.array.Array, shape (H, W), integer or float
+        Any dtype :func:`imgform_rs.demosaic` takes, converted as it says.
     pattern : str or array_like
         As for :func:`imgform_rs.demosaic`.
     method : str
@@ -183,7 +190,7 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
     >>> bool((out.compute() == demosaic(raw.compute(), "RGGB", "malvar2004")).all())
     True
     """
-    _check_mosaic(mosaic, _DTYPES)
+    _check_mosaic(mosaic, None)
     if not isinstance(method, str):
         raise TypeError(f"method must be a str, got {method!r}")
     pat = as_pattern(pattern)
@@ -253,8 +260,8 @@ def develop_dask(
     TypeError
         For something other than a RawImage.
     ValueError
-        For non-square photosites (``pixel_aspect != 1``), or options that
-        :func:`imgform_rs.develop` refuses.
+        For non-square photosites (``pixel_aspect != 1``), ``exposure="auto"``,
+        or options that :func:`imgform_rs.develop` refuses.
 
     Examples
     --------
@@ -279,6 +286,12 @@ def develop_dask(
         )
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
+    if isinstance(develop_kwargs.get("exposure"), str):
+        # Each chunk would brighten by its own histogram.
+        raise ValueError(
+            'develop_dask takes exposure in stops; exposure="auto" needs the whole '
+            "image's histogram: use develop"
+        )
     cfa = raw.cfa if isinstance(raw.cfa, da.Array) else da.from_array(raw.cfa, chunks=chunks)
     _check_mosaic(cfa, (np.uint16,))
     period = raw.channel_tile.shape[0]

@@ -2,72 +2,68 @@
 
 rawpy exposes most of what LibRaw reads, but not everything LibRaw uses to
 develop: the colour matrix some Kodak cameras store in tag 37400 and the DNG
-black-level pattern larger than the 2x2 tile are two such values. This module
-walks the IFDs LibRaw's TIFF parser walks (IFD0 and its successors, and the
-SubIFDs they point to) and returns each IFD's tags decoded to numbers or text.
-It never raises on malformed data: whatever cannot be read is left out.
+black-level pattern larger than the 2x2 tile are two such values. tifffile
+parses the file; this module walks the IFDs LibRaw's TIFF parser walks (IFD0
+and its successors, each followed by the SubIFDs it points to) and returns
+each IFD's tags as plain numbers or text. It never raises on malformed data:
+whatever tifffile cannot read is left out.
 """
 
 from __future__ import annotations
 
-import struct
+import io
+from typing import Any
+
+import numpy as np
 
 Value = str | tuple[float, ...]
 
-# TIFF field type -> (struct code, bytes per value); rationals are two codes.
-_TYPES = {
-    1: ("B", 1),
-    2: ("s", 1),
-    3: ("H", 2),
-    4: ("I", 4),
-    5: ("II", 8),
-    6: ("b", 1),
-    7: ("B", 1),
-    8: ("h", 2),
-    9: ("i", 4),
-    10: ("ii", 8),
-    11: ("f", 4),
-    12: ("d", 8),
-    13: ("I", 4),
-}
-_SUB_IFDS = 330
 # A corrupt file can chain IFDs in a loop or claim millions of them.
 _MAX_IFDS = 64
-_MAX_VALUES = 1 << 16
+_RATIONALS = (5, 10)  # RATIONAL, SRATIONAL: tifffile keeps numerator, denominator pairs
 
 
-def _value(data: bytes, order: str, kind: int, count: int, field: int) -> Value | None:
-    """The value of one IFD entry whose 12 bytes start at ``field``."""
-    code, size = _TYPES[kind]
-    if count > _MAX_VALUES:
+def _value(tag: Any) -> Value | None:
+    """A tag's value as a str, or a tuple of floats with rationals divided
+    out; None for what tifffile decoded into something else (a dict)."""
+    value = tag.value
+    if isinstance(value, str):
+        return value.strip()
+    if isinstance(value, bytes):
+        return tuple(float(b) for b in value)
+    if isinstance(value, (int, float, np.number)):
+        value = (value,)
+    if isinstance(value, np.ndarray):
+        value = tuple(value.ravel())
+    if not isinstance(value, tuple) or not all(
+        isinstance(v, (int, float, np.number)) for v in value
+    ):
         return None
-    start = field + 8
-    if size * count > 4:
-        (start,) = struct.unpack_from(order + "I", data, start)
-    raw = data[start : start + size * count]
-    if len(raw) < size * count:
-        return None
-    if kind == 2:
-        return raw.split(b"\0")[0].decode("latin-1").strip()
-    nums = struct.unpack(f"{order}{count * len(code)}{code[0]}", raw)
-    if len(code) == 2:
-        return tuple(n / d if d else 0.0 for n, d in zip(nums[0::2], nums[1::2], strict=True))
-    return tuple(float(n) for n in nums)
+    if int(tag.dtype) in _RATIONALS:
+        pairs = zip(value[0::2], value[1::2], strict=False)
+        return tuple(float(n) / float(d) if d else 0.0 for n, d in pairs)
+    return tuple(float(v) for v in value)
 
 
-def _ifd(data: bytes, order: str, offset: int) -> tuple[dict[int, Value], int]:
-    """The tags of the IFD at ``offset`` and the offset of the next IFD."""
-    (count,) = struct.unpack_from(order + "H", data, offset)
-    tags: dict[int, Value] = {}
-    for i in range(count):
-        field = offset + 2 + 12 * i
-        tag, kind, n = struct.unpack_from(order + "HHI", data, field)
-        if kind in _TYPES:
-            value = _value(data, order, kind, n, field)
-            if value is not None:
-                tags[tag] = value
-    (following,) = struct.unpack_from(order + "I", data, offset + 2 + 12 * count)
-    return tags, following
+def _tags(page: Any) -> dict[int, Value]:
+    found = {}
+    for tag in page.tags.values():
+        value = _value(tag)
+        if value is not None:
+            found[tag.code] = value
+    return found
+
+
+def _walk(pages: Any, found: list[dict[int, Value]]) -> None:
+    """Appends the tags of ``pages`` in LibRaw's order: each IFD, then the
+    SubIFDs it points to, then the next IFD."""
+    for page in pages:
+        if len(found) >= _MAX_IFDS:
+            return
+        found.append(_tags(page))
+        subs = page.pages
+        if subs is not None:
+            _walk(subs, found)
 
 
 def tiff_ifds(data: bytes) -> list[dict[int, Value]]:
@@ -82,26 +78,17 @@ def tiff_ifds(data: bytes) -> list[dict[int, Value]]:
     -------
     list of dict
         Tag number -> value (a str for ASCII, else a tuple of floats with
-        rationals divided out); empty for a file that is not TIFF.
+        rationals divided out); empty for a file that is not TIFF, and cut
+        short where tifffile finds the file corrupt.
     """
-    order = {b"II": "<", b"MM": ">"}.get(data[:2])
-    if order is None or len(data) < 8:
-        return []
-    pending = [struct.unpack_from(order + "I", data, 4)[0]]
-    seen: set[int] = set()
+    import tifffile
+
     found: list[dict[int, Value]] = []
-    while pending and len(seen) < _MAX_IFDS:
-        offset = pending.pop(0)
-        if offset in seen or not 8 <= offset < len(data):
-            continue
-        seen.add(offset)
-        try:
-            tags, following = _ifd(data, order, offset)
-        except struct.error:
-            continue
-        found.append(tags)
-        subs = tags.get(_SUB_IFDS, ())
-        pending = [int(s) for s in subs if isinstance(s, float)] + [following] + pending
+    try:
+        with tifffile.TiffFile(io.BytesIO(data)) as tif:
+            _walk(tif.pages, found)
+    except Exception:  # tifffile's errors on corrupt files are of many classes
+        pass
     return found
 
 

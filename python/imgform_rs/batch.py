@@ -57,7 +57,7 @@ RETRIES = 3
 the file: those are reported, and re-running would fail again)."""
 
 _EXPECTED = (ValueError, TypeError, OSError)
-_SUFFIX = {"png": ".png", "tiff": ".tif"}
+_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg"}
 
 
 @dataclass(frozen=True)
@@ -189,11 +189,12 @@ def write_atomically(target: Path, write: Callable[[Path], Any]) -> None:
 
 
 def _develop_file(source: Path, tmp: Path, options: dict) -> str:
-    from .develop import develop, write_image
+    from .develop import develop_to
 
-    rgb = develop(source, **options)
-    write_image(tmp, rgb)
-    return f"{rgb.shape[1]}x{rgb.shape[0]}"
+    develop_options = dict(options)
+    quality = develop_options.pop("quality", 92)
+    _, (h, w) = develop_to(source, tmp, quality, True, develop_options)
+    return f"{w}x{h}"
 
 
 def _align_file(source: Path, tmp: Path, options: dict) -> str:
@@ -332,7 +333,8 @@ def develop_many(
 ) -> BatchReport:
     """Develop raw files on a Dask cluster, one task per file.
 
-    Each ``OUTDIR/<stem>.png`` (or ``.tif``) is written atomically; existing
+    Each ``OUTDIR/<stem>.png`` (or ``.tif``, ``.jpg``), with its colour
+    profile and the raw's EXIF (:func:`imgform_rs.develop_file`), is written atomically; existing
     outputs are kept unless ``overwrite``; the report is also written to
     ``OUTDIR/imgform-develop-report.json``.
 
@@ -347,11 +349,12 @@ def develop_many(
         closed afterwards.
     overwrite : bool
         Process files whose output exists (default: skip them).
-    format : {"png", "tiff"}
+    format : {"png", "tiff", "jpeg"}
     on_result : callable, optional
         ``on_result(result, done, total)`` as each file finishes (a progress bar).
     **develop_kwargs
-        Options of :func:`imgform_rs.develop` (``demosaic``, ``bps``, ...).
+        Options of :func:`imgform_rs.develop` (``demosaic``, ``bps``, ...) and
+        ``quality`` for JPEG.
 
     Returns
     -------
@@ -383,7 +386,7 @@ def develop_many(
     (['ok'], ['skipped'])
     """
     if format not in _SUFFIX:
-        raise ValueError(f'format must be "png" or "tiff", got {format!r}')
+        raise ValueError(f'format must be "png", "tiff" or "jpeg", got {format!r}')
     return _run_batch(
         "develop",
         sources,

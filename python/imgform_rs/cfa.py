@@ -14,12 +14,13 @@ from typing import Any, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from . import _native
+from . import _native, _samples
 
 Pattern = str | npt.ArrayLike
 """A pattern name or a (2, 2) / (6, 6) array of channel indices."""
 
 SampleT = TypeVar("SampleT", np.uint8, np.uint16, np.float32)
+AnySampleT = TypeVar("AnySampleT", bound=np.number[Any])
 
 _CHANNEL_OF_LETTER = {"R": 0, "G": 1, "B": 2}
 
@@ -144,12 +145,15 @@ def pattern_from_rawpy(raw: Any) -> str | npt.NDArray[np.uint8]:
     return shift_pattern(cells, 0, 0)
 
 
-def mosaic(rgb: npt.NDArray[SampleT], pattern: Pattern) -> npt.NDArray[SampleT]:
+def mosaic(rgb: npt.NDArray[AnySampleT], pattern: Pattern) -> npt.NDArray[AnySampleT]:
     """Sample an RGB image through a colour filter array.
 
     Parameters
     ----------
-    rgb : ndarray, shape (H, W, 3), uint8, uint16 or float32
+    rgb : ndarray, shape (H, W, 3), any integer or float dtype
+        uint8, uint16 and float32 go through the native kernel; other dtypes
+        (float64 from scikit-image's ``img_as_float``, int32, ...) are sampled
+        in NumPy, exactly as well.
     pattern : str or array_like
 
     Returns
@@ -160,7 +164,7 @@ def mosaic(rgb: npt.NDArray[SampleT], pattern: Pattern) -> npt.NDArray[SampleT]:
     Raises
     ------
     TypeError
-        For another dtype or a bad pattern type.
+        For a bool, complex or object dtype or a bad pattern type.
     ValueError
         For another shape, an empty image or an invalid pattern.
 
@@ -170,7 +174,18 @@ def mosaic(rgb: npt.NDArray[SampleT], pattern: Pattern) -> npt.NDArray[SampleT]:
     >>> mosaic(rgb, "RGGB").tolist()
     [[0, 4], [7, 11]]
     """
-    return _native.mosaic(as_image(rgb, "rgb"), as_pattern(pattern))
+    arr = _samples.as_array(rgb, "rgb")
+    if arr.dtype in _samples.NATIVE:
+        return _native.mosaic(arr, as_pattern(pattern))
+    if arr.ndim != 3 or arr.shape[2] != 3:
+        raise ValueError(f"rgb must have shape (H, W, 3), got {list(arr.shape)}")
+    if arr.size == 0:
+        raise ValueError(f"rgb must not be empty, got shape {list(arr.shape)}")
+    h, w = arr.shape[:2]
+    cells = pattern_cells(pattern)
+    th, tw = cells.shape
+    channel = np.tile(cells, (-(-h // th), -(-w // tw)))[:h, :w, None]
+    return np.ascontiguousarray(np.take_along_axis(arr, channel.astype(np.intp), axis=2)[..., 0])
 
 
 def channel_masks(shape: tuple[int, int], pattern: Pattern) -> npt.NDArray[np.bool_]:

@@ -132,31 +132,56 @@ def _align(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _develop_options(args: argparse.Namespace) -> dict:
+    """The :func:`imgform_rs.develop` keywords the command line set."""
+    return {
+        "demosaic": args.demosaic,
+        "white_balance": args.white_balance,
+        "color": args.color,
+        "tone": args.tone,
+        "exposure": args.exposure,
+        "highlights": args.highlights,
+        "bps": args.bps,
+        "orientation": args.orientation,
+    }
+
+
+_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg"}
+
+
 def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
     """Develop one raw into ``target``; returns the line to print."""
     import time
 
-    from .develop import develop, write_image
+    from .develop import develop_to
 
     start = time.perf_counter()
-    rgb = develop(path, demosaic=args.demosaic, bps=args.bps)
-    write_image(target, rgb, overwrite=args.overwrite)
+    _, (h, w) = develop_to(path, target, args.quality, args.overwrite, _develop_options(args))
     took = time.perf_counter() - start
-    return f"{path}: {rgb.shape[1]}x{rgb.shape[0]} in {took:.2f} s -> {target}"
+    return f"{path}: {w}x{h} in {took:.2f} s -> {target}"
 
 
 def _develop(args: argparse.Namespace) -> int:
     from concurrent.futures import ThreadPoolExecutor
 
+    from ._imagefile import check_format
+
+    try:
+        check_format(args.format, args.bps)
+    except ValueError as exc:
+        print(f"imgform develop: {exc}", file=sys.stderr)
+        return 2
+    if args.dry_run:
+        return _develop_dry_run(args)
     if args.scheduler or args.workers:
         from .batch import develop_many
 
-        options = {"demosaic": args.demosaic, "bps": args.bps, "format": args.format}
+        options = {**_develop_options(args), "format": args.format, "quality": args.quality}
         return _on_cluster(args, develop_many, args.raws, "raws", **options)
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    suffix = ".png" if args.format == "png" else ".tif"
+    suffix = _SUFFIX[args.format]
     todo, failed = [], 0
     for name in args.raws:
         path = Path(name)
@@ -180,6 +205,73 @@ def _develop(args: argparse.Namespace) -> int:
     if failed:
         print(f"imgform develop: {failed} of {len(args.raws)} files failed", file=sys.stderr)
     return 1 if failed else 0
+
+
+def _develop_dry_run(args: argparse.Namespace) -> int:
+    """Lists what ``imgform develop`` would write, and with which options,
+    touching nothing (no folder is made, no raw is decoded)."""
+    out = Path(args.out)
+    suffix = _SUFFIX[args.format]
+    options = ", ".join(f"{k}={v!r}" for k, v in _develop_options(args).items())
+    print(f"develop options: {options}; {args.format}, quality {args.quality}")
+    for name in args.raws:
+        path = Path(name)
+        target = out / f"{path.stem}{suffix}"
+        if not path.is_file():
+            print(f"{path}: no such file, would fail")
+        elif target.exists() and not args.overwrite:
+            print(f"{path}: {target} exists, would keep it")
+        else:
+            print(f"{path}: would write {target}")
+    return 0
+
+
+def _white_balance(text: str) -> str | tuple[float, float, float]:
+    """A white-balance name, or R,G,B multipliers."""
+    from .develop import WHITE_BALANCES
+
+    if text in WHITE_BALANCES:
+        return text
+    try:
+        rgb = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        rgb = ()
+    if len(rgb) != 3 or not all(v > 0 and v < float("inf") for v in rgb):
+        raise argparse.ArgumentTypeError(
+            f"must be one of {', '.join(WHITE_BALANCES)} or three multipliers R,G,B > 0, "
+            f"got {text!r}"
+        )
+    return (rgb[0], rgb[1], rgb[2])
+
+
+def _exposure(text: str) -> str | float:
+    """ "auto" or a finite number of stops."""
+    if text == "auto":
+        return text
+    try:
+        stops = float(text)
+    except ValueError:
+        stops = float("nan")
+    if not abs(stops) < float("inf"):
+        raise argparse.ArgumentTypeError(f'must be "auto" or a number of stops, got {text!r}')
+    return stops
+
+
+def _quality(text: str) -> int:
+    from ._imagefile import check_quality
+
+    try:
+        return check_quality(int(text))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"must be an int from 1 to 100, got {text!r}") from exc
+
+
+def _bps(text: str) -> int | str:
+    if text in ("8", "16"):
+        return int(text)
+    if text == "float":
+        return text
+    raise argparse.ArgumentTypeError(f'must be 8, 16 or "float", got {text!r}')
 
 
 def _jobs(text: str) -> int:
@@ -243,23 +335,61 @@ def build_parser() -> argparse.ArgumentParser:
     _add_cluster_options(align)
     align.set_defaults(run=_align)
     from .demosaic import DEMOSAIC_METHODS
-    from .develop import DEFAULT_DEMOSAIC
+    from .develop import COLORS, DEFAULT_DEMOSAIC, HIGHLIGHTS, TONES
 
     dev = sub.add_parser(
         "develop",
-        help="develop raw files (DNG, CR2, NEF, ...) to PNG or TIFF",
-        description="Decode each raw with LibRaw and develop it (camera white balance, sRGB) "
-        "to OUTDIR/<name>.png or .tif. Files that cannot be developed are reported with "
-        "the reason; the others are still developed, and the exit status is 1.",
+        help="develop raw files (DNG, CR2, NEF, ...) to PNG, TIFF or JPEG",
+        description="Decode each raw with LibRaw and develop it (by default: camera white "
+        "balance, brightened as LibRaw does, sRGB) to OUTDIR/<name>.png, .tif or .jpg, with "
+        "the colour space's ICC profile and the raw's EXIF. Files that "
+        "cannot be developed are reported with the reason; the others are still developed, "
+        "and the exit status is 1.",
     )
     dev.add_argument("raws", nargs="+", metavar="IN", help="raw files")
     dev.add_argument("-o", "--out", required=True, metavar="OUTDIR", help="output folder")
     dev.add_argument("--demosaic", default=DEFAULT_DEMOSAIC, choices=DEMOSAIC_METHODS)
-    dev.add_argument("--format", default="png", choices=["png", "tiff"])
-    dev.add_argument("--bps", type=int, default=8, choices=[8, 16], help="bits per sample")
+    dev.add_argument(
+        "--white-balance",
+        type=_white_balance,
+        default="camera",
+        metavar="{camera,daylight,auto,none,R,G,B}",
+        help="as shot (default), the camera's daylight, grey world, none, or multipliers",
+    )
+    dev.add_argument(
+        "--exposure",
+        type=_exposure,
+        default="auto",
+        metavar="{auto,STOPS}",
+        help="auto (default): LibRaw's brightening, the brightest 1%% to white; "
+        "or a change in stops (0 keeps the file's exposure)",
+    )
+    dev.add_argument("--highlights", default="clip", choices=HIGHLIGHTS)
+    dev.add_argument("--color", default="srgb", choices=COLORS, help="output colour space")
+    dev.add_argument(
+        "--tone",
+        default="auto",
+        choices=("auto", *TONES),
+        help="transfer curve (default: the colour space's own)",
+    )
+    dev.add_argument("--orientation", default="auto", choices=["auto", "none"])
+    dev.add_argument("--format", default="png", choices=list(_SUFFIX))
+    dev.add_argument(
+        "--quality", type=_quality, default=92, help="JPEG quality, 1-100 (default: 92)"
+    )
+    dev.add_argument(
+        "--bps",
+        type=_bps,
+        default=8,
+        metavar="{8,16,float}",
+        help="bits per sample (float: 32-bit float TIFF, for linear output)",
+    )
     dev.add_argument("-j", "--jobs", type=_jobs, default=1, help="files developed at once")
     dev.add_argument(
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
+    )
+    dev.add_argument(
+        "--dry-run", action="store_true", help="list what would be written, and do nothing"
     )
     _add_cluster_options(dev)
     dev.set_defaults(run=_develop)

@@ -1,6 +1,7 @@
 """Demosaicing (lecture section 6): the two colours each photosite did not see.
 
-Methods, all for uint8 / uint16 / float32 mosaics; every one but ``"markesteijn"``
+Methods, all for uint8 / uint16 / float32 mosaics (and float16, float64 or other
+integer ones, converted as :func:`demosaic` says); every one but ``"markesteijn"``
 for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
 
 - ``"nearest"``: each 2x2 cell's red and blue, and the green of the pixel's row,
@@ -168,13 +169,13 @@ OpenCV names Bayer codes after the second row's first two pixels: our ``"RGGB"``
 
 from __future__ import annotations
 
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 import numpy.typing as npt
 
-from . import _native
-from .cfa import Pattern, as_image, as_pattern
+from . import _native, _samples
+from .cfa import Pattern, as_pattern
 
 DEMOSAIC_METHODS: tuple[str, ...] = tuple(_native.DEMOSAIC_METHODS)
 """Every method :func:`demosaic` accepts."""
@@ -185,7 +186,8 @@ BAYER_DEMOSAIC_METHODS: tuple[str, ...] = tuple(_native.BAYER_DEMOSAIC_METHODS)
 XTRANS_DEMOSAIC_METHODS: tuple[str, ...] = tuple(_native.XTRANS_DEMOSAIC_METHODS)
 """The methods :func:`demosaic` accepts for X-Trans mosaics."""
 
-SampleT = TypeVar("SampleT", np.uint8, np.uint16, np.float32)
+# Any real dtype: see the Parameters of demosaic for the conversions.
+SampleT = TypeVar("SampleT", bound=np.number[Any])
 
 
 def demosaic(
@@ -199,8 +201,12 @@ def demosaic(
 
     Parameters
     ----------
-    raw : ndarray, shape (H, W), uint8, uint16 or float32
+    raw : ndarray, shape (H, W), uint8, uint16 or float32; or float16, float64, other integers
         The mosaic, at least 2x2; any layout (copied once if not C-contiguous).
+        Other dtypes are converted: integers holding 0..65535 exactly through
+        uint16, float16 exactly and float64 through float32 (the result then has
+        float32's precision, about 7 digits), and the result is given back in
+        ``raw``'s dtype.
     pattern : str or array_like
         ``"RGGB"``, ``"BGGR"``, ``"GRBG"``, ``"GBRG"`` or a (2, 2) array of
         channel indices, describing pixel (0, 0) of ``raw``; or ``"XTRANS"`` or a
@@ -233,15 +239,17 @@ def demosaic(
     Raises
     ------
     TypeError
-        For a dtype other than uint8 / uint16 / float32, None, a non-str method,
+        For a bool or complex dtype, None, a non-str method,
         a pattern of the wrong type, or an ``out`` that is not an array of
         ``raw``'s dtype.
     ValueError
         For a shape other than (H, W), an image smaller than 2x2, an unknown
         method or pattern, a method that does not support the pattern (a Bayer-only
         method for X-Trans or ``"markesteijn"`` for Bayer), an X-Trans mosaic
-        smaller than 6x6, a float32 mosaic holding NaN or an infinity (the
-        message names the first one's row and column), or an ``out`` of the wrong
+        smaller than 6x6, a float mosaic holding NaN or an infinity (the
+        message names the first one's row and column), an integer mosaic with
+        values outside 0..65535, a float64 one beyond float32's range, or an
+        ``out`` of the wrong
         shape, not C-contiguous, read-only or overlapping ``raw``.
 
     Examples
@@ -252,7 +260,12 @@ def demosaic(
     """
     if not isinstance(method, str):
         raise TypeError(f"method must be a str, one of {DEMOSAIC_METHODS}, got {method!r}")
-    return _native.demosaic(as_image(raw, "raw"), as_pattern(pattern), method, out=out)
+    arr = _samples.as_array(raw, "raw")
+    if arr.dtype in _samples.NATIVE:
+        return _native.demosaic(arr, as_pattern(pattern), method, out=out)
+    result = _native.demosaic(_samples.to_kernel(arr, "raw"), as_pattern(pattern), method)
+    result = _samples.from_kernel(result, arr.dtype)
+    return result if out is None else _samples.fill_out(out, result, arr)
 
 
 def demosaic_halo(method: str, pattern: Pattern) -> int:

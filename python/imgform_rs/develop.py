@@ -52,7 +52,9 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._png import write_png
+from ._exif import exif_bytes
+from ._imagefile import FORMATS, check_format, check_quality, write_image
+from .colorspace import COLOR_SPACES, srgb_to
 from .demosaic import DEMOSAIC_METHODS
 from .raw import RawImage, load_raw
 
@@ -60,10 +62,14 @@ DEFAULT_DEMOSAIC = "best" if "best" in DEMOSAIC_METHODS else "hamilton_adams"
 """The demosaicer :func:`develop` uses unless told otherwise."""
 
 TONES: tuple[str, ...] = tuple(_native.TONES)
-"""Every tone curve :func:`develop` accepts."""
+"""Every tone curve :func:`develop` accepts (besides ``"auto"``, the colour
+space's own): ``"srgb"``, ``"linear"``, ``"bt709"``, ``"gamma22"`` (Adobe RGB's
+563/256 power), ``"romm"`` (ProPhoto's)."""
 
 WHITE_BALANCES = ("camera", "daylight", "auto", "none")
 HIGHLIGHTS = ("clip", "unclip")
+COLORS: tuple[str, ...] = (*COLOR_SPACES, "camera")
+"""Every output colour :func:`develop` accepts (see :mod:`imgform_rs.colorspace`)."""
 
 # LibRaw's default adjust_maximum_thr (see the module docstring).
 _ADJUST_MAXIMUM = 0.75
@@ -73,6 +79,12 @@ _GREY_BLOCK = 8
 _GREY_MARGIN = 25
 
 _BPS = {8: "8", 16: "16", "float": "float"}
+
+# LibRaw's auto_bright_thr default: the brightest 1 % of pixels may clip.
+_AUTO_BRIGHT_THR = 0.01
+# LibRaw's output histogram: 16-bit values in bins of 8; its search for the
+# white stops above bin 32.
+_HIST_SHIFT, _HIST_FLOOR = 3, 32
 
 
 def _grey_world(raw: RawImage) -> npt.NDArray[np.float64]:
@@ -188,14 +200,53 @@ def _orient(img: np.ndarray, flip: int) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
+def _stretched_pixels(shape: tuple[int, ...], aspect: float) -> int:
+    """Pixels of an image of ``shape`` after :func:`_stretch`."""
+    h, w = shape[:2]
+    if aspect < 1:
+        h = int(h / aspect + 0.5)
+    elif aspect > 1:
+        w = int(w * aspect + 0.5)
+    return h * w
+
+
+def _auto_gain(linear16: npt.NDArray[np.uint16], pixels: int) -> float:
+    """LibRaw's automatic brightening of a developed, clipped 16-bit linear
+    image. Per channel LibRaw reads its histogram (bins of 8) from the top
+    down to bin 33 and stops at the first bin where more than
+    ``auto_bright_thr`` of ``pixels`` are counted: the bin of the channel's
+    ``perc + 1``-th largest value, or 32 when that is lower. The largest of
+    the three becomes white. A selection finds those values without the
+    histogram (a bincount of 24 MP took seconds). LibRaw counts the pixels of
+    the final (stretched) size but takes the values before stretching; both
+    are reproduced."""
+    perc = int(pixels * _AUTO_BRIGHT_THR)
+    flat = linear16.reshape(-1, 3)
+    n = flat.shape[0]
+    t_white = _HIST_FLOOR
+    if perc < n:
+        for c in range(3):
+            kth = int(np.partition(flat[:, c], n - 1 - perc)[n - 1 - perc])
+            t_white = max(t_white, kth >> _HIST_SHIFT)
+    # LibRaw's gamma_curve maps its int imax = t_white << 3 to 0x10000.
+    return 0x10000 / (t_white << _HIST_SHIFT)
+
+
+def _tone_for(color: str, tone: str) -> str:
+    """``tone``, or for "auto" the curve ``color`` is encoded with."""
+    if tone != "auto":
+        return tone
+    return COLOR_SPACES[color].tone if color in COLOR_SPACES else "srgb"
+
+
 def develop(
     source: Any,
     *,
     demosaic: str = DEFAULT_DEMOSAIC,
     white_balance: str | tuple[float, float, float] = "camera",
     color: str = "srgb",
-    tone: str = "srgb",
-    exposure: float = 0.0,
+    tone: str = "auto",
+    exposure: float | str = 0.0,
     highlights: str = "clip",
     bps: int | str = 8,
     orientation: str = "auto",
@@ -213,12 +264,26 @@ def develop(
     white_balance : {"camera", "daylight", "auto", "none"} or (r, g, b)
         As shot, the camera's daylight balance, LibRaw's grey world, none, or
         explicit multipliers.
-    color : {"srgb", "camera"}
-        Convert to linear sRGB with the camera's matrix, or keep camera RGB.
-    tone : {"srgb", "linear", "bt709"}
-        Output transfer curve.
-    exposure : float
-        Exposure change in stops, applied before clipping.
+    color : str
+        One of :data:`COLORS`: ``"srgb"``, ``"adobe_rgb"`` (Adobe RGB (1998)),
+        ``"display_p3"``, ``"rec2020"``, ``"prophoto"``, ``"xyz"`` (CIE XYZ,
+        D65), ``"aces2065_1"``, each reached from the camera through sRGB's
+        linear primaries as LibRaw's ``output_color`` does (see
+        :mod:`imgform_rs.colorspace`); or ``"camera"`` to keep camera RGB.
+    tone : {"auto", "srgb", "linear", "bt709", "gamma22", "romm"}
+        Output transfer curve. ``"auto"``: the one ``color`` is encoded with
+        (sRGB's for sRGB, Display P3 and camera RGB, 563/256 power for Adobe
+        RGB, BT.709's for Rec. 2020, ROMM's for ProPhoto, linear for XYZ and
+        ACES2065-1).
+    exposure : float or "auto"
+        Exposure change in stops, applied before the sensor clip; or
+        ``"auto"``, LibRaw's default brightening (``postprocess()`` without
+        ``no_auto_bright``): the image is developed once to find, per
+        channel, the level that only the brightest 1 % of pixels exceed, and
+        the largest becomes white (a gain on linear light after the colour
+        matrix, so the brightest 1 % clip). As in LibRaw, nothing is
+        brightened with ``highlights="unclip"``. The default 0 keeps the
+        file's exposure, which is darker than most converters show.
     highlights : {"clip", "unclip"}
         "clip": white-balance multipliers are divided by the smallest, so
         every channel reaches white at the sensor's white and highlights clip
@@ -243,8 +308,8 @@ def develop(
     RawError
         For a file that cannot be decoded (see :func:`load_raw`).
     ValueError
-        For an unknown option, a bad white balance, or an X-Trans sensor
-        with a Bayer-only demosaicer.
+        For an unknown option, a bad white balance or exposure, or an
+        X-Trans sensor with a Bayer-only demosaicer.
 
     Notes
     -----
@@ -270,50 +335,106 @@ def develop(
     """
     if bps not in _BPS:
         raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
-    if color not in ("srgb", "camera"):
-        raise ValueError(f'color must be "srgb" or "camera", got {color!r}')
+    if color not in COLORS:
+        raise ValueError(f"color must be one of {COLORS}, got {color!r}")
+    if tone != "auto" and tone not in TONES:
+        raise ValueError(f"tone must be one of {('auto', *TONES)}, got {tone!r}")
     if highlights not in HIGHLIGHTS:
         raise ValueError(f"highlights must be one of {HIGHLIGHTS}, got {highlights!r}")
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
-    if not np.isfinite(exposure):
-        raise ValueError(f"exposure must be a finite number of stops, got {exposure!r}")
+    auto = isinstance(exposure, str) and exposure == "auto"
+    if not auto and not (isinstance(exposure, (int, float, np.number)) and np.isfinite(exposure)):
+        raise ValueError(f'exposure must be a finite number of stops or "auto", got {exposure!r}')
     if not isinstance(demosaic, str):
         raise TypeError(f"demosaic must be a str, one of {DEMOSAIC_METHODS}, got {demosaic!r}")
     raw = source if isinstance(source, RawImage) else load_raw(source)
     mul = _multipliers(raw, white_balance)
     mul = mul / (mul.min() if highlights == "clip" else mul.max())
-    scale4 = mul / _white_range(raw) * 2.0**exposure
-    matrix = raw.camera_to_srgb if color == "srgb" else np.eye(3)
-    rgb = _native.develop(
-        raw.cfa,
-        raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64),
-        *_tiles(raw, scale4),
-        np.ascontiguousarray(matrix, np.float64),
-        tone,
-        demosaic,
-        _BPS[bps],
-    )
-    rgb = _stretch(rgb, raw.pixel_aspect)
+    scale4 = mul / _white_range(raw) * 2.0 ** (0.0 if auto else exposure)
+    matrix = np.eye(3) if color == "camera" else srgb_to(color) @ raw.camera_to_srgb
+    pattern = raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64)
+    tiles = _tiles(raw, scale4)
+
+    def run(matrix: np.ndarray, tone: str, bps: str) -> np.ndarray:
+        m = np.ascontiguousarray(matrix, np.float64)
+        return _native.develop(raw.cfa, pattern, *tiles, m, tone, demosaic, bps)
+
+    if auto and highlights == "clip":
+        # LibRaw clips after the matrix and again after brightening; with a
+        # gain >= 1 that is one clip of the brightened values, so the gain
+        # folds into the matrix.
+        linear = run(matrix, "linear", "16")
+        matrix = matrix * _auto_gain(linear, _stretched_pixels(linear.shape, raw.pixel_aspect))
+        del linear
+    rgb = _stretch(run(matrix, _tone_for(color, tone), _BPS[bps]), raw.pixel_aspect)
     return _orient(rgb, raw.flip) if orientation == "auto" else rgb
 
 
-_FORMATS = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}
+def raw_exif(raw: RawImage, orientation: str = "auto") -> bytes:
+    """EXIF for a picture developed from ``raw``, for :func:`write_image`.
 
-
-def write_image(
-    path: str | os.PathLike[str], image: npt.NDArray[Any], *, overwrite: bool = False
-) -> Path:
-    """Write a developed image as PNG (8 or 16 bit) or TIFF (8, 16 bit or float32).
+    Camera, lens, ISO, exposure time, f-number, focal length, capture date
+    and artist where the raw records them (``RawImage.shot``), and the
+    orientation: 1 when :func:`develop` turned the pixels
+    (``orientation="auto"``), else the raw's own, so that viewers turn them.
 
     Parameters
     ----------
+    raw : RawImage
+    orientation : {"auto", "none"}
+        What was given to :func:`develop`.
+
+    Returns
+    -------
+    bytes
+        Starting with ``Exif\\0\\0``, as Pillow writes it.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from PIL import Image
+    >>> from imgform_rs.dng import write_dng
+    >>> cfa = (np.arange(32 * 32) % 2000 + 100).astype(np.uint16).reshape(32, 32)
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     write_dng(f"{d}/a.dng", cfa, "RGGB", white_level=4095, orientation=6)
+    ...     raw = load_raw(f"{d}/a.dng")
+    >>> exif = Image.Exif()
+    >>> exif.load(raw_exif(raw, orientation="none"))
+    >>> exif[274], exif[305]  # turn 90 degrees clockwise to view
+    (6, 'imgform-rs')
+    """
+    if not isinstance(raw, RawImage):
+        raise TypeError(f"raw must be a RawImage (see load_raw), got {type(raw).__name__}")
+    if orientation not in ("auto", "none"):
+        raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
+    return exif_bytes(raw.shot, raw.flip, oriented=orientation == "auto")
+
+
+def develop_file(
+    source: Any,
+    path: str | os.PathLike[str],
+    *,
+    quality: int = 92,
+    overwrite: bool = False,
+    **options: Any,
+) -> Path:
+    """Develop a raw and write it with its colour profile and EXIF.
+
+    :func:`develop` with ``options``, then :func:`write_image` with the
+    matching ICC profile and :func:`raw_exif`; what ``imgform develop`` runs.
+
+    Parameters
+    ----------
+    source : path, bytes, binary file object, rawpy.RawPy or RawImage
     path : str or PathLike
-        Ends in ``.png``, ``.tif`` or ``.tiff``.
-    image : ndarray, shape (H, W) or (H, W, 3)
-        uint8 or uint16 (PNG, TIFF), or float32 (TIFF only).
+        ``.jpg`` / ``.jpeg``, ``.png``, ``.tif`` / ``.tiff``; JPEG needs
+        ``bps=8``, float32 (``bps="float"``) needs TIFF.
+    quality : int
+        JPEG quality, 1 to 100.
     overwrite : bool
-        Replace an existing file; by default an existing file is never touched.
+    **options
+        Keywords of :func:`develop`.
 
     Returns
     -------
@@ -321,36 +442,47 @@ def write_image(
 
     Raises
     ------
-    FileExistsError
-        When ``path`` exists and ``overwrite`` is False.
-    ValueError
-        For another extension, dtype or shape.
+    As :func:`develop` and :func:`write_image`; checked before developing
+    where possible (format, quality, an existing file).
 
     Examples
     --------
     >>> import tempfile
+    >>> from PIL import Image
+    >>> from imgform_rs.dng import write_dng
+    >>> cfa = (np.arange(32 * 32) % 2000 + 100).astype(np.uint16).reshape(32, 32)
     >>> with tempfile.TemporaryDirectory() as d:
-    ...     p = write_image(f"{d}/a.png", np.zeros((4, 4, 3), np.uint16))
-    ...     p.name, p.stat().st_size > 0
-    ('a.png', True)
+    ...     write_dng(f"{d}/a.dng", cfa, "RGGB", white_level=4095)
+    ...     out = develop_file(f"{d}/a.dng", f"{d}/a.png", color="adobe_rgb", bps=16)
+    ...     with Image.open(out) as im:
+    ...         "icc_profile" in im.info
+    True
     """
+    return develop_to(source, path, quality, overwrite, options)[0]
+
+
+def develop_to(
+    source: Any, path: str | os.PathLike[str], quality: int, overwrite: bool, options: dict
+) -> tuple[Path, tuple[int, int]]:
+    """:func:`develop_file`, also returning the picture's ``(H, W)`` (for the
+    command line's and the batch's reports)."""
     target = Path(path)
-    kind = _FORMATS.get(target.suffix.lower())
+    kind = FORMATS.get(target.suffix.lower())
     if kind is None:
-        raise ValueError(f"path must end in .png, .tif or .tiff, got {target.name!r}")
-    img = np.asarray(image)
-    allowed = (np.uint8, np.uint16) if kind == "png" else (np.uint8, np.uint16, np.float32)
-    if img.dtype not in allowed or not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3)):
-        raise ValueError(
-            f"{kind.upper()} takes {', '.join(np.dtype(t).name for t in allowed)} images of "
-            f"shape (H, W) or (H, W, 3), got {img.dtype} {img.shape}"
-        )
+        raise ValueError(f"path must end in .jpg, .jpeg, .png, .tif or .tiff, got {target.name!r}")
+    check_format(kind, options.get("bps", 8))
+    check_quality(quality)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
-    if kind == "png":
-        # Pillow (imageio's PNG writer) cannot store 16-bit RGB; ours can.
-        return write_png(target, img)
-    import imageio.v3 as iio
-
-    iio.imwrite(target, img, extension=".tif")
-    return target
+    raw = source if isinstance(source, RawImage) else load_raw(source)
+    rgb = develop(raw, **options)
+    written = write_image(
+        target,
+        rgb,
+        color=options.get("color", "srgb"),
+        tone=options.get("tone", "auto"),
+        exif=raw_exif(raw, options.get("orientation", "auto")),
+        quality=quality,
+        overwrite=overwrite,
+    )
+    return written, (rgb.shape[0], rgb.shape[1])

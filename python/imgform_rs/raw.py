@@ -24,12 +24,13 @@ import hashlib
 import io
 import os
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from ._exif import ShotInfo, shot_info
 from ._native import RawError
 from ._tiff import Value, first_tag, tiff_ifds
 from .cfa import pattern_from_rawpy
@@ -122,6 +123,9 @@ class RawImage:
         orientation and aspect correction).
     source : str
         The file name, or a description of a buffer, used in error messages.
+    shot : ShotInfo
+        Camera, lens, exposure and date as LibRaw read them, what
+        :func:`~imgform_rs.write_image` copies into EXIF.
     """
 
     cfa: npt.NDArray[np.uint16]
@@ -140,6 +144,7 @@ class RawImage:
     model: str
     output_size: tuple[int, int]
     source: str
+    shot: ShotInfo = field(default_factory=ShotInfo)
 
 
 def _describe(source: Any) -> str:
@@ -298,20 +303,23 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
             pixel_aspect=float(sizes.pixel_aspect),
         )
         pixels = int(sizes.raw_height) * int(sizes.raw_width)
+        make, model = (first_tag(ifds or [], tag) for tag in (_MAKE, _MODEL))
+        make, model = (v if isinstance(v, str) else "" for v in (make, model))
+        shot = shot_info(raw, make, model)
     except RawError:
         raise
     except Exception as exc:  # LibRawError, or a bad attribute LibRaw could not fill
         raise RawError(f"{name}: LibRaw cannot decode it ({_reason(exc)})") from exc
     _check_pixels(cfa, meta["white_level"], name, data, pixels)
-    make, model = (first_tag(ifds or [], tag) for tag in (_MAKE, _MODEL))
     return RawImage(
         cfa=cfa,
         pattern=pattern,
         camera_to_xyz=SRGB_TO_XYZ @ meta["camera_to_srgb"],
-        make=make if isinstance(make, str) else "",
-        model=model if isinstance(model, str) else "",
+        make=make,
+        model=model,
         output_size=_output_size(sizes),
         source=name,
+        shot=shot,
         **meta,
     )
 

@@ -37,13 +37,25 @@ pub enum Tone {
     Linear,
     /// IEC 61966-2-1 sRGB: a linear toe below 0.0031308, then a 1/2.4 power.
     Srgb,
-    /// ITU-R BT.709 camera OETF: linear below 0.018, then a 0.45 power.
+    /// ITU-R BT.709 camera OETF: linear below 0.018, then a 0.45 power
+    /// (also BT.2020's for 10-bit systems, whose constants round to these).
     Bt709,
+    /// Adobe RGB (1998): a pure power of 256/563 (gamma 2.19921875), no toe.
+    Gamma22,
+    /// ROMM RGB (ProPhoto, ISO 22028-2): 16x below 1/512, then a 1/1.8
+    /// power; the two meet at exactly 1/32.
+    Romm,
 }
 
 impl Tone {
     /// Every curve, in documentation order.
-    pub const ALL: [Tone; 3] = [Tone::Srgb, Tone::Linear, Tone::Bt709];
+    pub const ALL: [Tone; 5] = [
+        Tone::Srgb,
+        Tone::Linear,
+        Tone::Bt709,
+        Tone::Gamma22,
+        Tone::Romm,
+    ];
 
     /// The curve's name in the Python API.
     pub fn name(self) -> &'static str {
@@ -51,6 +63,8 @@ impl Tone {
             Tone::Linear => "linear",
             Tone::Srgb => "srgb",
             Tone::Bt709 => "bt709",
+            Tone::Gamma22 => "gamma22",
+            Tone::Romm => "romm",
         }
     }
 
@@ -78,6 +92,9 @@ impl Tone {
             Tone::Srgb => 1.055 * v.powf(1.0 / 2.4) - 0.055,
             Tone::Bt709 if v < 0.018 => 4.5 * v,
             Tone::Bt709 => 1.099 * v.powf(0.45) - 0.099,
+            Tone::Gamma22 => v.powf(256.0 / 563.0),
+            Tone::Romm if v < 1.0 / 512.0 => 16.0 * v,
+            Tone::Romm => v.powf(1.0 / 1.8),
         }
     }
 }
@@ -507,6 +524,20 @@ mod tests {
         )
         .unwrap();
         assert!(out.iter().all(|&v| v == 188), "{:?}", &out[..3]);
+    }
+
+    #[test]
+    fn adobe_and_romm_curves_hit_their_standard_values() {
+        // 0.5^(256/563) = 0.729658; 0.5^(1/1.8) = 0.680395; both ends fixed.
+        assert!((Tone::Gamma22.apply(0.5) - 0.729_658).abs() < 1e-5);
+        assert!((Tone::Romm.apply(0.5) - 0.680_395).abs() < 1e-5);
+        for t in [Tone::Gamma22, Tone::Romm] {
+            assert_eq!((t.apply(0.0), t.apply(1.0)), (0.0, 1.0));
+        }
+        // ROMM's toe meets its power at 1/512 -> 1/32 without a step.
+        let knee = 1.0 / 512.0;
+        let (below, above) = (Tone::Romm.apply(knee * 0.9999), Tone::Romm.apply(knee));
+        assert!((below - 1.0 / 32.0).abs() < 1e-5 && (above - 1.0 / 32.0).abs() < 1e-6);
     }
 
     #[test]

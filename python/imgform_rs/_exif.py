@@ -1,0 +1,135 @@
+"""The EXIF a developed picture carries over from its raw, built by Pillow.
+
+What is copied: camera make and model, lens, ISO, exposure time, f-number,
+focal length, capture date and artist. LibRaw reads these from every format it
+decodes (CRW and QTK too, where there is no TIFF to copy from), and rawpy
+exposes them (``RawPy.other``, ``RawPy.lens``) except make and model, which
+come from the file's TIFF tags (:attr:`RawImage.make`). LibRaw reports 0 or
+1970-01-01 for what a file does not record; those are left out. It also turns
+the APEX shutter and aperture values 0 that some writers leave in place of
+unknown ones (Magic Lantern's DNGs) into 1 s at f/1: that exact pair is taken
+as unknown too, rather than copied as a wrong exposure.
+
+The orientation tag says how to turn the stored pixels for display: 1 (as
+stored) when :func:`~imgform_rs.develop` has already turned them, else the
+raw's own orientation, converted from LibRaw's flip code.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from typing import Any
+
+# LibRaw flip code (bit 0 flips columns, bit 1 rows, bit 2 transposes, in
+# that order) -> the EXIF orientation that displays the stored pixels as
+# LibRaw orients them.
+_EXIF_ORIENTATION = {0: 1, 1: 2, 2: 4, 3: 3, 4: 5, 5: 8, 6: 6, 7: 7}
+
+# EXIF tags, IFD0 and the Exif sub-IFD (CIPA DC-008).
+_MAKE, _MODEL, _ORIENTATION, _SOFTWARE, _DATETIME, _ARTIST = 271, 272, 274, 305, 306, 315
+_EXIF_IFD = 0x8769
+_EXPOSURE_TIME, _F_NUMBER, _ISO, _DATETIME_ORIGINAL = 33434, 33437, 34855, 36867
+_FOCAL_LENGTH, _LENS_MAKE, _LENS_MODEL = 37386, 42035, 42036
+
+_NO_DATE = dt.datetime(1970, 1, 1)
+
+
+@dataclass(frozen=True)
+class ShotInfo:
+    """How a raw was taken, as LibRaw read it; 0, "" or None where unknown.
+
+    Attributes
+    ----------
+    make, model : str
+        The camera.
+    lens_make, lens : str
+        The lens, when the file names it.
+    iso : float
+    exposure_time : float
+        Seconds.
+    f_number : float
+    focal_length : float
+        Millimetres.
+    taken : datetime or None
+        Capture time as the camera's clock recorded it (no time zone).
+    artist : str
+    """
+
+    make: str = ""
+    model: str = ""
+    lens_make: str = ""
+    lens: str = ""
+    iso: float = 0.0
+    exposure_time: float = 0.0
+    f_number: float = 0.0
+    focal_length: float = 0.0
+    taken: dt.datetime | None = None
+    artist: str = ""
+
+
+def _text(value: Any) -> str:
+    return value.strip() if isinstance(value, str) else ""
+
+
+def _positive(value: Any) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return 0.0
+    return number if 0 < number < float("inf") else 0.0
+
+
+def shot_info(raw: Any, make: str, model: str) -> ShotInfo:
+    """A :class:`ShotInfo` from an open ``rawpy.RawPy``; never raises (a
+    value rawpy cannot give is left unknown)."""
+    other, lens = getattr(raw, "other", None), getattr(raw, "lens", None)
+    taken = getattr(other, "timestamp", None)
+    shutter, aperture = (_positive(getattr(other, k, 0)) for k in ("shutter_speed", "aperture"))
+    if (shutter, aperture) == (1.0, 1.0):
+        shutter = aperture = 0.0
+    return ShotInfo(
+        make=make,
+        model=model,
+        lens_make=_text(getattr(lens, "make", "")),
+        lens=_text(getattr(lens, "model", "")),
+        iso=_positive(getattr(other, "iso_speed", 0)),
+        exposure_time=shutter,
+        f_number=aperture,
+        focal_length=_positive(getattr(other, "focal_length", 0)),
+        taken=taken if isinstance(taken, dt.datetime) and taken > _NO_DATE else None,
+        artist=_text(getattr(other, "artist", "")),
+    )
+
+
+def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
+    """EXIF for a picture developed from a raw: ``info`` and its orientation
+    (``flip`` is LibRaw's code; ``oriented``: the pixels are already turned).
+    The bytes start with ``Exif\\0\\0``, as Pillow's JPEG and PNG writers take
+    them."""
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[_ORIENTATION] = 1 if oriented else _EXIF_ORIENTATION.get(flip & 7, 1)
+    exif[_SOFTWARE] = "imgform-rs"
+    for tag, text in ((_MAKE, info.make), (_MODEL, info.model), (_ARTIST, info.artist)):
+        if text:
+            exif[tag] = text
+    sub = exif.get_ifd(_EXIF_IFD)
+    if info.taken is not None:
+        stamp = info.taken.strftime("%Y:%m:%d %H:%M:%S")
+        exif[_DATETIME] = sub[_DATETIME_ORIGINAL] = stamp
+    numbers = (
+        (_EXPOSURE_TIME, info.exposure_time),
+        (_F_NUMBER, info.f_number),
+        (_FOCAL_LENGTH, info.focal_length),
+    )
+    for tag, value in numbers:
+        if value:
+            sub[tag] = value
+    if info.iso:
+        sub[_ISO] = round(info.iso)
+    for tag, text in ((_LENS_MAKE, info.lens_make), (_LENS_MODEL, info.lens)):
+        if text:
+            sub[tag] = text
+    return exif.tobytes()

@@ -1,0 +1,218 @@
+"""Files a photographer keeps: JPEG, PNG and TIFF with ICC profiles and EXIF."""
+
+from __future__ import annotations
+
+import datetime as dt
+import io
+
+import numpy as np
+import pytest
+import tifffile
+from PIL import Image, ImageCms, ImageOps
+
+import imgform_rs as ig
+from conftest import shared_path
+from imgform_rs._exif import exif_bytes
+from imgform_rs._icc import icc_profile
+from imgform_rs.colorspace import COLOR_SPACES
+from imgform_rs.develop import _orient
+from imgform_rs.dng import write_dng
+
+RAW_DIR = shared_path("data/raw")
+SHOT = ig.ShotInfo(
+    make="Canon",
+    model="Canon EOS Kiss X4",
+    lens="EF-S18-55mm f/3.5-5.6 IS",
+    iso=400,
+    exposure_time=1 / 125,
+    f_number=5.6,
+    focal_length=35.0,
+    taken=dt.datetime(2026, 11, 27, 10, 30, 5),
+    artist="A. Photographer",
+)
+
+
+def description(icc: bytes) -> str:
+    return ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(icc))).strip()
+
+
+def rgb(dtype, h=24, w=32, seed=0):
+    values = np.random.default_rng(seed).random((h, w, 3))
+    if dtype == np.float32:
+        return values.astype(np.float32)
+    return (values * np.iinfo(dtype).max).astype(dtype)
+
+
+@pytest.mark.parametrize(
+    ("name", "dtype"),
+    [
+        ("a.png", np.uint8),
+        ("a.png", np.uint16),
+        ("a.tif", np.uint8),
+        ("a.tiff", np.uint16),
+        ("a.tif", np.float32),
+    ],
+)
+def test_lossless_files_keep_every_sample_and_carry_profile_and_exif(tmp_path, name, dtype):
+    img = rgb(dtype)
+    path = ig.write_image(tmp_path / name, img, color="display_p3", exif=exif_bytes(SHOT, 6, True))
+    if path.suffix == ".png":
+        with Image.open(path) as im:
+            info, exif, read = im.info, im.getexif(), np.asarray(im)
+        if dtype == np.uint16:
+            # Pillow reads 16-bit RGB as 8 bits; OpenCV keeps them (as BGR).
+            cv2 = pytest.importorskip("cv2")
+            read = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)[..., ::-1]
+        np.testing.assert_array_equal(read, img)
+        assert description(info["icc_profile"]) == "Display P3, srgb curve (imgform-rs)"
+        assert exif[271] == "Canon" and exif[274] == 1 and exif[306] == "2026:11:27 10:30:05"
+        sub = exif.get_ifd(0x8769)
+        assert sub[42036] == SHOT.lens and sub[34855] == 400
+        assert float(sub[33434]) == pytest.approx(1 / 125) and float(sub[33437]) == 5.6
+    else:
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages[0]
+            np.testing.assert_array_equal(page.asarray(), img)
+            tags = {t.name: t.value for t in page.tags.values()}
+        assert description(tags["InterColorProfile"]) == "Display P3, srgb curve (imgform-rs)"
+        assert tags["Make"] == "Canon" and tags["Model"] == "Canon EOS Kiss X4"
+        assert tags["DateTime"] == "2026:11:27 10:30:05" and tags["Artist"] == SHOT.artist
+        assert tags["Orientation"] == 1
+
+
+def test_exif_without_its_app1_prefix_is_accepted(tmp_path):
+    bare = exif_bytes(SHOT, 0, True).removeprefix(b"Exif\0\0")
+    for name in ("a.jpg", "a.png", "a.tif"):
+        path = ig.write_image(tmp_path / name, rgb(np.uint8), exif=bare)
+        with Image.open(path) as im:
+            assert im.getexif()[271] == "Canon"
+
+
+@pytest.mark.parametrize("quality", [30, 95])
+def test_jpeg_quality_trades_size_for_fidelity(tmp_path, quality):
+    smooth = np.stack(np.mgrid[0:64, 0:96] / 192.0, -1).sum(-1, keepdims=True)
+    img = (np.concatenate([smooth, 1 - smooth, smooth / 2], -1) * 200).astype(np.uint8)
+    path = ig.write_image(tmp_path / "a.jpg", img, color="adobe_rgb", quality=quality)
+    with Image.open(path) as im:
+        back = np.asarray(im).astype(float)
+        assert description(im.info["icc_profile"]) == "Adobe RGB (1998), gamma22 curve (imgform-rs)"
+    err = np.sqrt(np.mean((back - img) ** 2))
+    assert err < (4 if quality == 30 else 1.5)
+    if quality == 95:
+        low = ig.write_image(tmp_path / "low.jpg", img, quality=30)
+        assert low.stat().st_size < path.stat().st_size
+
+
+def test_each_profile_describes_its_space():
+    titles = {s.name: s.title for s in COLOR_SPACES.values()}
+    for color, space in COLOR_SPACES.items():
+        icc = icc_profile(color, space.tone)
+        if color == "xyz":
+            assert icc is None
+            continue
+        profile = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+        assert description(icc).startswith(titles[color])
+        # The red colorant (XYZ, D50-adapted) has the chromaticity of the
+        # space's red primary, adapted to D50 where the white is not D50.
+        assert profile.profile.red_colorant is not None
+    assert icc_profile("camera", "srgb") is None
+
+
+def test_profiles_convert_between_spaces_as_the_matrices_do(tmp_path):
+    """Pillow converts our Adobe RGB file to sRGB through the embedded profile;
+    for colours inside sRGB that is the developed sRGB picture."""
+    path = tmp_path / "card.dng"
+    scene = np.clip(np.random.default_rng(1).random((48, 64, 3)) * 0.5 + 0.2, 0, 1)
+    cfa = ig.simulate_sensor(scene.astype(np.float32), "RGGB", full_well=1e7, read_noise=0)
+    write_dng(path, cfa, "RGGB", white_level=4095, black_level=0)
+    opts = dict(demosaic="bilinear", bps=8)
+    adobe = ig.develop(path, color="adobe_rgb", **opts)
+    srgb = ig.develop(path, color="srgb", **opts)
+    out = ig.write_image(tmp_path / "adobe.png", adobe, color="adobe_rgb")
+    with Image.open(out) as im:
+        src = ImageCms.ImageCmsProfile(io.BytesIO(im.info["icc_profile"]))
+        converted = ImageCms.profileToProfile(im, src, ImageCms.createProfile("sRGB"))
+    diff = np.asarray(converted).astype(float) - srgb
+    assert np.sqrt(np.mean(diff**2)) < 1.5
+
+
+@pytest.mark.parametrize("flip", range(8))
+def test_exif_orientation_turns_sensor_pixels_as_develop_does(flip):
+    img = rgb(np.uint8, 4, 6, seed=flip)
+    exif = Image.Exif()
+    exif.load(exif_bytes(SHOT, flip, oriented=False))
+    pil = Image.fromarray(img)
+    pil.getexif()[274] = exif[274]
+    np.testing.assert_array_equal(np.asarray(ImageOps.exif_transpose(pil)), _orient(img, flip))
+
+
+@pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
+def test_shot_info_comes_from_the_raw_and_unknowns_stay_out():
+    crw = ig.load_raw(RAW_DIR / "canon_powershot_s40_CRW_0113.CRW").shot
+    assert crw.iso == 50 and crw.focal_length == pytest.approx(7.09, abs=0.01)
+    assert crw.taken == dt.datetime(2021, 3, 26, 21, 14, 52)
+    # Magic Lantern leaves APEX zeros, which LibRaw turns into 1 s at f/1.
+    ml = ig.load_raw(RAW_DIR / "canon_eos_kiss_x4_magiclantern_colorchart.dng").shot
+    assert (ml.make, ml.model) == ("Canon", "Canon EOS Kiss X4")
+    assert ml.exposure_time == 0 and ml.f_number == 0 and ml.taken is None
+    exif = Image.Exif()
+    exif.load(exif_bytes(ml, 0, True))
+    assert 33434 not in exif.get_ifd(0x8769) and 306 not in exif
+
+
+def test_develop_file_writes_profile_and_exif(tmp_path):
+    path = tmp_path / "a.dng"
+    cfa = (np.arange(40 * 56) % 3000 + 100).astype(np.uint16).reshape(40, 56)
+    write_dng(path, cfa, "RGGB", white_level=4095, black_level=64)
+    out = ig.develop_file(path, tmp_path / "a.jpg", color="rec2020", quality=90)
+    with Image.open(out) as im:
+        assert description(im.info["icc_profile"]) == "Rec. 2020, bt709 curve (imgform-rs)"
+        assert im.getexif()[274] == 1 and im.getexif()[305] == "imgform-rs"
+    with pytest.raises(FileExistsError):
+        ig.develop_file(path, out)
+    with pytest.raises(ValueError, match="JPEG files take bps 8, got bps=16"):
+        ig.develop_file(path, tmp_path / "b.jpg", bps=16)
+    with pytest.raises(ValueError, match="PNG files take bps 8 or 16"):
+        ig.develop_file(path, tmp_path / "b.png", bps="float")
+
+
+@pytest.mark.parametrize(
+    ("name", "image", "kwargs", "exc", "match"),
+    [
+        ("a.bmp", rgb(np.uint8), {}, ValueError, r"\.jpg, \.jpeg, \.png"),
+        ("a.jpg", rgb(np.uint16), {}, ValueError, "JPEG takes uint8"),
+        ("a.png", rgb(np.float32), {}, ValueError, "PNG takes uint8, uint16"),
+        ("a.tif", rgb(np.uint8)[..., :2], {}, ValueError, r"\(H, W, 3\)"),
+        ("a.jpg", rgb(np.uint8), {"quality": 0}, ValueError, "quality must be an int from 1"),
+        ("a.jpg", rgb(np.uint8), {"quality": True}, ValueError, "quality must be an int"),
+        ("a.png", rgb(np.uint8), {"color": "cmyk"}, ValueError, "color must be one of"),
+        ("a.png", rgb(np.uint8), {"tone": "gamma"}, ValueError, "tone must be one of"),
+        ("a.png", rgb(np.uint8), {"exif": "Exif"}, TypeError, "exif must be bytes"),
+        ("a.jpg", rgb(np.uint8), {"exif": b"Exif\0\0garbage"}, ValueError, "exif must be EXIF"),
+    ],
+)
+def test_write_image_refuses_what_it_cannot_write(tmp_path, name, image, kwargs, exc, match):
+    with pytest.raises(exc, match=match):
+        ig.write_image(tmp_path / name, image, **kwargs)
+    assert not (tmp_path / name).exists()
+
+
+@pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
+def test_a_real_raw_keeps_its_shot_details_in_every_format(tmp_path):
+    source = RAW_DIR / "canon_powershot_s40_CRW_0113.CRW"
+    raw = ig.load_raw(source)
+    for name, bps in [("s40.jpg", 8), ("s40.png", 16), ("s40.tif", "float")]:
+        tone = "linear" if bps == "float" else "auto"
+        out = ig.develop_file(raw, tmp_path / name, bps=bps, tone=tone, demosaic="bilinear")
+        if out.suffix == ".tif":
+            with tifffile.TiffFile(out) as tif:
+                tags = {t.name: t.value for t in tif.pages[0].tags.values()}
+                assert tif.pages[0].dtype == np.float32
+            assert tags["DateTime"] == "2021:03:26 21:14:52"
+            assert description(tags["InterColorProfile"]) == "sRGB, linear (imgform-rs)"
+            continue
+        with Image.open(out) as im:
+            sub = im.getexif().get_ifd(0x8769)
+            assert sub[36867] == "2021:03:26 21:14:52" and sub[34855] == 50
+            assert float(sub[33437]) == pytest.approx(2.8, abs=0.01)
+            assert description(im.info["icc_profile"]) == "sRGB, srgb curve (imgform-rs)"
