@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 import imgform_rs
-from imgform_rs import batch, dng, scene, spectral
+from imgform_rs import batch, dispersion, dng, scene, spectral
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -43,6 +43,7 @@ def _defined_here(module) -> list[str]:
 PUBLIC = {
     "imgform_rs": list(imgform_rs.__all__),
     "imgform_rs.batch": list(batch.__all__),
+    "imgform_rs.dispersion": _defined_here(dispersion),
     "imgform_rs.dng": _defined_here(dng),
     "imgform_rs.scene": _defined_here(scene),
     "imgform_rs.spectral": _defined_here(spectral),

@@ -292,3 +292,15 @@ def test_colorchecker_scene_to_dng_to_develop_gives_the_chart_colours(tmp_path):
     white = weights.sum(axis=0)
     de = sp.delta_e2000(got @ to_xyz.T, want @ to_xyz.T, white)
     assert de.mean() < fit.mean_delta_e + 0.5, (de.mean(), fit.mean_delta_e)
+
+
+def test_cos4_falloff_is_the_fourth_power_of_the_chief_ray_cosine():
+    falloff = sp.cos4_falloff(9, 13, focal_length=10.0, pixel_pitch=900.0, center=(3.0, 5.0))
+    rows, cols = np.mgrid[0:9, 0:13]
+    theta = np.arctan(np.hypot(cols - 3.0, rows - 5.0) * 0.9 / 10.0)
+    assert falloff.dtype == np.float32 and falloff[5, 3] == 1.0
+    np.testing.assert_allclose(falloff, np.cos(theta) ** 4, rtol=1e-6)
+    with pytest.raises(ValueError, match="focal_length must be"):
+        sp.cos4_falloff(2, 2, focal_length=0.0, pixel_pitch=4.0)
+    with pytest.raises(ValueError, match="height and width"):
+        sp.cos4_falloff(0, 2, focal_length=50.0, pixel_pitch=4.0)

@@ -500,6 +500,60 @@ def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
     return PhotonTransfer(mean, var, K, read_noise, float(mean[sat] / K), dsnu, prnu, fitted)
 
 
+def cos4_falloff(
+    height: int,
+    width: int,
+    *,
+    focal_length: float,
+    pixel_pitch: float,
+    center: Any = None,
+) -> Float32Array:
+    """The natural falloff of image-plane irradiance, ``cos⁴ θ``, per pixel.
+
+    A pixel ``r`` from the optical centre sees the scene along a chief ray at
+    ``θ = atan(r / focal_length)`` (lens focused at infinity). Its irradiance
+    is the on-axis ``π T L / (4 N²)`` times ``cos⁴ θ``: the exit pupil looks
+    ``cos θ`` smaller, the ray meets the pixel ``cos θ`` obliquely, and the
+    pupil is ``1 / cos θ`` farther away (squared). Computed as
+    ``1 / (1 + r² / f²)²``, the same without trigonometry.
+
+    Multiply a radiance image ``(H, W, L)`` by ``falloff[..., None]`` or a
+    frame of rates ``(H, W)`` by ``falloff`` before the sensor reads it.
+
+    Parameters
+    ----------
+    height, width : int
+        Image size, pixels.
+    focal_length : float
+        mm, > 0.
+    pixel_pitch : float
+        µm, > 0 (:class:`SpectralCamera`'s unit).
+    center : (cx, cy), optional
+        Optical centre in pixels; default the image centre.
+
+    Returns
+    -------
+    ndarray, float32, shape (H, W)
+        1 on the axis.
+
+    Examples
+    --------
+    >>> f = cos4_falloff(3, 3, focal_length=1.0, pixel_pitch=1000.0)
+    >>> f[1, 1], f[1, 2], round(float(f[0, 0]), 4)  # r = f: cos⁴ 45° = 1/4
+    (np.float32(1.0), np.float32(0.25), 0.1111)
+    """
+    for name, value in (("focal_length", focal_length), ("pixel_pitch", pixel_pitch)):
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if not (int(height) > 0 and int(width) > 0):
+        raise ValueError(f"height and width must be > 0, got {height} x {width}")
+    cx, cy = ((width - 1) / 2, (height - 1) / 2) if center is None else map(float, center)
+    scale = pixel_pitch * 1e-3 / focal_length
+    ty = ((np.arange(height) - cy) * scale)[:, None] ** 2
+    tx = ((np.arange(width) - cx) * scale)[None, :] ** 2
+    return (1.0 / (1.0 + ty + tx) ** 2).astype(np.float32)
+
+
 @dataclass(frozen=True)
 class SpectralCamera:
     """A camera: lens, spectral sensitivities and :class:`Sensor`.
@@ -518,7 +572,8 @@ class SpectralCamera:
         Pixel pitch, µm (the photodiode area is its square: fill factor 1,
         microlenses assumed).
     f_number, transmittance : float
-        The lens: image-plane irradiance is ``π T L / (4 N²)`` on axis.
+        The lens: image-plane irradiance is ``π T L / (4 N²)`` on axis (off
+        axis, times :func:`cos4_falloff`).
     peak_qe : float
         Quantum efficiency at the sensitivities' maximum.
     rule : {"trapezoid", "riemann"}
