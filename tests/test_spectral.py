@@ -304,3 +304,29 @@ def test_cos4_falloff_is_the_fourth_power_of_the_chief_ray_cosine():
         sp.cos4_falloff(2, 2, focal_length=0.0, pixel_pitch=4.0)
     with pytest.raises(ValueError, match="height and width"):
         sp.cos4_falloff(0, 2, focal_length=50.0, pixel_pitch=4.0)
+
+
+def test_auto_exposure_meters_the_mean_or_a_percentile_and_brackets_in_stops():
+    sensor = sp.Sensor(read_noise=0.0, dark_current=0.0, full_well=16_000.0, bit_depth=16)
+    rates = np.random.default_rng(3).gamma(2.0, 5_000.0, (200, 300)).astype(np.float32)
+    # 16 bits at 1.25 e-/DN reach further than the well: the well saturates.
+    assert sensor.saturation == 16_000.0
+    assert sp.Sensor(bit_depth=12).saturation == (4095 - 512) * 1.25
+    t = sp.auto_exposure(rates, sensor, target=0.18)
+    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.25
+    assert electrons.mean() == pytest.approx(0.18 * 16_000, rel=0.01)
+    t = sp.auto_exposure(rates, sensor, target=0.9, percentile=99.0)
+    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.25
+    assert np.percentile(electrons, 99.0) == pytest.approx(0.9 * 16_000, rel=0.01)
+    times = sp.exposure_bracket(t, (-2, 0, 1.5))
+    np.testing.assert_allclose(np.array(times) / t, [0.25, 1.0, 2**1.5])
+    with pytest.raises(ValueError, match="black"):
+        sp.auto_exposure(np.zeros((2, 2)), sensor)
+    with pytest.raises(ValueError, match="target"):
+        sp.auto_exposure(rates, sensor, target=1.5)
+    with pytest.raises(ValueError, match="percentile"):
+        sp.auto_exposure(rates, sensor, percentile=101)
+    with pytest.raises(ValueError, match="finite values >= 0"):
+        sp.auto_exposure(-rates, sensor)
+    with pytest.raises(ValueError, match="exposure_time"):
+        sp.exposure_bracket(0.0)

@@ -348,6 +348,13 @@ class Sensor:
         """EMVA 1288's system gain ``K``: ``analog_gain / electrons_per_dn``."""
         return self.analog_gain / self.electrons_per_dn
 
+    @property
+    def saturation(self) -> float:
+        """The largest signal the sensor records, e-: the full well, or less
+        when the ADC clips first (``(white_level - black_level) /
+        dn_per_electron``)."""
+        return min(self.full_well, (self.white_level - self.black_level) / self.dn_per_electron)
+
     def native(self, *, seed: int, exposure_time: float) -> _native.NativeSensor:
         """The validated native sensor for one frame."""
         for name, value in (("seed", seed), ("pattern_seed", self.pattern_seed)):
@@ -388,6 +395,73 @@ class Sensor:
             raise TypeError(f"rates must be real numbers, got dtype {arr.dtype}")
         native = self.native(seed=seed, exposure_time=exposure_time)
         return native.capture_rates(arr.astype(np.float32, copy=False))
+
+
+def auto_exposure(
+    rates: Any,
+    sensor: Sensor,
+    *,
+    target: float = 0.18,
+    percentile: float | None = None,
+) -> float:
+    """The exposure time (s) that puts a scene's signal at ``target`` of the
+    sensor's :attr:`Sensor.saturation`, as a camera's meter does.
+
+    Parameters
+    ----------
+    rates : array_like, e-/s
+        The scene's noise-free photo-electron rates, any shape: e.g.
+        :meth:`SpectralCamera.camera_rates` of a radiance image (every
+        channel counts), or the rates of a mosaic.
+    sensor : Sensor
+    target : float
+        Fraction of saturation in (0, 1]: 0.18 puts the mean at "middle grey";
+        with a percentile, 1.0 just avoids clipping it.
+    percentile : float, optional
+        Meter a percentile of the rates (0-100, e.g. 99 to protect highlights)
+        instead of their mean.
+
+    Raises
+    ------
+    ValueError
+        A target or percentile out of range, negative or NaN rates, or a
+        black scene (nothing to meter).
+
+    Examples
+    --------
+    >>> round(auto_exposure(np.full((2, 2), 1000.0), Sensor(full_well=10_000)), 4)
+    1.8
+    """
+    arr = as_float_array(rates, "rates")
+    if arr.size == 0 or not (np.isfinite(arr).all() and (arr >= 0).all()):
+        raise ValueError("rates must be a non-empty array of finite values >= 0 (e-/s)")
+    if not (np.isfinite(target) and 0 < target <= 1):
+        raise ValueError(f"target must be a fraction of saturation in (0, 1], got {target!r}")
+    if percentile is None:
+        level = float(arr.mean())
+    elif np.isfinite(percentile) and 0 <= percentile <= 100:
+        level = float(np.percentile(arr, percentile))
+    else:
+        raise ValueError(f"percentile must be in [0, 100], got {percentile!r}")
+    if not level > 0:
+        raise ValueError("the scene is black where it is metered: no exposure reaches the target")
+    return target * sensor.saturation / level
+
+
+def exposure_bracket(exposure_time: float, stops: Any = (-2.0, 0.0, 2.0)) -> list[float]:
+    """Exposure times ``exposure_time * 2**stop`` for each of ``stops`` (EV).
+
+    Examples
+    --------
+    >>> exposure_bracket(0.01, (-1, 0, 1))
+    [0.005, 0.01, 0.02]
+    """
+    if not (np.isfinite(exposure_time) and exposure_time > 0):
+        raise ValueError(f"exposure_time must be a finite number > 0, got {exposure_time!r}")
+    steps = as_float_array(stops, "stops")
+    if steps.ndim != 1 or not np.isfinite(steps).all():
+        raise ValueError(f"stops must be a 1-D sequence of finite EV steps, got {stops!r}")
+    return [float(exposure_time * 2.0**s) for s in steps]
 
 
 def flat_pair_stats(a: Any, b: Any) -> tuple[float, float, float]:
