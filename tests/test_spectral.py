@@ -330,3 +330,29 @@ def test_auto_exposure_meters_the_mean_or_a_percentile_and_brackets_in_stops():
         sp.auto_exposure(-rates, sensor)
     with pytest.raises(ValueError, match="exposure_time"):
         sp.exposure_bracket(0.0)
+
+
+def test_the_forward_matrix_takes_balanced_white_to_d50_and_is_written(tmp_path):
+    from imgform_rs._tiff import first_tag, tiff_ifds
+
+    cam = sp.SpectralCamera()
+    wl = cam.wavelengths
+    fit = sp.characterise(cam)
+    white = sp.xyz_weights(wl, sp.illuminant("D65", wl)).sum(axis=0)
+    forward = sp.dng_forward_matrix(fit, white)
+    np.testing.assert_allclose(forward @ np.ones(3), sp.D50_XYZ, rtol=1e-12)
+    # Colours other than white: balanced camera RGB -> XYZ (D65) -> Bradford
+    # to D50 gives what the forward matrix gives directly.
+    _, neutral = sp.dng_color_tags(fit, white)
+    _, refl = sp.colorchecker(wl)
+    rgb = cam.camera_rates(refl * sp.illuminant("D65", wl))
+    balanced = rgb / (np.linalg.inv(fit.matrix) @ white)
+    bradford = colour.adaptation.chromatic_adaptation_VonKries(
+        rgb @ fit.matrix.T, white, sp.D50_XYZ, transform="Bradford"
+    )
+    np.testing.assert_allclose(balanced @ forward.T, bradford, rtol=1e-9, atol=1e-12)
+    raw = cam.capture(np.zeros((24, 24, len(wl)), np.float32), exposure_time=0.01)
+    sp.write_dng(tmp_path / "f.dng", raw, cam, fit)
+    written = first_tag(tiff_ifds((tmp_path / "f.dng").read_bytes()), 50964)
+    np.testing.assert_allclose(np.reshape(written, (3, 3)), forward, atol=1e-6)
+    assert neutral.max() == 1.0

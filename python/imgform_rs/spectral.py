@@ -973,6 +973,30 @@ def dng_color_tags(fit: ColorFit, white_xyz: Any) -> tuple[Float64Array, Float64
     return cam_from_xyz * scale, neutral * scale
 
 
+#: The DNG profile connection space's white, D50 (xy 0.3457, 0.3585) with Y = 1.
+D50_XYZ = np.array([0.3457 / 0.3585, 1.0, (1.0 - 0.3457 - 0.3585) / 0.3585])
+
+
+def dng_forward_matrix(fit: ColorFit, white_xyz: Any) -> Float64Array:
+    """DNG ``ForwardMatrix1`` of a fitted matrix: white-balanced camera RGB
+    to XYZ (D50).
+
+    White balance divides camera RGB by the white's camera RGB, so
+    ``fit.matrix @ diag(neutral)`` takes the balanced white (1, 1, 1) to
+    ``white_xyz``; Bradford's chromatic adaptation (colour-science) then moves
+    that white to D50, and the result is scaled to map (1, 1, 1) to exactly
+    :data:`D50_XYZ`, as the DNG specification asks.
+    """
+    colour = _colour()
+    white = as_float_array(white_xyz, "white_xyz")
+    neutral = np.linalg.inv(fit.matrix) @ white
+    adapt = colour.adaptation.matrix_chromatic_adaptation_VonKries(
+        white / white[1], D50_XYZ, transform="Bradford"
+    )
+    forward = adapt @ fit.matrix @ np.diag(neutral / white[1])
+    return forward * (D50_XYZ / forward.sum(axis=1))[:, None]
+
+
 def colorchecker_scene(
     wl: Any, illuminant_radiance: Any, *, patch: int = 32, gap: int = 8
 ) -> tuple[Float32Array, list[tuple[slice, slice]]]:
@@ -1014,10 +1038,10 @@ def write_dng(
     """Write a raw frame of ``camera`` as a DNG that rawpy / LibRaw and
     :func:`imgform_rs.develop` develop with the right colours.
 
-    ``ColorMatrix1`` and ``AsShotNeutral`` come from :func:`dng_color_tags`
-    (the scene white defaults to D65's XYZ, the calibration illuminant the
-    writer declares); black and white levels and the CFA pattern from the
-    camera.
+    ``ColorMatrix1`` and ``AsShotNeutral`` come from :func:`dng_color_tags`,
+    ``ForwardMatrix1`` from :func:`dng_forward_matrix` (the scene white
+    defaults to D65's XYZ, the calibration illuminant the writer declares);
+    black and white levels and the CFA pattern from the camera.
     """
     from .dng import write_dng as _write
 
@@ -1033,5 +1057,6 @@ def write_dng(
         black_level=camera.sensor.black_level,
         color_matrix=color_matrix,
         as_shot_neutral=neutral,
+        forward_matrix=dng_forward_matrix(fit, white_xyz),
         model="imgform-rs spectral camera",
     )
