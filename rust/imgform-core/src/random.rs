@@ -203,7 +203,7 @@ fn ln_factorial(k: f64) -> f64 {
 /// Layers of the ziggurat.
 const LAYERS: usize = 256;
 /// Where the tail of the 256-layer ziggurat starts (Marsaglia and Tsang 2000).
-const TAIL_START: f64 = 3.654_152_885_361_008_8;
+const TAIL_START: f64 = 3.654_152_885_361_009;
 /// The area of each layer, and of the base layer with the tail (ibid.).
 const LAYER_AREA: f64 = 4.928_673_233_99e-3;
 
