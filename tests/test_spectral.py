@@ -356,3 +356,22 @@ def test_the_forward_matrix_takes_balanced_white_to_d50_and_is_written(tmp_path)
     written = first_tag(tiff_ifds((tmp_path / "f.dng").read_bytes()), 50964)
     np.testing.assert_allclose(np.reshape(written, (3, 3)), forward, atol=1e-6)
     assert neutral.max() == 1.0
+
+
+@pytest.mark.parametrize(
+    ("camera", "light"), [("Nikon 5100 (NPL)", "D55"), ("Nikon 5100 (NPL)", "A")]
+)
+def test_the_idt_matrix_reproduces_colour_science_matrix_idt(camera, light):
+    wl = sp.wavelengths(380, 780, 5)
+    sens = sp.camera_sensitivities(camera, wl)
+    spd = sp.illuminant(light, wl)
+    matrix, balance = sp.idt_matrix(wl, sens, spd)
+    want, want_balance = colour.matrix_idt(
+        colour.characterisation.RGB_CameraSensitivities(sens, wl),
+        colour.SpectralDistribution(spd, wl),
+    )
+    np.testing.assert_allclose(matrix, want, atol=1e-3)
+    np.testing.assert_allclose(balance, want_balance, rtol=1e-12)
+    np.testing.assert_allclose(matrix.sum(axis=1), 1.0, atol=1e-12)
+    with pytest.raises(ValueError, match="sensitivities must have shape"):
+        sp.idt_matrix(wl, sens[:, :2], spd)

@@ -965,6 +965,82 @@ def characterise(
     return fit_color_matrix(camera.camera_rates(refl * spd), xyz, white, method=method)
 
 
+def idt_matrix(
+    wl: Any, sensitivities: Any, illuminant_spd: Any
+) -> tuple[Float64Array, Float64Array]:
+    """An ACES input device transform fitted as *RAW to ACES* v1 does.
+
+    The 190 training reflectances of *RAW to ACES* (colour-science's copy),
+    lit by ``illuminant_spd``, give white-balanced camera RGB and XYZ adapted
+    to the ACES white by CAT02; the 3x3 matrix ``M``,
+    its rows summing to 1 so that the balanced white stays white, minimises
+    the Euclidean norm of the CIE L*a*b* errors of ``ACES → XYZ (M rgb)``
+    over the patches (BFGS from the identity). This is the procedure of
+    colour-science's ``matrix_idt`` with its defaults, which a test
+    reproduces to 1e-3.
+
+    Parameters
+    ----------
+    wl : array_like, shape (L,)
+        The grid, nm; sums over it are plain sums, as colour-science's (on a
+        uniform grid the step cancels in every normalisation).
+    sensitivities : array_like, shape (L, 3)
+        The camera's R, G, B sensitivities.
+    illuminant_spd : array_like, shape (L,)
+        The scene illuminant.
+
+    Returns
+    -------
+    matrix : ndarray, float64, shape (3, 3)
+        White-balanced camera RGB -> ACES2065-1.
+    white_balance : ndarray, float64, shape (3,)
+        The multipliers applied to camera RGB first (smallest 1).
+    """
+    import os
+
+    from scipy.optimize import minimize
+
+    colour = _colour()
+    grid = check_wavelengths(wl)
+    sens = as_float_array(sensitivities, "sensitivities")
+    if sens.shape != (len(grid), 3):
+        raise ValueError(f"sensitivities must have shape ({len(grid)}, 3), got {sens.shape}")
+    spd = _spectra(illuminant_spd, grid, "illuminant_spd")
+    aces = colour.RGB_COLOURSPACES["ACES2065-1"]
+    path = os.path.join(colour.characterisation.aces_it.ROOT_RESOURCES_RAWTOACES, "190_Patches.csv")
+    sds = colour.io.read_sds_from_csv_file(path).values()
+    refl = np.stack([_resample(sd.wavelengths, sd.values, grid, "the training set") for sd in sds])
+    # The light is scaled so that the most sensitive channel reads 1 from
+    # the perfect white: the scale M's rows (summing to 1) refer to.
+    spd = spd / (spd @ sens[:, np.argmax(sens.max(axis=0))])
+    white_balance = 1.0 / (spd @ sens)
+    white_balance /= white_balance.min()
+    # Plain sums, not the checked kernel: a few training samples are slightly
+    # negative (measurement noise), and colour-science keeps them.
+    rgb = (refl * spd) @ sens * white_balance
+    cmfs = cie_cmfs(grid)
+    white = spd @ cmfs
+    xyz = (refl * spd) @ cmfs
+    adapt = colour.adaptation.matrix_chromatic_adaptation_VonKries(
+        white / white[1], colour.xy_to_XYZ(aces.whitepoint), "CAT02"
+    )
+    lab = colour.XYZ_to_Lab(xyz / white[1] @ adapt.T, aces.whitepoint)
+
+    def matrix(params: Float64Array) -> Float64Array:
+        m = np.zeros((3, 3))
+        m[:, :2] = params.reshape(3, 2)
+        m[:, 2] = 1.0 - m[:, :2].sum(axis=1)
+        return m
+
+    def cost(params: Float64Array) -> float:
+        fitted = rgb @ (aces.matrix_RGB_to_XYZ @ matrix(params)).T
+        return float(np.linalg.norm(colour.XYZ_to_Lab(fitted, aces.whitepoint) - lab))
+
+    start = np.array([1.0, 0.0, 0.0, 1.0, 0.0, 0.0])
+    best = minimize(cost, start, method="BFGS", jac="2-point").x
+    return matrix(best), white_balance
+
+
 def dng_color_tags(fit: ColorFit, white_xyz: Any) -> tuple[Float64Array, Float64Array]:
     """DNG ``ColorMatrix1`` (XYZ -> camera RGB) and ``AsShotNeutral`` (the
     camera RGB of ``white_xyz``) of a fitted matrix.
