@@ -308,14 +308,13 @@ mod tests {
             for _ in 0..n {
                 counts[g.poisson(lam) as usize] += 1;
             }
-            for k in 0..(3.0 * lam) as usize {
+            for (k, &count) in counts.iter().enumerate().take((3.0 * lam) as usize) {
                 let kf = k as f64;
                 let p = (-lam + kf * lam.ln() - ln_factorial(kf)).exp();
                 let sigma = (n as f64 * p * (1.0 - p)).sqrt();
                 assert!(
-                    (counts[k] as f64 - n as f64 * p).abs() < 5.0 * sigma + 1.0,
-                    "mean {lam}, P({k}): {} of {n}",
-                    counts[k]
+                    (count as f64 - n as f64 * p).abs() < 5.0 * sigma + 1.0,
+                    "mean {lam}, P({k}): {count} of {n}"
                 );
             }
         }
