@@ -292,3 +292,86 @@ def test_colorchecker_scene_to_dng_to_develop_gives_the_chart_colours(tmp_path):
     white = weights.sum(axis=0)
     de = sp.delta_e2000(got @ to_xyz.T, want @ to_xyz.T, white)
     assert de.mean() < fit.mean_delta_e + 0.5, (de.mean(), fit.mean_delta_e)
+
+
+def test_cos4_falloff_is_the_fourth_power_of_the_chief_ray_cosine():
+    falloff = sp.cos4_falloff(9, 13, focal_length=10.0, pixel_pitch=900.0, center=(3.0, 5.0))
+    rows, cols = np.mgrid[0:9, 0:13]
+    theta = np.arctan(np.hypot(cols - 3.0, rows - 5.0) * 0.9 / 10.0)
+    assert falloff.dtype == np.float32 and falloff[5, 3] == 1.0
+    np.testing.assert_allclose(falloff, np.cos(theta) ** 4, rtol=1e-6)
+    with pytest.raises(ValueError, match="focal_length must be"):
+        sp.cos4_falloff(2, 2, focal_length=0.0, pixel_pitch=4.0)
+    with pytest.raises(ValueError, match="height and width"):
+        sp.cos4_falloff(0, 2, focal_length=50.0, pixel_pitch=4.0)
+
+
+def test_auto_exposure_meters_the_mean_or_a_percentile_and_brackets_in_stops():
+    sensor = sp.Sensor(read_noise=0.0, dark_current=0.0, full_well=16_000.0, bit_depth=16)
+    rates = np.random.default_rng(3).gamma(2.0, 5_000.0, (200, 300)).astype(np.float32)
+    # 16 bits at 1.25 e-/DN reach further than the well: the well saturates.
+    assert sensor.saturation == 16_000.0
+    assert sp.Sensor(bit_depth=12).saturation == (4095 - 512) * 1.25
+    t = sp.auto_exposure(rates, sensor, target=0.18)
+    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.25
+    assert electrons.mean() == pytest.approx(0.18 * 16_000, rel=0.01)
+    t = sp.auto_exposure(rates, sensor, target=0.9, percentile=99.0)
+    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.25
+    assert np.percentile(electrons, 99.0) == pytest.approx(0.9 * 16_000, rel=0.01)
+    times = sp.exposure_bracket(t, (-2, 0, 1.5))
+    np.testing.assert_allclose(np.array(times) / t, [0.25, 1.0, 2**1.5])
+    with pytest.raises(ValueError, match="black"):
+        sp.auto_exposure(np.zeros((2, 2)), sensor)
+    with pytest.raises(ValueError, match="target"):
+        sp.auto_exposure(rates, sensor, target=1.5)
+    with pytest.raises(ValueError, match="percentile"):
+        sp.auto_exposure(rates, sensor, percentile=101)
+    with pytest.raises(ValueError, match="finite values >= 0"):
+        sp.auto_exposure(-rates, sensor)
+    with pytest.raises(ValueError, match="exposure_time"):
+        sp.exposure_bracket(0.0)
+
+
+def test_the_forward_matrix_takes_balanced_white_to_d50_and_is_written(tmp_path):
+    from imgform_rs._tiff import first_tag, tiff_ifds
+
+    cam = sp.SpectralCamera()
+    wl = cam.wavelengths
+    fit = sp.characterise(cam)
+    white = sp.xyz_weights(wl, sp.illuminant("D65", wl)).sum(axis=0)
+    forward = sp.dng_forward_matrix(fit, white)
+    np.testing.assert_allclose(forward @ np.ones(3), sp.D50_XYZ, rtol=1e-12)
+    # Colours other than white: balanced camera RGB -> XYZ (D65) -> Bradford
+    # to D50 gives what the forward matrix gives directly.
+    _, neutral = sp.dng_color_tags(fit, white)
+    _, refl = sp.colorchecker(wl)
+    rgb = cam.camera_rates(refl * sp.illuminant("D65", wl))
+    balanced = rgb / (np.linalg.inv(fit.matrix) @ white)
+    bradford = colour.adaptation.chromatic_adaptation_VonKries(
+        rgb @ fit.matrix.T, white, sp.D50_XYZ, transform="Bradford"
+    )
+    np.testing.assert_allclose(balanced @ forward.T, bradford, rtol=1e-9, atol=1e-12)
+    raw = cam.capture(np.zeros((24, 24, len(wl)), np.float32), exposure_time=0.01)
+    sp.write_dng(tmp_path / "f.dng", raw, cam, fit)
+    written = first_tag(tiff_ifds((tmp_path / "f.dng").read_bytes()), 50964)
+    np.testing.assert_allclose(np.reshape(written, (3, 3)), forward, atol=1e-6)
+    assert neutral.max() == 1.0
+
+
+@pytest.mark.parametrize(
+    ("camera", "light"), [("Nikon 5100 (NPL)", "D55"), ("Nikon 5100 (NPL)", "A")]
+)
+def test_the_idt_matrix_reproduces_colour_science_matrix_idt(camera, light):
+    wl = sp.wavelengths(380, 780, 5)
+    sens = sp.camera_sensitivities(camera, wl)
+    spd = sp.illuminant(light, wl)
+    matrix, balance = sp.idt_matrix(wl, sens, spd)
+    want, want_balance = colour.matrix_idt(
+        colour.characterisation.RGB_CameraSensitivities(sens, wl),
+        colour.SpectralDistribution(spd, wl),
+    )
+    np.testing.assert_allclose(matrix, want, atol=1e-3)
+    np.testing.assert_allclose(balance, want_balance, rtol=1e-12)
+    np.testing.assert_allclose(matrix.sum(axis=1), 1.0, atol=1e-12)
+    with pytest.raises(ValueError, match="sensitivities must have shape"):
+        sp.idt_matrix(wl, sens[:, :2], spd)

@@ -112,6 +112,7 @@ def write_dng(
     black_level: int | npt.ArrayLike = 0,
     color_matrix: Any = XYZ_TO_SRGB,
     as_shot_neutral: Any = (1.0, 1.0, 1.0),
+    forward_matrix: Any = None,
     model: str = "imgform-rs synthetic",
     orientation: int = 1,
     pixel_aspect: float = 1.0,
@@ -137,6 +138,9 @@ def write_dng(
         RGB linear sRGB.
     as_shot_neutral : array_like (3,)
         White balance as camera RGB of a neutral; (1, 1, 1) leaves it alone.
+    forward_matrix : array_like (3, 3), optional
+        DNG ``ForwardMatrix1``: white-balanced camera RGB to XYZ (D50), which
+        DNG readers prefer to inverting ``ColorMatrix1`` (LibRaw ignores it).
     model : str
         ``UniqueCameraModel`` (also written as Make / Model).
     orientation : int
@@ -206,6 +210,13 @@ def write_dng(
     ifd.add(50721, _SRATIONAL, color_matrix)
     ifd.add(50728, _RATIONAL, as_shot_neutral)
     ifd.add(50778, _SHORT, _D65)
+    if forward_matrix is not None:
+        forward = np.asarray(forward_matrix, np.float64)
+        if forward.shape != (3, 3) or not np.isfinite(forward).all():
+            raise ValueError(
+                f"forward_matrix must be a finite (3, 3) matrix, got shape {forward.shape}"
+            )
+        ifd.add(50964, _SRATIONAL, forward.ravel())
 
     # Header, then the pixels (so the strip offset is known), then the IFD.
     strip_offset = 8

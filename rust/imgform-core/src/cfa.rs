@@ -9,6 +9,7 @@ use crate::error::{CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
 use crate::parallel::for_each_row;
+use crate::random::SplitMix64;
 
 /// Channel index of red in a pattern (and in an RGB image).
 pub const RED: u8 = 0;
@@ -148,6 +149,14 @@ impl CfaPattern {
     /// The tile's channel indices row by row (`period * period` values).
     pub fn cells(&self) -> &[u8] {
         &self.cells[..self.period * self.period]
+    }
+
+    /// The channels of row `y`'s first `period` pixels: cycling through
+    /// them walks the row without the two divisions of [`Self::color_at`]
+    /// per pixel.
+    pub fn row(&self, y: usize) -> &[u8] {
+        let p = self.period;
+        &self.cells[(y % p) * p..][..p]
     }
 
     /// Channel index (0 = R, 1 = G, 2 = B) of pixel `(y, x)`.
@@ -384,121 +393,12 @@ pub fn simulate_sensor<T: Sample>(
             let v = f64::from(px[usize::from(pattern.color_at(y, x))].to_f32());
             let electrons_mean = (v / f64::from(T::FULL_SCALE)).max(0.0) * params.full_well;
             let mut rng = SplitMix64::for_site(params.seed, y, x);
-            let electrons = poisson(&mut rng, electrons_mean) + params.read_noise * rng.normal();
+            let electrons = rng.poisson(electrons_mean) + params.read_noise * rng.normal();
             let dn = (black + gain * electrons).round().clamp(0.0, white);
             *o = dn as u16;
         }
     });
     Ok(())
-}
-
-/// SplitMix64 (Steele, Lea, Flood 2014): a tiny generator whose state can be
-/// set from any counter, which is what makes the noise of each pixel a pure
-/// function of `(seed, y, x)`.
-pub(crate) struct SplitMix64(u64);
-
-impl SplitMix64 {
-    const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
-
-    pub(crate) fn for_site(seed: u64, y: usize, x: usize) -> Self {
-        // Mix the seed and each coordinate in turn, so nearby sites and
-        // nearby seeds start from unrelated states.
-        let mut g = Self(seed);
-        let a = g.next_u64() ^ (y as u64);
-        let mut g = Self(a);
-        let b = g.next_u64() ^ (x as u64);
-        let mut g = Self(b);
-        g.next_u64();
-        g
-    }
-
-    pub(crate) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(Self::GOLDEN);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1) with 53 random bits.
-    pub(crate) fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-    }
-
-    /// Standard normal by Box-Muller (one of the pair; the generator is
-    /// per pixel, so keeping the other would not be reused).
-    pub(crate) fn normal(&mut self) -> f64 {
-        let u1 = 1.0 - self.uniform(); // in (0, 1], so ln is finite
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-}
-
-/// `ln(k!)`: exact table below 10, Stirling's series above (error < 1e-10).
-fn ln_factorial(k: f64) -> f64 {
-    const TABLE: [f64; 10] = [
-        0.0,
-        0.0,
-        std::f64::consts::LN_2,
-        1.791_759_469_228_055,
-        3.178_053_830_347_945_7,
-        4.787_491_742_782_046,
-        6.579_251_212_010_101,
-        8.525_161_361_065_415,
-        10.604_602_902_745_25,
-        12.801_827_480_081_469,
-    ];
-    if k < 10.0 {
-        return TABLE[k as usize];
-    }
-    let k2 = k * k;
-    k * k.ln() - k + 0.5 * (std::f64::consts::TAU * k).ln() + 1.0 / (12.0 * k)
-        - 1.0 / (360.0 * k2 * k)
-        + 1.0 / (1260.0 * k2 * k2 * k)
-}
-
-/// A Poisson variate of mean `lam`: inversion by sequential search for small
-/// means, Hörmann's transformed rejection with squeeze (PTRS, 1993) above,
-/// where the search would take ~`lam` steps.
-pub(crate) fn poisson(rng: &mut SplitMix64, lam: f64) -> f64 {
-    if lam <= 0.0 {
-        return 0.0;
-    }
-    if lam < 10.0 {
-        let u = rng.uniform();
-        let mut k = 0.0;
-        let mut p = (-lam).exp();
-        let mut cdf = p;
-        // The tail beyond 100 has probability < 1e-60 for lam < 10.
-        while u > cdf && k < 100.0 {
-            k += 1.0;
-            p *= lam / k;
-            cdf += p;
-        }
-        return k;
-    }
-    let slam = lam.sqrt();
-    let loglam = lam.ln();
-    let b = 0.931 + 2.53 * slam;
-    let a = -0.059 + 0.02483 * b;
-    let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-    let v_r = 0.9277 - 3.6224 / (b - 2.0);
-    loop {
-        let u = rng.uniform() - 0.5;
-        let v = rng.uniform();
-        let us = 0.5 - u.abs();
-        let k = ((2.0 * a / us + b) * u + lam + 0.43).floor();
-        if us >= 0.07 && v <= v_r {
-            return k;
-        }
-        if k < 0.0 || (us < 0.013 && v > us) {
-            continue;
-        }
-        if v.ln() + inv_alpha.ln() - (a / (us * us) + b).ln() <= -lam + k * loglam - ln_factorial(k)
-        {
-            return k;
-        }
-    }
 }
 
 #[cfg(test)]
@@ -625,25 +525,6 @@ mod tests {
         )
         .unwrap();
         assert_eq!(out, again);
-    }
-
-    #[test]
-    fn small_means_follow_the_poisson_law() {
-        let mut rng = SplitMix64::for_site(1, 2, 3);
-        let n = 200_000;
-        let lam = 3.0;
-        let zeros = (0..n).filter(|_| poisson(&mut rng, lam) == 0.0).count();
-        let expected = (-lam).exp() * n as f64;
-        assert!(
-            (zeros as f64 - expected).abs() < 4.0 * expected.sqrt(),
-            "{zeros}"
-        );
-    }
-
-    #[test]
-    fn stirling_matches_the_table_where_they_meet() {
-        let exact_10 = 15.104_412_573_075_516;
-        assert!((ln_factorial(10.0) - exact_10).abs() < 1e-10);
     }
 
     #[test]

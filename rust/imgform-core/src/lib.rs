@@ -24,6 +24,7 @@ pub mod lightfield;
 pub mod metrology;
 pub mod optics;
 pub mod projection;
+mod random;
 pub mod remap;
 pub mod spectral;
 

@@ -29,9 +29,9 @@ use rayon::prelude::*;
 
 use super::{cross, dot, Vec3, COINCIDENCE_TOLERANCE};
 use crate::camera::{norm, normalized};
-use crate::cfa::SplitMix64;
 use crate::error::{positive, Result};
 use crate::invalid;
+use crate::random::SplitMix64;
 
 /// The most RANSAC hypotheses tried. All pairs of up to 63 segments (1953
 /// pairs) fit under it, so small problems are solved exhaustively. Above, with

@@ -22,9 +22,10 @@
 
 use super::integrate::{bad_pixel, check_response};
 use super::{all_valid, bands_first_bad, dot, is_valid_sample};
-use crate::cfa::{check_out_len, poisson, CfaPattern, SplitMix64};
+use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
 use crate::invalid;
+use crate::random::SplitMix64;
 
 /// Mixed into the pattern seed for the column offsets, so that they are not
 /// the row-0 pixel offsets in disguise.
@@ -168,49 +169,30 @@ impl Sensor {
             .collect()
     }
 
-    /// One pixel's reading of a signal of mean `rate` e-/s.
-    #[inline(always)]
-    fn read_pixel(&self, y: usize, x: usize, rate: f64, column_offset: f64) -> u16 {
-        let mut signal = rate * self.exposure_time;
-        let mut offset = column_offset;
-        if self.prnu > 0.0 || self.dsnu > 0.0 {
-            let mut g = SplitMix64::for_site(self.pattern_seed, y, x);
-            // A gain below zero needs a draw beyond 1/prnu sigma; such a
-            // pixel is dead (gain 0): it cannot un-collect light.
-            signal *= (1.0 + self.prnu * g.normal()).max(0.0);
-            offset += self.dsnu * g.normal();
-        }
-        let mean = signal + self.dark_rate() * self.exposure_time;
-        let mut rng = SplitMix64::for_site(self.seed, y, x);
-        let mut electrons = poisson(&mut rng, mean).min(self.full_well) + offset;
-        if self.read_noise > 0.0 {
-            electrons += self.read_noise * rng.normal();
-        }
-        let dn = f64::from(self.black_level) + electrons * self.dn_per_electron();
-        // Round half away from zero, then clip: the ADC has no negative codes.
-        dn.round().clamp(0.0, f64::from(self.white_level())) as u16
-    }
-
-    /// Reads a `height x width` frame whose pixel `(y, x)` has the mean rate
-    /// `rate(y, x)`, or `None` when the input there is bad.
-    fn read_frame<F>(&self, width: usize, height: usize, out: &mut [u16], rate: F) -> Result<()>
+    /// Reads a `height x width` frame. `rates(y, row)` fills `row` with
+    /// the mean rates (e-/s) of row `y`'s pixels and returns the column of
+    /// its first bad input, if any; the sensor then reads the row.
+    ///
+    /// Working a row at a time keeps the input's loop (a dot product per
+    /// pixel) apart from the noise's, so each stays simple enough to
+    /// optimise, while the row of rates stays in cache between the two.
+    fn read_frame<F>(&self, width: usize, height: usize, out: &mut [u16], rates: F) -> Result<()>
     where
-        F: Fn(usize, usize) -> Option<f64> + Sync,
+        F: Fn(usize, &mut [f64]) -> Option<usize> + Sync,
     {
         self.validate()?;
         check_out_len(out.len(), width * height, "the sensor")?;
         let columns = self.column_offsets(width);
+        let readout = Readout::new(self);
         let bad = bands_first_bad(out, width, |y0, rows| {
             let mut first_bad = None;
+            let mut row_rates = vec![0.0; width];
             for (dy, row) in rows.chunks_exact_mut(width).enumerate() {
                 let y = y0 + dy;
-                for (x, (o, &col)) in row.iter_mut().zip(&columns).enumerate() {
-                    let r = rate(y, x).unwrap_or_else(|| {
-                        first_bad = first_bad.or(Some(y * width + x));
-                        0.0
-                    });
-                    *o = self.read_pixel(y, x, r, col);
+                if let Some(x) = rates(y, &mut row_rates) {
+                    first_bad = first_bad.or(Some(y * width + x));
                 }
+                readout.row(self, y, &row_rates, &columns, row);
             }
             first_bad
         });
@@ -233,9 +215,12 @@ impl Sensor {
         out: &mut [u16],
     ) -> Result<()> {
         check_input_len("rates", rates.len(), width * height)?;
-        self.read_frame(width, height, out, |y, x| {
-            let r = rates[y * width + x];
-            is_valid_sample(r).then_some(f64::from(r))
+        self.read_frame(width, height, out, |y, row| {
+            let src = &rates[y * width..(y + 1) * width];
+            for (r, &v) in row.iter_mut().zip(src) {
+                *r = f64::from(v);
+            }
+            src.iter().position(|&v| !is_valid_sample(v))
         })
     }
 
@@ -269,12 +254,21 @@ impl Sensor {
                 spectra.len()
             )));
         }
-        self.read_frame(width, height, out, |y, x| {
-            let i = (y * width + x) * grid_len;
-            let px = &spectra[i..i + grid_len];
-            let c = usize::from(pattern.color_at(y, x));
-            let r = &response[c * grid_len..(c + 1) * grid_len];
-            all_valid(px).then(|| dot(px, r))
+        let row_len = width * grid_len;
+        self.read_frame(width, height, out, |y, row| {
+            let src = &spectra[y * row_len..(y + 1) * row_len];
+            let mut first_bad = None;
+            let pixels = src
+                .chunks_exact(grid_len)
+                .zip(pattern.row(y).iter().cycle());
+            for (x, (r, (px, &c))) in row.iter_mut().zip(pixels).enumerate() {
+                let c = usize::from(c);
+                *r = dot(px, &response[c * grid_len..(c + 1) * grid_len]);
+                if !all_valid(px) {
+                    first_bad = first_bad.or(Some(x));
+                }
+            }
+            first_bad
         })
     }
 
@@ -298,15 +292,102 @@ impl Sensor {
     ) -> Result<()> {
         check_response(matrix, 3, 3)?;
         check_input_len("rgb", rgb.len(), 3 * width * height)?;
-        self.read_frame(width, height, out, |y, x| {
-            let i = 3 * (y * width + x);
-            let px = &rgb[i..i + 3];
-            let c = 3 * usize::from(pattern.color_at(y, x));
-            let m = &matrix[c..c + 3];
-            let finite = px.iter().fold(true, |ok, v| ok & v.is_finite());
-            let [r, g, b] = [px[0], px[1], px[2]].map(|v| f64::from(v.max(0.0)));
-            finite.then_some(m[0] * r + m[1] * g + m[2] * b)
+        self.read_frame(width, height, out, |y, row| {
+            let src = &rgb[3 * y * width..3 * (y + 1) * width];
+            let mut first_bad = None;
+            let pixels = src.chunks_exact(3).zip(pattern.row(y).iter().cycle());
+            for (x, (r, (px, &c))) in row.iter_mut().zip(pixels).enumerate() {
+                let m = &matrix[3 * usize::from(c)..][..3];
+                let [red, green, blue] = [px[0], px[1], px[2]].map(|v| f64::from(v.max(0.0)));
+                *r = m[0] * red + m[1] * green + m[2] * blue;
+                if !px.iter().fold(true, |ok, v| ok & v.is_finite()) {
+                    first_bad = first_bad.or(Some(x));
+                }
+            }
+            first_bad
         })
+    }
+}
+
+/// The per-frame constants of the read-out chain, derived once so that the
+/// per-pixel code only multiplies and adds.
+struct Readout {
+    exposure_time: f64,
+    dark_electrons: f64,
+    full_well: f64,
+    /// A mean so far above the full well that a Poisson count of it falls
+    /// below the full well with a probability under e^-500 (Chernoff's
+    /// bound `exp(-t² / 2λ)`): drawing from it instead of any larger mean
+    /// changes no reading. `f64::min` also maps a
+    /// NaN mean (bad input, which the caller reports) to it, so no input
+    /// can send the sampler into an endless rejection loop.
+    saturating_mean: f64,
+    read_noise: f64,
+    prnu: f64,
+    dsnu: f64,
+    black: f64,
+    white: f64,
+    dn_per_electron: f64,
+}
+
+impl Readout {
+    fn new(s: &Sensor) -> Self {
+        Self {
+            exposure_time: s.exposure_time,
+            dark_electrons: s.dark_rate() * s.exposure_time,
+            full_well: s.full_well,
+            saturating_mean: s.full_well + 40.0 * s.full_well.sqrt() + 1000.0,
+            read_noise: s.read_noise,
+            prnu: s.prnu,
+            dsnu: s.dsnu,
+            black: f64::from(s.black_level),
+            white: f64::from(s.white_level()),
+            dn_per_electron: s.dn_per_electron(),
+        }
+    }
+
+    /// Reads row `y` of mean rates `rates` (e-/s) into `out`.
+    fn row(&self, sensor: &Sensor, y: usize, rates: &[f64], columns: &[f64], out: &mut [u16]) {
+        let temporal = SplitMix64::row_key(sensor.seed, y);
+        let fixed = SplitMix64::row_key(sensor.pattern_seed, y);
+        for (x, ((o, &rate), &col)) in out.iter_mut().zip(rates).zip(columns).enumerate() {
+            *o = self.pixel(rate, col, fixed, temporal, x);
+        }
+    }
+
+    /// Pixel `x`'s reading of a signal of mean `rate` e-/s, its fixed
+    /// pattern drawn from the row key `fixed_row` and its temporal noise
+    /// from `temporal_row` (see [`SplitMix64::row_key`]).
+    #[inline(always)]
+    fn pixel(
+        &self,
+        rate: f64,
+        column_offset: f64,
+        fixed_row: u64,
+        temporal_row: u64,
+        x: usize,
+    ) -> u16 {
+        let mut signal = rate * self.exposure_time;
+        let mut offset = column_offset;
+        if self.prnu > 0.0 || self.dsnu > 0.0 {
+            let mut g = SplitMix64::in_row(fixed_row, x);
+            // A gain below zero needs a draw beyond 1/prnu sigma; such a
+            // pixel is dead (gain 0): it cannot un-collect light.
+            signal *= (1.0 + self.prnu * g.normal()).max(0.0);
+            offset += self.dsnu * g.normal();
+        }
+        let mut rng = SplitMix64::in_row(temporal_row, x);
+        let collected = rng.poisson((signal + self.dark_electrons).min(self.saturating_mean));
+        let mut electrons = collected.min(self.full_well) + offset;
+        if self.read_noise > 0.0 {
+            electrons += self.read_noise * rng.normal();
+        }
+        // The ADC has no negative codes. Clipping first, then rounding half
+        // up by truncation gives the code that rounding half away from zero
+        // then clipping would, without a call to libm's `round` (not an
+        // instruction of baseline x86-64).
+        let dn = (self.black + electrons * self.dn_per_electron).clamp(0.0, self.white);
+        (dn + 0.5) as u16
     }
 }
 

@@ -1,0 +1,224 @@
+"""Dispersion: a glass's refractive index per wavelength, and the chromatic
+aberrations it gives a lens (lecture sections 3.3 and 6).
+
+A thin lens's power is proportional to ``n(λ) - 1`` (the lensmaker's equation),
+so its focal length is ``f(λ) = f_d (n_d - 1) / (n(λ) - 1)``: blue, bent more,
+focuses nearer the lens than red. Along the axis that is longitudinal chromatic
+aberration (each wavelength defocused by its own amount, rendered through
+:func:`imgform_rs.render_defocus`); across the field, lateral chromatic
+aberration (each wavelength imaged at its own magnification, rendered through
+:func:`imgform_rs.remap`).
+
+A glass is given by its catalogue pair ``(n_d, V_d)`` (refractive index at the
+helium d line and Abbe number), interpolated by a two-term Cauchy law, or by
+its six Sellmeier coefficients, the form glass makers publish.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ._arrays import Float64Array, as_float_array
+from .optics import image_distance, render_defocus
+from .remap import remap
+
+#: Fraunhofer lines (nm) that define the Abbe number ``V_d = (n_d - 1) / (n_F - n_C)``.
+LINE_D, LINE_F, LINE_C = 587.5618, 486.1327, 656.2725
+
+
+def _positive(value: float, name: str) -> float:
+    v = float(value)
+    if not (np.isfinite(v) and v > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Glass:
+    """An optical glass: its refractive index at any wavelength.
+
+    Build one with :meth:`from_abbe` (catalogue ``n_d`` and ``V_d``) or
+    :meth:`from_sellmeier` (a glass maker's dispersion formula).
+
+    Examples
+    --------
+    >>> bk7 = Glass.from_abbe(1.5168, 64.17)
+    >>> round(float(bk7.index(LINE_D)), 6), round(bk7.abbe_number, 2)
+    (1.5168, 64.17)
+    """
+
+    #: ``"cauchy"``: ``n = A + B / λ²`` (λ in µm), coefficients ``(A, B)``;
+    #: ``"sellmeier"``: ``n² = 1 + Σ B_i λ² / (λ² - C_i)``, ``(B1, B2, B3, C1, C2, C3)``.
+    law: str
+    coefficients: tuple[float, ...]
+
+    @classmethod
+    def from_abbe(cls, n_d: float, abbe_number: float) -> Glass:
+        """The Cauchy glass through ``n_d`` at the d line whose F - C index
+        difference is ``(n_d - 1) / V_d``: two numbers pin the two terms."""
+        n_d = float(n_d)
+        if not (np.isfinite(n_d) and n_d > 1):
+            raise ValueError(f"n_d must be a refractive index > 1, got {n_d!r}")
+        v_d = _positive(abbe_number, "abbe_number")
+        um = 1e-3
+        b = (n_d - 1) / v_d / ((LINE_F * um) ** -2 - (LINE_C * um) ** -2)
+        return cls("cauchy", (n_d - b / (LINE_D * um) ** 2, b))
+
+    @classmethod
+    def from_sellmeier(cls, b: Any, c: Any) -> Glass:
+        """A glass from its Sellmeier coefficients ``B1..B3`` and ``C1..C3``
+        (µm², Schott's convention)."""
+        bs, cs = as_float_array(b, "b"), as_float_array(c, "c")
+        if bs.shape != (3,) or cs.shape != (3,):
+            raise ValueError(f"b and c must hold 3 values each, got {bs.shape} and {cs.shape}")
+        if not (np.isfinite(bs).all() and np.isfinite(cs).all() and (bs >= 0).all()):
+            raise ValueError("Sellmeier coefficients must be finite, with b >= 0")
+        return cls("sellmeier", (*bs.tolist(), *cs.tolist()))
+
+    def index(self, wavelength: Any) -> Float64Array:
+        """Refractive index at ``wavelength`` (nm, array_like).
+
+        Raises
+        ------
+        ValueError
+            A wavelength that is not finite and > 0, or one at or across a
+            Sellmeier pole (an absorption band, where the formula says nothing).
+        """
+        wl = as_float_array(wavelength, "wavelength")
+        if not (np.isfinite(wl).all() and (wl > 0).all()):
+            raise ValueError("wavelengths must be finite and > 0 nm")
+        um2 = (wl * 1e-3) ** 2
+        if self.law == "cauchy":
+            a, b = self.coefficients
+            return a + b / um2
+        bs, cs = np.array(self.coefficients[:3]), np.array(self.coefficients[3:])
+        n2 = 1 + np.sum(bs * um2[..., None] / (um2[..., None] - cs), axis=-1)
+        if not (n2 > 1).all():
+            raise ValueError(
+                "the Sellmeier formula has no index > 1 at some of these wavelengths "
+                "(an absorption pole lies near them)"
+            )
+        return np.sqrt(n2)
+
+    @property
+    def abbe_number(self) -> float:
+        """``V_d = (n_d - 1) / (n_F - n_C)``: the lower, the more dispersive."""
+        n_d, n_f, n_c = self.index([LINE_D, LINE_F, LINE_C])
+        return float((n_d - 1) / (n_f - n_c))
+
+
+def focal_lengths(glass: Glass, wavelengths: Any, f_d: float) -> Float64Array:
+    """Focal length (mm) of a thin lens of ``glass`` at each wavelength, the
+    lens having focal length ``f_d`` at the d line (587.56 nm).
+
+    Examples
+    --------
+    >>> f = focal_lengths(Glass.from_abbe(1.5168, 64.17), [LINE_F, LINE_C], 50.0)
+    >>> round(float(f[1] - f[0]), 3)  # ~ f_d / V_d = 0.779
+    0.774
+    """
+    f_d = _positive(f_d, "f_d")
+    n = glass.index(wavelengths)
+    return f_d * (glass.index(LINE_D) - 1) / (n - 1)
+
+
+def focal_shift(glass: Glass, wavelengths: Any, f_d: float) -> Float64Array:
+    """The lecture's Figure 4a: ``f(λ) - f_d`` (mm), the longitudinal
+    chromatic aberration of a thin lens of ``glass`` for a distant object."""
+    return focal_lengths(glass, wavelengths, f_d) - _positive(f_d, "f_d")
+
+
+def render_dispersion(
+    radiance: npt.NDArray[np.float32],
+    wavelengths: Any,
+    glass: Glass,
+    *,
+    f_d: float,
+    N: float,
+    focus_distance: float,
+    depth: Any,
+    pixel_pitch: float,
+    lateral: bool = True,
+) -> npt.NDArray[np.float32]:
+    """A spectral image (H, W, L) as a thin lens of ``glass`` forms it.
+
+    The sensor sits where the d line focuses ``focus_distance``; the aperture
+    is ``f_d / N`` wide. Each wavelength ``λ`` then focuses the distance
+    ``1 / (1/f(λ) - 1/v)`` instead and is defocused by
+    :func:`imgform_rs.render_defocus` (longitudinal aberration); with
+    ``lateral``, it is also magnified by ``f(λ) / f_d`` about the image centre,
+    as by a lens whose stop lies in its front focal plane (chief rays leave
+    parallel to the axis and land at ``f(λ) tan θ``).
+
+    Parameters
+    ----------
+    radiance : ndarray, float32, shape (H, W, L)
+        The pinhole (all in focus, undispersed) spectral image.
+    wavelengths : array_like, shape (L,)
+        Its grid, nm.
+    glass : Glass
+    f_d, N : float
+        Focal length at the d line (mm) and f-number.
+    focus_distance : float
+        Distance the lens is focused at for the d line (mm), > ``f_d``.
+    depth : array_like, shape (H, W) or scalar
+        Distance of each pixel's surface (mm).
+    pixel_pitch : float
+        mm.
+    lateral : bool
+        Also render lateral chromatic aberration.
+
+    Returns
+    -------
+    ndarray, float32, shape (H, W, L)
+
+    Raises
+    ------
+    TypeError, ValueError
+        A non-float32 or wrongly shaped image, a mismatched grid, or a
+        wavelength whose focal length reaches the sensor (it focuses nothing).
+    """
+    cube = np.asarray(radiance)
+    if cube.dtype != np.float32 or cube.ndim != 3:
+        raise TypeError(
+            f"radiance must be a float32 (H, W, L) array, got {cube.dtype} of shape {cube.shape}"
+        )
+    wl = as_float_array(wavelengths, "wavelengths")
+    if wl.shape != (cube.shape[2],):
+        raise ValueError(
+            f"wavelengths must hold the image's {cube.shape[2]} samples, got shape {wl.shape}"
+        )
+    h, w = cube.shape[:2]
+    depth_map = np.broadcast_to(np.asarray(depth, np.float64), (h, w))
+    f_d, N = _positive(f_d, "f_d"), _positive(N, "N")
+    sensor = float(image_distance(f_d, focus_distance))
+    aperture = f_d / N
+    fs = focal_lengths(glass, wl, f_d)
+    if (fs >= sensor).any():
+        worst = float(wl[np.argmax(fs)])
+        raise ValueError(
+            f"at {worst:g} nm the focal length reaches the sensor ({sensor:g} mm behind the "
+            "lens): that wavelength focuses no object; focus nearer or use a less "
+            "dispersive glass"
+        )
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    cy, cx = (h - 1) / 2, (w - 1) / 2
+    out = np.empty_like(cube)
+    for i, f in enumerate(fs):
+        plane = render_defocus(
+            np.ascontiguousarray(cube[:, :, i]),
+            depth_map,
+            f=float(f),
+            N=float(f) / aperture,
+            focus_distance=1.0 / (1.0 / f - 1.0 / sensor),
+            pixel_pitch=float(pixel_pitch),
+        )
+        if lateral:
+            scale = np.float32(f / f_d)
+            plane = remap(plane, (cx + (u - cx) / scale, cy + (v - cy) / scale))
+        out[:, :, i] = plane
+    return out

@@ -1,0 +1,346 @@
+//! Random variates that are pure functions of a seed and a site.
+//!
+//! Simulated noise must not depend on the number of threads, so no generator
+//! is shared between pixels: each site `(y, x)` seeds its own tiny generator
+//! from `(seed, y, x)`. That makes the per-site set-up and every draw part of
+//! the per-pixel cost of a sensor simulation, which is why the variates here
+//! avoid transcendental functions on their common paths: the normal by
+//! Marsaglia and Tsang's ziggurat, the Poisson by Hörmann's PTRS with its
+//! logarithms left to the rare rejection branch.
+
+use std::sync::OnceLock;
+
+/// SplitMix64 (Steele, Lea, Flood 2014): a tiny generator whose state can be
+/// set from any counter, which is what makes the noise of each pixel a pure
+/// function of `(seed, y, x)`.
+pub(crate) struct SplitMix64(u64);
+
+impl SplitMix64 {
+    const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
+
+    /// The generator of site `(y, x)` under `seed`.
+    pub(crate) fn for_site(seed: u64, y: usize, x: usize) -> Self {
+        Self::in_row(Self::row_key(seed, y), x)
+    }
+
+    /// The part of [`Self::for_site`] that depends on the row only, so that
+    /// a kernel mixes it once per row rather than once per pixel.
+    pub(crate) fn row_key(seed: u64, y: usize) -> u64 {
+        // Mix the seed and each coordinate in turn, so nearby sites and
+        // nearby seeds start from unrelated states.
+        Self(seed).next_u64() ^ (y as u64)
+    }
+
+    /// The generator of column `x` in the row of `row_key`.
+    #[inline(always)]
+    pub(crate) fn in_row(row_key: u64, x: usize) -> Self {
+        let mut g = Self(Self(row_key).next_u64() ^ (x as u64));
+        g.next_u64();
+        g
+    }
+
+    #[inline(always)]
+    pub(crate) fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(Self::GOLDEN);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1) with 53 random bits.
+    #[inline(always)]
+    pub(crate) fn uniform(&mut self) -> f64 {
+        unit(self.next_u64())
+    }
+
+    /// A standard normal variate by the ziggurat method (Marsaglia and Tsang
+    /// 2000, 256 layers). One 64-bit draw gives the layer (8 bits), the sign
+    /// (1 bit) and the abscissa (53 bits), so the three never share bits
+    /// (the defect Doornik 2005 found in the 32-bit original); ~99 % of
+    /// draws end after one comparison.
+    #[inline(always)]
+    pub(crate) fn normal(&mut self) -> f64 {
+        let z = ziggurat();
+        loop {
+            let bits = self.next_u64();
+            let layer = (bits & 0xFF) as usize;
+            let x = unit(bits) * z.x[layer];
+            // Bit 8 becomes the sign bit: a branch here would be mispredicted
+            // on every other draw.
+            let sign = (bits & 0x100) << 55;
+            if x < z.x[layer + 1] {
+                return f64::from_bits(x.to_bits() ^ sign);
+            }
+            if let Some(x) = self.normal_edge(z, layer, x) {
+                return f64::from_bits(x.to_bits() ^ sign);
+            }
+        }
+    }
+
+    /// The rare cases of [`Self::normal`]: a draw beyond the base layer's
+    /// rectangle (from the tail, by Marsaglia's 1964 method) or in a layer's
+    /// wedge (accepted under the density). `None` rejects the draw.
+    #[cold]
+    fn normal_edge(&mut self, z: &Ziggurat, layer: usize, x: f64) -> Option<f64> {
+        if layer == 0 {
+            loop {
+                // 1 - u is in (0, 1], so the logarithms are finite.
+                let t = -(1.0 - self.uniform()).ln() / TAIL_START;
+                let e = -(1.0 - self.uniform()).ln();
+                if 2.0 * e >= t * t {
+                    return Some(TAIL_START + t);
+                }
+            }
+        }
+        let y = z.f[layer] + self.uniform() * (z.f[layer + 1] - z.f[layer]);
+        (y < density(x)).then_some(x)
+    }
+
+    /// A Poisson variate of mean `lam` (0 for `lam <= 0`): inversion by
+    /// sequential search for small means, Hörmann's transformed rejection
+    /// with squeeze (PTRS, 1993) above, where the search would take ~`lam`
+    /// steps. Both are exact at every mean; neither switches to a Gaussian.
+    #[inline(always)]
+    pub(crate) fn poisson(&mut self, lam: f64) -> f64 {
+        if lam < 10.0 {
+            return self.poisson_by_search(lam);
+        }
+        let slam = lam.sqrt();
+        let b = 0.931 + 2.53 * slam;
+        let a = -0.059 + 0.02483 * b;
+        loop {
+            let u = self.uniform() - 0.5;
+            let v = self.uniform();
+            let us = 0.5 - u.abs();
+            let k = floor((2.0 * a / us + b) * u + lam + 0.43);
+            // The squeeze `v <= 0.9277 - 3.6224 / (b - 2)` (b > 8 here),
+            // multiplied out to spare a division: ~80 % of draws end here,
+            // without a logarithm.
+            if us >= 0.07 && (0.9277 - v) * (b - 2.0) >= 3.6224 {
+                return k;
+            }
+            if let Some(k) = ptrs_accept(lam, a, b, us, v, k) {
+                return k;
+            }
+        }
+    }
+
+    fn poisson_by_search(&mut self, lam: f64) -> f64 {
+        if lam <= 0.0 {
+            return 0.0;
+        }
+        let u = self.uniform();
+        let mut k = 0.0;
+        let mut p = (-lam).exp();
+        let mut cdf = p;
+        // The tail beyond 100 has probability < 1e-60 for lam < 10.
+        while u > cdf && k < 100.0 {
+            k += 1.0;
+            p *= lam / k;
+            cdf += p;
+        }
+        k
+    }
+}
+
+/// PTRS's exact acceptance test, for the draws its squeeze did not decide.
+#[cold]
+fn ptrs_accept(lam: f64, a: f64, b: f64, us: f64, v: f64, k: f64) -> Option<f64> {
+    if k < 0.0 || (us < 0.013 && v > us) {
+        return None;
+    }
+    let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+    let lhs = (v * inv_alpha / (a / (us * us) + b)).ln();
+    (lhs <= -lam + k * lam.ln() - ln_factorial(k)).then_some(k)
+}
+
+/// `v.floor()` without a call to libm (`floor` is not an instruction of
+/// baseline x86-64): truncation, corrected below zero. From 2^52 up every
+/// float is an integer already.
+#[inline(always)]
+fn floor(v: f64) -> f64 {
+    if v.abs() >= 4_503_599_627_370_496.0 {
+        return v;
+    }
+    let t = v as i64 as f64;
+    if t > v {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// The top 53 bits of `bits` as a uniform number in [0, 1).
+#[inline(always)]
+fn unit(bits: u64) -> f64 {
+    (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// `ln(k!)`: exact table below 10, Stirling's series above (error < 1e-10).
+fn ln_factorial(k: f64) -> f64 {
+    const TABLE: [f64; 10] = [
+        0.0,
+        0.0,
+        std::f64::consts::LN_2,
+        1.791_759_469_228_055,
+        3.178_053_830_347_945_7,
+        4.787_491_742_782_046,
+        6.579_251_212_010_101,
+        8.525_161_361_065_415,
+        10.604_602_902_745_25,
+        12.801_827_480_081_469,
+    ];
+    if k < 10.0 {
+        return TABLE[k as usize];
+    }
+    let k2 = k * k;
+    k * k.ln() - k + 0.5 * (std::f64::consts::TAU * k).ln() + 1.0 / (12.0 * k)
+        - 1.0 / (360.0 * k2 * k)
+        + 1.0 / (1260.0 * k2 * k2 * k)
+}
+
+/// Layers of the ziggurat.
+const LAYERS: usize = 256;
+/// Where the tail of the 256-layer ziggurat starts (Marsaglia and Tsang 2000).
+const TAIL_START: f64 = 3.654_152_885_361_009;
+/// The area of each layer, and of the base layer with the tail (ibid.).
+const LAYER_AREA: f64 = 4.928_673_233_99e-3;
+
+/// The unnormalised standard normal density `exp(-x² / 2)`.
+fn density(x: f64) -> f64 {
+    (-0.5 * x * x).exp()
+}
+
+/// The ziggurat's layer edges: layer `i` is the box `[0, x[i]] x [f[i],
+/// f[i + 1]]`, `f = density(x)`, all of area [`LAYER_AREA`]; layer 0 is the
+/// base box (its width stretched to carry the tail's area) and `x[256] = 0`.
+struct Ziggurat {
+    x: [f64; LAYERS + 1],
+    f: [f64; LAYERS + 1],
+}
+
+fn ziggurat() -> &'static Ziggurat {
+    static TABLE: OnceLock<Ziggurat> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let mut x = [0.0; LAYERS + 1];
+        x[0] = LAYER_AREA / density(TAIL_START);
+        x[1] = TAIL_START;
+        for i in 1..LAYERS - 1 {
+            // The next edge up is where the box of width x[i] from
+            // density(x[i]) reaches the layer's area.
+            x[i + 1] = (-2.0 * (LAYER_AREA / x[i] + density(x[i])).ln()).sqrt();
+        }
+        // x[256] would be ~1e-9 from rounding in the constants: it is 0.
+        let f = x.map(density);
+        Ziggurat { x, f }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sites_are_mixed_from_a_row_key() {
+        // The split keeps the stream of every site as it was before it:
+        // vanishing-point RANSAC draws its pairs from it.
+        let mut g = SplitMix64::for_site(5, 7, 11);
+        let a = SplitMix64(5).next_u64() ^ 7;
+        let b = SplitMix64(a).next_u64() ^ 11;
+        let mut reference = SplitMix64(b);
+        reference.next_u64();
+        assert_eq!(g.next_u64(), reference.next_u64());
+    }
+
+    #[test]
+    fn the_ziggurat_has_equal_layers_that_close_at_the_top() {
+        let z = ziggurat();
+        for i in 1..LAYERS {
+            let area = z.x[i] * (z.f[i + 1] - z.f[i]);
+            assert!((area / LAYER_AREA - 1.0).abs() < 1e-6, "layer {i}: {area}");
+        }
+        assert!(z.x[LAYERS - 1] > 0.0 && z.x[LAYERS - 1] < 0.3);
+    }
+
+    #[test]
+    fn normal_variates_follow_the_normal_law() {
+        let mut g = SplitMix64::for_site(3, 1, 4);
+        let n = 1_000_000;
+        let draws: Vec<f64> = (0..n).map(|_| g.normal()).collect();
+        let mean = draws.iter().sum::<f64>() / n as f64;
+        let var = draws.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / n as f64;
+        let m4 = draws.iter().map(|d| (d - mean).powi(4)).sum::<f64>() / n as f64;
+        assert!(mean.abs() < 0.005, "{mean}");
+        assert!((var - 1.0).abs() < 0.005, "{var}");
+        assert!(
+            (m4 / (var * var) - 3.0).abs() < 0.03,
+            "kurtosis {}",
+            m4 / var / var
+        );
+        // P(|Z| > t) at the edges of the base layer, the wedges and the tail
+        // (erfc values), each within 5 binomial standard errors.
+        for (t, p) in [
+            (0.5, 0.617_075_077_5),
+            (1.0, 0.317_310_507_9),
+            (2.0, 0.045_500_263_9),
+            (3.0, 0.002_699_796_1),
+            (TAIL_START, 0.000_258_004_8),
+            (4.5, 0.000_006_795_3),
+        ] {
+            let count = draws.iter().filter(|d| d.abs() > t).count() as f64;
+            let sigma = (n as f64 * p * (1.0 - p)).sqrt();
+            assert!(
+                (count - n as f64 * p).abs() < 5.0 * sigma + 1.0,
+                "P(|Z| > {t}): {count} of {n}"
+            );
+        }
+    }
+
+    #[test]
+    fn poisson_probabilities_match_the_law_on_both_branches() {
+        // P(k) for a mean below and above the switch, against the exact law,
+        // each within 5 binomial standard errors.
+        let n = 400_000;
+        for lam in [3.0f64, 40.0] {
+            let mut g = SplitMix64::for_site(1, 2, 3);
+            let mut counts = vec![0usize; 200];
+            for _ in 0..n {
+                counts[g.poisson(lam) as usize] += 1;
+            }
+            for (k, &count) in counts.iter().enumerate().take((3.0 * lam) as usize) {
+                let kf = k as f64;
+                let p = (-lam + kf * lam.ln() - ln_factorial(kf)).exp();
+                let sigma = (n as f64 * p * (1.0 - p)).sqrt();
+                assert!(
+                    (count as f64 - n as f64 * p).abs() < 5.0 * sigma + 1.0,
+                    "mean {lam}, P({k}): {count} of {n}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn floor_matches_the_library_floor() {
+        for v in [
+            -2.5,
+            -2.0,
+            -0.3,
+            -0.0,
+            0.0,
+            0.7,
+            3.0,
+            1e15 + 0.5,
+            -1e17,
+            1e300,
+        ] {
+            assert_eq!(floor(v), v.floor(), "{v}");
+        }
+    }
+
+    #[test]
+    fn stirling_matches_the_table_where_they_meet() {
+        let exact_10 = 15.104_412_573_075_516;
+        assert!((ln_factorial(10.0) - exact_10).abs() < 1e-10);
+    }
+}

@@ -1,0 +1,130 @@
+"""Dispersion: glass indices, focal shift per wavelength, chromatic aberrations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from imgform_rs.dispersion import (
+    LINE_C,
+    LINE_D,
+    LINE_F,
+    Glass,
+    focal_lengths,
+    focal_shift,
+    render_dispersion,
+)
+
+# Schott N-BK7's Sellmeier coefficients and catalogue n_d, V_d (datasheet facts).
+BK7 = Glass.from_sellmeier(
+    [1.03961212, 0.231792344, 1.01046945], [0.00600069867, 0.0200179144, 103.560653]
+)
+
+
+def test_sellmeier_bk7_has_its_catalogue_index_and_abbe_number():
+    assert float(BK7.index(LINE_D)) == pytest.approx(1.5168, abs=1e-4)
+    assert BK7.abbe_number == pytest.approx(64.17, abs=0.05)
+
+
+def test_the_abbe_glass_follows_the_sellmeier_glass_across_the_visible():
+    cauchy = Glass.from_abbe(1.5168, 64.17)
+    wl = np.arange(400.0, 701.0, 10.0)
+    assert np.abs(cauchy.index(wl) - BK7.index(wl)).max() < 2e-4
+    # Figure 4a for both: the focal shifts of a 50 mm lens agree within 2 %
+    # of the blue end's 1.3 mm.
+    shift = focal_shift(cauchy, wl, 50.0)
+    assert np.abs(shift - focal_shift(BK7, wl, 50.0)).max() < 0.02 * abs(shift[0])
+
+
+@settings(max_examples=50, deadline=None)
+@given(n_d=st.floats(1.4, 2.0), v_d=st.floats(18.0, 95.0), f_d=st.floats(5.0, 500.0))
+def test_abbe_glasses_keep_their_numbers_and_spread_focus_by_f_over_v(n_d, v_d, f_d):
+    glass = Glass.from_abbe(n_d, v_d)
+    assert float(glass.index(LINE_D)) == pytest.approx(n_d, rel=1e-12)
+    assert glass.abbe_number == pytest.approx(v_d, rel=1e-9)
+    f_f, f_dd, f_c = focal_lengths(glass, [LINE_F, LINE_D, LINE_C], f_d)
+    assert f_dd == pytest.approx(f_d, rel=1e-12)
+    # Normal dispersion: red focuses farther than blue, by ~f_d / V_d (the
+    # first-order result; higher orders add (n - 1)^2 / (n_C - 1)(n_F - 1)).
+    assert f_f < f_dd < f_c
+    assert (f_c - f_f) == pytest.approx(f_d / v_d, rel=0.05)
+
+
+def test_bad_glasses_and_wavelengths_are_refused():
+    with pytest.raises(ValueError, match="n_d must be"):
+        Glass.from_abbe(0.9, 50)
+    with pytest.raises(ValueError, match="abbe_number must be"):
+        Glass.from_abbe(1.5, -3)
+    with pytest.raises(ValueError, match="3 values each"):
+        Glass.from_sellmeier([1, 2], [0, 0, 0])
+    with pytest.raises(ValueError, match="finite and > 0"):
+        BK7.index([500.0, np.nan])
+    with pytest.raises(ValueError, match="absorption pole"):
+        BK7.index([10_170.0])  # sqrt(C3) = 10.18 µm
+    with pytest.raises(ValueError, match="f_d must be"):
+        focal_lengths(BK7, [500.0], 0.0)
+
+
+def _two_points() -> np.ndarray:
+    cube = np.zeros((41, 61, 3), np.float32)
+    cube[20, 30] = 1.0  # on the axis
+    cube[20, 50] = 1.0  # 20 px off it
+    return cube
+
+
+def test_each_wavelength_is_defocused_and_magnified_by_its_focal_length():
+    glass = Glass.from_abbe(1.5168, 64.17)
+    wl = [400.0, LINE_D, 700.0]
+    out = render_dispersion(
+        _two_points(),
+        wl,
+        glass,
+        f_d=50.0,
+        N=4.0,
+        focus_distance=2000.0,
+        depth=2000.0,
+        pixel_pitch=0.05,
+    )
+    # The d line is focused and unmagnified: the image is the input.
+    np.testing.assert_array_equal(out[:, :, 1], _two_points()[:, :, 1])
+    f = focal_lengths(glass, wl, 50.0)
+    columns = np.arange(40, 61)
+    for i in (0, 2):
+        plane = out[:, :, i]
+        assert plane.max() < 0.5  # spread over a disc
+        # Lateral: the off-axis point's centroid lands at 30 + 20 f / f_d.
+        right = plane[:, 40:]
+        centroid = (right.sum(axis=0) * columns).sum() / right.sum()
+        assert centroid == pytest.approx(30 + 20 * f[i] / 50.0, abs=0.05)
+    # Blue is 1.3 mm short of focus, red 0.35 mm long: blue spreads wider.
+    assert out[:, :, 0].max() < out[:, :, 2].max()
+    still = render_dispersion(
+        _two_points(),
+        wl,
+        glass,
+        f_d=50.0,
+        N=4.0,
+        focus_distance=2000.0,
+        depth=2000.0,
+        pixel_pitch=0.05,
+        lateral=False,
+    )
+    # Without lateral aberration, each disc stays centred on its point.
+    for i in (0, 2):
+        right = still[:, 40:, i]
+        assert (right.sum(axis=0) * columns).sum() / right.sum() == pytest.approx(50.0, abs=1e-3)
+
+
+def test_render_dispersion_refuses_bad_input_by_name():
+    glass = Glass.from_abbe(1.5168, 64.17)
+    args = dict(f_d=50.0, N=4.0, focus_distance=2000.0, depth=2000.0, pixel_pitch=0.05)
+    with pytest.raises(TypeError, match="float32"):
+        render_dispersion(_two_points().astype(np.float64), [400, 500, 600], glass, **args)
+    with pytest.raises(ValueError, match="3 samples"):
+        render_dispersion(_two_points(), [400, 500], glass, **args)
+    # Focused at 10 km, the sensor is 0.25 µm behind the d line's focus:
+    # red's focal length, 0.35 mm longer, reaches past it.
+    with pytest.raises(ValueError, match="at 700 nm the focal length reaches the sensor"):
+        render_dispersion(_two_points(), [400, 500, 700], glass, **{**args, "focus_distance": 1e7})
