@@ -11,6 +11,7 @@ convention: ``colorize_plate(scan, reference="b")`` returns exactly them.
 
 from __future__ import annotations
 
+import math
 import operator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +21,9 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._frame import FRAME_SEARCH as FRAME_SEARCH
+from ._frame import channels_frame_box
+from ._frame import frame_box as frame_box
 
 Metric = Literal["ssd", "cosine", "ncc"]
 Features = Literal["intensity", "gradient"]
@@ -27,10 +31,10 @@ Channel = Literal["r", "g", "b"]
 
 _DTYPES = (np.uint8, np.uint16, np.float32)
 
-#: Fraction of each side :func:`colorize_plate` inspects for the scanning
-#: frame: the black border and white margin of the published scans stay
-#: within the outer ~6 % of a channel.
-FRAME_SEARCH = 0.08
+#: :func:`colorize_plate`'s default search range, as a fraction of a
+#: channel's shorter side: the exposures of a real plate are rarely more
+#: than ~6 % apart, and 20 % leaves room for any scan's cropping.
+DEFAULT_RANGE = 0.2
 
 
 @dataclass(frozen=True)
@@ -316,55 +320,6 @@ def stack_channels(r: Any, g: Any, b: Any) -> np.ndarray:
     return np.stack(chans, axis=-1)
 
 
-def _normalised(channel: np.ndarray) -> np.ndarray:
-    """A channel scaled so its 1st..99th percentiles span 0..1."""
-    c = channel.astype(np.float32)
-    lo, hi = np.percentile(c, [1, 99])
-    return (c - lo) / max(float(hi - lo), 1e-12)
-
-
-def _frame_edge(profile: np.ndarray) -> int:
-    """How many leading entries of a border profile (outermost first) belong
-    to the scanning frame: the innermost frame-like entry within the
-    inspected band, plus one."""
-    bad = np.flatnonzero(profile)
-    return int(bad[-1]) + 1 if bad.size else 0
-
-
-def frame_box(rgb: np.ndarray) -> tuple[int, int, int, int]:
-    """The rows ``top:bottom`` and columns ``left:right`` of an aligned plate
-    that lie inside the scanning frame.
-
-    Each channel is normalised to its 1st..99th percentiles; a pixel's
-    disagreement is the mean absolute difference of its channels from their
-    mean. Within the outer ``FRAME_SEARCH`` of each side, a row (column)
-    counts as frame when its mean level is near black (< 0.1) or near white
-    (> 0.95) (the scanner's border and margin), or when the 75th percentile
-    of its disagreement exceeds the median row's by more than 0.05 (where the
-    frame lines and damaged edges of the three exposures fall apart after
-    alignment, leaving coloured stripes). The crop keeps what lies inside the
-    innermost such row. Scene content rarely trips this: a bright sky is
-    below 0.95 after the percentile stretch and its channels agree.
-    """
-    n = np.stack([_normalised(rgb[..., c]) for c in range(3)], axis=-1)
-    mean = n.mean(axis=-1)
-    spread = np.abs(n - mean[..., None]).mean(axis=-1)
-
-    def frame_like(axis: int) -> np.ndarray:
-        level = mean.mean(axis=axis)
-        disagree = np.percentile(spread, 75, axis=axis)
-        return (level < 0.1) | (level > 0.95) | (disagree - np.median(disagree) > 0.05)
-
-    rows, cols = frame_like(1), frame_like(0)
-    h, w = mean.shape
-    by, bx = int(FRAME_SEARCH * h), int(FRAME_SEARCH * w)
-    top = _frame_edge(rows[:by])
-    bottom = h - _frame_edge(rows[::-1][:by])
-    left = _frame_edge(cols[:bx])
-    right = w - _frame_edge(cols[::-1][:bx])
-    return top, bottom, left, right
-
-
 def colorize_plate(
     plate: Any,
     *,
@@ -383,8 +338,10 @@ def colorize_plate(
     and red filters. It is cut into thirds (a remainder of one or two rows at
     the bottom is dropped), the two other channels are aligned onto
     ``reference`` with :func:`align` and shifted (:func:`apply_shift`), and the
-    result is cropped twice: by the borders the shifts leave empty, then (with
-    ``frame=True``) by the scanning frame as :func:`frame_box` finds it.
+    result is cropped twice: to the area all three channels cover (the
+    borders the shifts leave empty are cut), then (with ``frame=True``) by
+    the scanning frame as :func:`frame_box` finds it. Frame detection reads
+    only the outer bands of the plate, a small part of the alignment's cost.
 
     Parameters
     ----------
@@ -393,8 +350,10 @@ def colorize_plate(
     reference : {"g", "r", "b"}
         The channel the others are aligned onto (the lecture uses red).
     max_shift : int, optional
-        Default ``max(15, round(0.05 * min(H, W)))``: 15 for the small
-        published JPGs, ~160 for a full-resolution scan.
+        Default :func:`default_max_shift`: 20 % of the channel's shorter
+        side (at least 15), ~70 for the small published JPGs and ~650 for a
+        full-resolution scan; the coarse-to-fine search keeps it cheap and
+        exact at full resolution.
     metric, crop, pyramid, features, subpixel
         As in :func:`align`.
     frame : bool
@@ -435,7 +394,7 @@ def colorize_plate(
         raise ValueError(f'reference must be "r", "g" or "b", got {reference!r}')
     h = arr.shape[0] // 3
     chans = {"b": arr[:h], "g": arr[h : 2 * h], "r": arr[2 * h : 3 * h]}
-    k = max(15, round(0.05 * min(h, arr.shape[1]))) if max_shift is None else max_shift
+    k = default_max_shift(h, arr.shape[1]) if max_shift is None else max_shift
     ref = chans[reference]
     shifts: dict[str, Any] = {}
     for name in "rgb":
@@ -453,18 +412,40 @@ def colorize_plate(
             subpixel=subpixel,
         )
         shifts[name] = found.shift
-        chans[name] = apply_shift(chans[name], found.shift)
-    rgb = stack_channels(chans["r"], chans["g"], chans["b"])
-    dys = [s[0] for s in shifts.values()]
-    dxs = [s[1] for s in shifts.values()]
-    # Rows/columns the shifts emptied: up to the largest shift on each side.
-    top, left = int(np.ceil(max(dys))), int(np.ceil(max(dxs)))
-    bottom, right = int(np.ceil(max(-d for d in dys))), int(np.ceil(max(-d for d in dxs)))
-    rgb = rgb[top : rgb.shape[0] - bottom, left : rgb.shape[1] - right]
+    common = _common_area(h, arr.shape[1], shifts.values())
+    aligned = [_shifted_crop(chans[c], shifts[c], common) for c in "rgb"]
     if frame:
-        t, b, lft, rgt = frame_box(rgb)
-        rgb = rgb[t:b, lft:rgt]
-    return np.ascontiguousarray(rgb), shifts
+        t, b, lft, rgt = channels_frame_box(aligned)
+        aligned = [c[t:b, lft:rgt] for c in aligned]
+    return np.stack(aligned, axis=-1), shifts
+
+
+def default_max_shift(height: int, width: int) -> int:
+    """:func:`colorize_plate`'s search range for channels of ``height x
+    width``: ``DEFAULT_RANGE`` of the shorter side (at least 15), so any shift
+    a real plate has is inside it; the pyramid keeps the wide range cheap."""
+    return min(max(15, round(DEFAULT_RANGE * min(height, width))), min(height, width) - 1)
+
+
+def _common_area(h: int, w: int, shifts) -> tuple[slice, slice]:
+    """The rows and columns every shifted channel covers: the borders the
+    shifts empty, up to the largest shift on each side, are left out."""
+    dys = [s[0] for s in shifts]
+    dxs = [s[1] for s in shifts]
+    top, left = math.ceil(max(dys)), math.ceil(max(dxs))
+    bottom, right = math.ceil(max(-d for d in dys)), math.ceil(max(-d for d in dxs))
+    return slice(top, max(top, h - bottom)), slice(left, max(left, w - right))
+
+
+def _shifted_crop(channel: np.ndarray, shift, area: tuple[slice, slice]) -> np.ndarray:
+    """``apply_shift(channel, shift)[area]``; for an integer shift a view of
+    ``channel`` (no copy of the whole plate before the crop)."""
+    dy, dx = shift
+    rows, cols = area
+    if float(dy).is_integer() and float(dx).is_integer():
+        dy, dx = int(dy), int(dx)
+        return channel[rows.start - dy : rows.stop - dy, cols.start - dx : cols.stop - dx]
+    return apply_shift(channel, shift)[rows, cols]
 
 
 def read_plate(path: str | Path) -> np.ndarray:

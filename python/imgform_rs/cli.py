@@ -234,7 +234,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-shift",
         type=int,
         default=None,
-        help="largest |dy|, |dx| searched (default: 5%% of a channel's shorter side, >= 15)",
+        help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15)",
     )
     align.add_argument("--features", default="intensity", choices=["intensity", "gradient"])
     align.add_argument(
