@@ -488,3 +488,48 @@ def test_frame_detection_reads_full_resolution_rows_of_a_large_plate():
 def test_frame_box_of_a_plate_without_frame_keeps_everything():
     rgb, _ = ig.colorize_plate(synthetic_plate(np.uint8, h=300, w=280), frame=False)
     assert frame_box(rgb) == (0, rgb.shape[0], 0, rgb.shape[1])
+
+
+def test_low_confidence_flags_unrelated_channels_and_shifts_at_the_limit():
+    ref, mov = shifted_pair(3, 120, 130, 12, 5, -4)
+    good = ig.align(ref, mov, max_shift=10)
+    assert good.shift == (5, -4) and not good.low_confidence
+    beyond = ig.align(ref, mov, max_shift=4)  # the true dy = 5 is out of range
+    assert beyond.at_limit and beyond.low_confidence
+    noise = np.random.default_rng(1).random(ref.shape).astype(np.float32)
+    unrelated = ig.align(ref, noise, max_shift=10)
+    assert unrelated.low_confidence and unrelated.score < 0.3
+    flat = np.zeros_like(ref)
+    assert ig.align(flat, flat, max_shift=3).low_confidence
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_auto_balance_equalises_channel_means_and_stretches(dtype):
+    field = smooth_field(2, 90, 100)
+    gains = (0.9, 0.5, 0.3)
+    rgb = np.stack([as_dtype(0.1 + 0.6 * g * field, dtype) for g in gains], axis=-1)
+    white = ig.auto_balance(rgb, contrast=False)
+    means = white.reshape(-1, 3).astype(np.float64).mean(axis=0)
+    np.testing.assert_allclose(means, means.mean(), rtol=0.01)
+    both = ig.auto_balance(rgb, clip=0.01)
+    assert both.dtype == dtype and both.shape == rgb.shape
+    top = 1.0 if dtype == np.float32 else np.iinfo(dtype).max
+    level = both.astype(np.float64).mean(axis=-1)
+    # The 1 % quantiles of the channels' mean go to black and white (up to
+    # what clipping single channels moves the mean).
+    lo, hi = np.quantile(level, [0.01, 0.99])
+    assert lo <= 0.05 * top and hi >= 0.95 * top
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        ig.auto_balance(rgb[..., 0])
+    with pytest.raises(ValueError, match="clip"):
+        ig.auto_balance(rgb, clip=0.5)
+    with pytest.raises(TypeError, match="dtype"):
+        ig.auto_balance(rgb.astype(np.int32))
+
+
+def test_colorize_plate_finishes_with_balance_on_request():
+    plate = synthetic_plate(np.uint16)
+    plain, _ = ig.colorize_plate(plate, frame=False)
+    done, _ = ig.colorize_plate(plate, frame=False, white_balance=True, auto_contrast=True)
+    assert done.shape == plain.shape and done.dtype == np.uint16
+    np.testing.assert_array_equal(done, ig.auto_balance(plain))
