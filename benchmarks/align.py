@@ -248,8 +248,9 @@ ROTATED = {"r": (0.35, 1.0, 97.0, -58.0), "b": (-0.5, 1.0, -112.0, 83.0)}
 
 def rotated_plate() -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The synthetic plate with R and B rotated (degrees), scaled and shifted
-    as ``ROTATED`` says, and each channel's true matrix (reference pixel to
-    channel position, our ``Alignment.matrix``)."""
+    as ``ROTATED`` says (channel ``c`` holds the scene read through the
+    matrix ``S_c``: ``c(x) = g(S_c x)``), and each channel's true
+    ``Alignment.matrix``, ``S_c^-1`` (``c(S_c^-1 x) = g(x)``)."""
     from scipy import ndimage
     from skimage import data
 
@@ -265,7 +266,7 @@ def rotated_plate() -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         # Landing: x_ref = s R (x_c - c) + c + d, so x_c = R^-1 (x_ref - c - d) / s + c.
         inv = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]]) / scale
         off = np.array([cx, cy]) - inv @ np.array([cx + dx, cy + dy])
-        truth[name] = np.hstack([inv, off[:, None]])
+        truth[name] = np.linalg.inv(np.vstack([np.hstack([inv, off[:, None]]), [0, 0, 1]]))[:2]
         mx = inv[0, 0] * x + inv[0, 1] * y + off[0] + 200
         my = inv[1, 0] * x + inv[1, 1] * y + off[1] + 200
         ch = ndimage.map_coordinates(rgb[..., i], [my * zoom[0], mx * zoom[1]], order=1)
