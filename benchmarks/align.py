@@ -12,6 +12,17 @@
    1024 x 1024 image: imgform-rs (``pyramid=0``) against OpenCV's
    ``matchTemplate(TM_CCOEFF_NORMED)`` over the same window, and the NumPy
    search on one candidate row, extrapolated to 31 rows (marked "est.").
+3. The whole of ``colorize_plate`` with its defaults (20 % search range,
+   frame detection, crop, stacking) on that plate with a black scanner border
+   and a white margin on each exposure, against scikit-image's
+   ``phase_cross_correlation`` on the same two channel pairs: the issue's
+   goal is <= 0.25x.
+4. The same plate with R and B also rotated and scaled (similarity
+   transforms, known exactly): ``colorize_plate(motion="euclidean")`` and
+   ``align(motion="similarity")`` against OpenCV's ``findTransformECC``
+   (MOTION_EUCLIDEAN) run coarse to fine on a ``pyrDown`` pyramid, started
+   from the identity at its coarsest level (the classic recipe), with the
+   rotation, scale and worst corner errors of each.
 
 Run: ``.venv/bin/python benchmarks/align.py``.
 """
@@ -22,7 +33,7 @@ import math
 import time
 
 import numpy as np
-from _bench import Timing, measure, table
+from _bench import Timing, measure, measure_rounds, table
 
 import imgform_rs as ig
 
@@ -106,10 +117,7 @@ def skimage_shift(ref, mov):
     return round(float(shift[0])), round(float(shift[1]))
 
 
-def plate_section() -> None:
-    t0 = time.perf_counter()
-    ch = build_plate()
-    print(f"synthetic plate: 3 x {H} x {W} uint16, built in {time.perf_counter() - t0:.1f} s")
+def plate_section(ch: dict[str, np.ndarray]) -> None:
     ref = ch["g"]
     floats = {k: v.astype(np.float32) for k, v in ch.items()}
 
@@ -190,6 +198,169 @@ def single_scale_section() -> None:
     print(table(["method", "best s", "median s", "shift"], rows))
 
 
+def framed_plate(ch: dict[str, np.ndarray]) -> np.ndarray:
+    """The plate as scanned: B, G, R stacked, each with a black border on top
+    and a white margin on the left (scanner edges)."""
+    thirds = []
+    for name in "bgr":
+        c = ch[name].copy()
+        c[:40] = 300
+        c[:, :30] = 65000
+        thirds.append(c)
+    return np.vstack(thirds)
+
+
+def colorize_section(ch: dict[str, np.ndarray]) -> None:
+    plate = framed_plate(ch)
+    floats = {k: v.astype(np.float32) for k, v in ch.items()}
+    calls = {
+        "imgform-rs colorize_plate (defaults)": (lambda: ig.colorize_plate(plate), 3),
+        "imgform-rs colorize_plate (frame=False)": (
+            lambda: ig.colorize_plate(plate, frame=False),
+            3,
+        ),
+        "skimage phase_cross_correlation (R, B)": (
+            lambda: {c: skimage_shift(floats["g"], floats[c]) for c in "rb"},
+            1,
+        ),
+    }
+    timings = measure_rounds(calls)
+    rgb, shifts = ig.colorize_plate(plate)
+    err = max(math.hypot(shifts[c][0] - TRUTH[c][0], shifts[c][1] - TRUTH[c][1]) for c in "rb")
+    peer = timings["skimage phase_cross_correlation (R, B)"].best
+    rows = [
+        [name, f"{t.best:.3f}", f"{t.median:.3f}", f"{t.best / peer:.2f}"]
+        for name, t in timings.items()
+    ]
+    print(f"\ncolorize_plate on the framed plate: shifts {shifts}, max err {err:.2f} px")
+    print(f"output {rgb.shape}; frame detection's share of the default call:")
+    frame_share = 1 - timings["imgform-rs colorize_plate (frame=False)"].best / (
+        timings["imgform-rs colorize_plate (defaults)"].best
+    )
+    print(f"  {100 * max(frame_share, 0):.0f} %")
+    print(table(["method", "best s", "median s", "x skimage"], rows))
+
+
+# Rigid motions, so that a euclidean model (OpenCV's) is exact too; the
+# similarity fit must find scale 1.
+ROTATED = {"r": (0.35, 1.0, 97.0, -58.0), "b": (-0.5, 1.0, -112.0, 83.0)}
+
+
+def rotated_plate() -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The synthetic plate with R and B rotated (degrees), scaled and shifted
+    as ``ROTATED`` says (channel ``c`` holds the scene read through the
+    matrix ``S_c``: ``c(x) = g(S_c x)``), and each channel's true
+    ``Alignment.matrix``, ``S_c^-1`` (``c(S_c^-1 x) = g(x)``)."""
+    from scipy import ndimage
+    from skimage import data
+
+    rgb = data.astronaut().astype(np.float32) / 255.0
+    rng = np.random.default_rng(1)
+    cx, cy = (W - 1) / 2, (H - 1) / 2
+    zoom = ((rgb.shape[0] - 1) / (H + 399), (rgb.shape[1] - 1) / (W + 399))
+    y, x = np.mgrid[:H, :W].astype(np.float32)
+    chans, truth = {}, {}
+    for i, name in enumerate("rgb"):
+        angle, scale, dy, dx = ROTATED.get(name, (0.0, 1.0, 0.0, 0.0))
+        t = math.radians(angle)
+        # Landing: x_ref = s R (x_c - c) + c + d, so x_c = R^-1 (x_ref - c - d) / s + c.
+        inv = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]]) / scale
+        off = np.array([cx, cy]) - inv @ np.array([cx + dx, cy + dy])
+        truth[name] = np.linalg.inv(np.vstack([np.hstack([inv, off[:, None]]), [0, 0, 1]]))[:2]
+        mx = inv[0, 0] * x + inv[0, 1] * y + off[0] + 200
+        my = inv[1, 0] * x + inv[1, 1] * y + off[1] + 200
+        ch = ndimage.map_coordinates(rgb[..., i], [my * zoom[0], mx * zoom[1]], order=1)
+        ch = ch + rng.normal(0.0, NOISE, ch.shape).astype(np.float32)
+        chans[name] = np.floor(np.clip(ch, 0, 1) * 65535 + 0.5).astype(np.uint16)
+    return chans, truth
+
+
+def opencv_pyramid_ecc(ref: np.ndarray, mov: np.ndarray, levels: int = 4) -> np.ndarray:
+    """findTransformECC (MOTION_EUCLIDEAN) on each level of a pyrDown pyramid,
+    coarsest first, the translation doubled between levels."""
+    import cv2
+
+    pyr = [(ref.astype(np.float32) / 65535, mov.astype(np.float32) / 65535)]
+    for _ in range(levels - 1):
+        pyr.append(tuple(cv2.pyrDown(im) for im in pyr[-1]))
+    warp = np.eye(2, 3, dtype=np.float32)
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4)
+    for lvl, (r, m) in enumerate(reversed(pyr)):
+        if lvl:
+            warp[:, 2] *= 2
+        _, warp = cv2.findTransformECC(r, m, warp, cv2.MOTION_EUCLIDEAN, criteria, None, 5)
+    return warp.astype(np.float64)
+
+
+def motion_errors(m: np.ndarray, truth: np.ndarray) -> tuple[float, float, float]:
+    """Rotation error (degrees), relative scale error, and the worst error
+    over the corners of the 10 %-cropped window (pixels)."""
+
+    def angle_scale(a):
+        return math.degrees(math.atan2(a[1, 0], a[0, 0])), math.hypot(a[0, 0], a[1, 0])
+
+    (ra, sa), (rb, sb) = angle_scale(m), angle_scale(truth)
+    pts = np.array([[x, y, 1.0] for x in (0.1 * W, 0.9 * W) for y in (0.1 * H, 0.9 * H)])
+    corner = float(np.abs(pts @ m.T - pts @ truth.T).max())
+    return abs(ra - rb), abs(sa / sb - 1), corner
+
+
+def motion_section() -> None:
+    t0 = time.perf_counter()
+    ch, truth = rotated_plate()
+    took = time.perf_counter() - t0
+    print(f"\nrotated plate built in {took:.1f} s; R, B (angle deg, scale, dy, dx): {ROTATED}")
+    plate = np.vstack([ch["b"], ch["g"], ch["r"]])
+    ref = ch["g"]
+
+    def ours_similarity():
+        return {c: ig.align(ref, ch[c], max_shift=MAX_SHIFT, motion="similarity") for c in "rb"}
+
+    calls = {
+        "imgform-rs colorize_plate(motion='euclidean')": (
+            lambda: ig.colorize_plate(plate, motion="euclidean"),
+            2,
+        ),
+        "imgform-rs align(motion='similarity') x2": (ours_similarity, 2),
+        "OpenCV findTransformECC euclidean pyramid x2": (
+            lambda: {c: opencv_pyramid_ecc(ref, ch[c]) for c in "rb"},
+            1,
+        ),
+    }
+    timings = measure_rounds(calls)
+    euclid = ig.colorize_plate(plate, motion="euclidean")[1]
+    results = {
+        "imgform-rs colorize_plate(motion='euclidean')": {c: euclid[c].matrix for c in "rb"},
+        "imgform-rs align(motion='similarity') x2": {
+            c: a.matrix for c, a in ours_similarity().items()
+        },
+        "OpenCV findTransformECC euclidean pyramid x2": {
+            c: opencv_pyramid_ecc(ref, ch[c]) for c in "rb"
+        },
+    }
+    peer = timings["OpenCV findTransformECC euclidean pyramid x2"].best
+    rows = []
+    for name, t in timings.items():
+        errs = [motion_errors(results[name][c], truth[c]) for c in "rb"]
+        rows.append(
+            [
+                name,
+                f"{t.best:.3f}",
+                f"{t.best / peer:.2f}",
+                f"{max(e[0] for e in errs):.4f}",
+                f"{100 * max(e[1] for e in errs):.4f}",
+                f"{max(e[2] for e in errs):.3f}",
+            ]
+        )
+    heads = ["method", "best s", "x OpenCV", "rot err deg", "scale err %", "corner err px"]
+    print(table(heads, rows))
+
+
 if __name__ == "__main__":
-    plate_section()
+    t0 = time.perf_counter()
+    channels = build_plate()
+    print(f"synthetic plate: 3 x {H} x {W} uint16, built in {time.perf_counter() - t0:.1f} s")
+    plate_section(channels)
     single_scale_section()
+    colorize_section(channels)
+    motion_section()

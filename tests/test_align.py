@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 import imgform_rs as ig
 from conftest import output_with_threads
 from imgform_rs._png import write_png
+from imgform_rs.align import default_max_shift, frame_box
 from imgform_rs.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -331,10 +332,11 @@ def test_stack_channels():
         ig.stack_channels(r, g, b.astype(np.uint8))
 
 
-def synthetic_plate(dtype=np.uint8, h=150, w=160, g=(3, -2), r=(-4, 5), seed=4):
+def synthetic_plate(dtype=np.uint8, h=150, w=160, g=(3, -2), r=(-4, 5), seed=4, pad=10):
     """A B, G, R plate where ``np.roll`` of G by ``g`` and of R by ``r`` lands
-    them on B (all three are windows of one scene, with per-channel noise)."""
-    k = 10
+    them on B (all three are windows of one scene, with per-channel noise);
+    shifts up to ``pad``."""
+    k = pad
     big = smooth_field(seed, h + 2 * k, w + 2 * k, sigma=2.5)
     rng = np.random.default_rng(seed)
 
@@ -448,3 +450,86 @@ def test_cli_draws_a_progress_bar_on_a_terminal(tmp_path, monkeypatch, capsys):
     bar = term.getvalue()
     assert "1/3 plates" in bar and bar.endswith("3/3 plates\n")
     assert capsys.readouterr().out.count(" in ") == 3
+
+
+# --- defaults and frames of full-size plates -------------------------------------
+
+
+def test_default_search_range_covers_15_percent_of_the_channel():
+    h, w = 160, 200
+    far = (-24, 30)  # 15 % of the channel's height and width
+    plate = synthetic_plate(np.uint16, h=h, w=w, g=far, r=(20, -19), seed=7, pad=40)
+    assert default_max_shift(h, w) == 32
+    _, shifts = ig.colorize_plate(plate, reference="b", frame=False)
+    assert shifts == {"r": (20, -19), "g": far, "b": (0, 0)}
+
+
+def test_frame_detection_reads_full_resolution_rows_of_a_large_plate():
+    """On a plate large enough for the sampled statistics (step 2), the crop
+    still falls on the exact full-resolution rows and columns of the frame."""
+    h, w = 520, 600
+    plate = synthetic_plate(np.uint16, h=h, w=w, g=(3, -2), r=(-4, 5), seed=3).copy()
+    for third in range(3):
+        rows = slice(third * h, (third + 1) * h)
+        plate[rows][:13] = 0  # scanner border on top of each exposure
+        plate[rows][-9:] = 65535  # white margin at the bottom
+        plate[rows][:, -11:] = 0  # and on the right
+    rgb, _ = ig.colorize_plate(plate, reference="b")
+    framed, _ = ig.colorize_plate(plate, reference="b", frame=False)
+    # After the common-area crop (3 rows at the top, 4 at the bottom, 5
+    # columns left, 2 right), G's black rows reach row 13 - 3 + 3 = 13 of the
+    # crop and so on; nothing inside the frame is cut.
+    assert framed.shape == (h - 7, w - 7, 3)
+    top, bottom = 13, (h - 7) - (9 + 4 - 4)
+    right = (w - 7) - (11 + 2 - 2)
+    np.testing.assert_array_equal(rgb, framed[top:bottom, :right])
+
+
+def test_frame_box_of_a_plate_without_frame_keeps_everything():
+    rgb, _ = ig.colorize_plate(synthetic_plate(np.uint8, h=300, w=280), frame=False)
+    assert frame_box(rgb) == (0, rgb.shape[0], 0, rgb.shape[1])
+
+
+def test_low_confidence_flags_unrelated_channels_and_shifts_at_the_limit():
+    ref, mov = shifted_pair(3, 120, 130, 12, 5, -4)
+    good = ig.align(ref, mov, max_shift=10)
+    assert good.shift == (5, -4) and not good.low_confidence
+    beyond = ig.align(ref, mov, max_shift=4)  # the true dy = 5 is out of range
+    assert beyond.at_limit and beyond.low_confidence
+    noise = np.random.default_rng(1).random(ref.shape).astype(np.float32)
+    unrelated = ig.align(ref, noise, max_shift=10)
+    assert unrelated.low_confidence and unrelated.score < 0.3
+    flat = np.zeros_like(ref)
+    assert ig.align(flat, flat, max_shift=3).low_confidence
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+def test_auto_balance_equalises_channel_means_and_stretches(dtype):
+    field = smooth_field(2, 90, 100)
+    gains = (0.9, 0.5, 0.3)
+    rgb = np.stack([as_dtype(0.1 + 0.6 * g * field, dtype) for g in gains], axis=-1)
+    white = ig.auto_balance(rgb, contrast=False)
+    means = white.reshape(-1, 3).astype(np.float64).mean(axis=0)
+    np.testing.assert_allclose(means, means.mean(), rtol=0.01)
+    both = ig.auto_balance(rgb, clip=0.01)
+    assert both.dtype == dtype and both.shape == rgb.shape
+    top = 1.0 if dtype == np.float32 else np.iinfo(dtype).max
+    level = both.astype(np.float64).mean(axis=-1)
+    # The 1 % quantiles of the channels' mean go to black and white (up to
+    # what clipping single channels moves the mean).
+    lo, hi = np.quantile(level, [0.01, 0.99])
+    assert lo <= 0.05 * top and hi >= 0.95 * top
+    with pytest.raises(ValueError, match=r"\(H, W, 3\)"):
+        ig.auto_balance(rgb[..., 0])
+    with pytest.raises(ValueError, match="clip"):
+        ig.auto_balance(rgb, clip=0.5)
+    with pytest.raises(TypeError, match="dtype"):
+        ig.auto_balance(rgb.astype(np.int32))
+
+
+def test_colorize_plate_finishes_with_balance_on_request():
+    plate = synthetic_plate(np.uint16)
+    plain, _ = ig.colorize_plate(plate, frame=False)
+    done, _ = ig.colorize_plate(plate, frame=False, white_balance=True, auto_contrast=True)
+    assert done.shape == plain.shape and done.dtype == np.uint16
+    np.testing.assert_array_equal(done, ig.auto_balance(plain))

@@ -1,6 +1,7 @@
 # Stubs of the private native module; the documented API is the package itself.
 # Checked against the built module by `make lint` (mypy.stubtest).
 
+from collections.abc import Sequence
 from typing import Any, final
 
 import numpy as np
@@ -130,6 +131,18 @@ def align_images(
     npt.NDArray[np.float64],
     tuple[int, int],
     list[tuple[int, int, tuple[int, int], float]],
+]: ...
+def refine_warp(
+    reference: npt.NDArray[np.generic],
+    moving: npt.NDArray[np.generic],
+    motion: str,
+    init: Sequence[Sequence[float]],
+    crop: float,
+    levels: int | None,
+    max_iterations: int,
+    tolerance: float,
+) -> tuple[
+    tuple[tuple[float, float, float], tuple[float, float, float]], float, list[int], bool
 ]: ...
 
 # --- cfa ---

@@ -11,8 +11,9 @@ convention: ``colorize_plate(scan, reference="b")`` returns exactly them.
 
 from __future__ import annotations
 
+import math
 import operator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -20,17 +21,28 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._balance import auto_balance
+from ._frame import FRAME_SEARCH as FRAME_SEARCH
+from ._frame import channels_frame_box
+from ._frame import frame_box as frame_box
 
 Metric = Literal["ssd", "cosine", "ncc"]
+Motion = Literal["translation", "euclidean", "similarity", "affine"]
+MOTIONS = ("translation", "euclidean", "similarity", "affine")
 Features = Literal["intensity", "gradient"]
 Channel = Literal["r", "g", "b"]
 
 _DTYPES = (np.uint8, np.uint16, np.float32)
 
-#: Fraction of each side :func:`colorize_plate` inspects for the scanning
-#: frame: the black border and white margin of the published scans stay
-#: within the outer ~6 % of a channel.
-FRAME_SEARCH = 0.08
+#: Correlation (NCC, cosine or ECC) below which :attr:`Alignment.low_confidence`
+#: is set: aligned channels of a plate correlate at 0.6-0.99, unrelated
+#: images near 0.
+LOW_CORRELATION = 0.3
+
+#: :func:`colorize_plate`'s default search range, as a fraction of a
+#: channel's shorter side: the exposures of a real plate are rarely more
+#: than ~6 % apart, and 20 % leaves room for any scan's cropping.
+DEFAULT_RANGE = 0.2
 
 
 @dataclass(frozen=True)
@@ -62,8 +74,40 @@ class Alignment:
     surface_origin : tuple of int
         The shift of ``surface[0, 0]``.
     levels : tuple of Level
-        The pyramid levels, coarsest first.
+        The pyramid levels of the shift search, coarsest first.
     metric : str
+    motion : str
+        The motion model estimated.
+    matrix : ndarray, float64, shape (2, 3)
+        Maps a reference pixel ``(x, y, 1)`` (column, row) to the position of
+        ``moving`` that lands there: :func:`apply_warp` (or
+        ``cv2.warpAffine(moving, matrix, (W, H), flags=cv2.INTER_LINEAR |
+        cv2.WARP_INVERSE_MAP)``) registers ``moving`` on ``reference``, the
+        convention of OpenCV's ``findTransformECC`` with the reference as
+        template. For a translation ``[[1, 0, -dx], [0, 1, -dy]]``.
+    rotation : float
+        Radians by which ``moving`` turns to land on ``reference``
+        (positive from +x towards +y, i.e. clockwise on screen); 0 for a
+        translation. For an affine motion, that of its closest similarity.
+    scale : float
+        The factor ``moving`` is magnified by to land on ``reference``.
+    ecc : float
+        The ECC refinement's correlation (the NCC of ``reference`` and the
+        registered ``moving`` over the cropped window) at the final warp;
+        NaN for ``motion="translation"`` (see ``score``).
+    iterations : tuple of int
+        Gauss-Newton steps per ECC pyramid level, coarsest first.
+    converged : bool
+        Whether the finest ECC level met its tolerance (always True for a
+        translation).
+    at_limit : bool
+        Whether the best shift lies on the edge of the search range: the
+        true shift may be beyond it.
+
+    For motions other than a translation, ``shift`` is the float ``(dy,
+    dx)`` that lands the moving image's point on the reference's centre,
+    ``surface``, ``score`` and ``levels`` those of the translation search
+    that started the refinement.
     """
 
     shift: tuple[float, float] | tuple[int, int]
@@ -72,6 +116,32 @@ class Alignment:
     surface_origin: tuple[int, int]
     levels: tuple[Level, ...]
     metric: str
+    motion: str = "translation"
+    matrix: npt.NDArray[np.float64] = field(default_factory=lambda: _translation(0, 0))
+    rotation: float = 0.0
+    scale: float = 1.0
+    ecc: float = math.nan
+    iterations: tuple[int, ...] = ()
+    converged: bool = True
+    at_limit: bool = False
+
+    @property
+    def low_confidence(self) -> bool:
+        """Whether the result should not be trusted: the shift is on the
+        edge of the search range, the ECC refinement did not converge, or
+        the correlation (``ecc`` for refined motions, ``score`` for NCC and
+        cosine searches) is below ``LOW_CORRELATION``. Unrelated or
+        near-constant channels and motions beyond the range land here."""
+        if self.at_limit or not self.converged:
+            return True
+        if self.motion != "translation":
+            return not self.ecc >= LOW_CORRELATION
+        return self.metric != "ssd" and not self.score >= LOW_CORRELATION
+
+
+def _translation(dy: float, dx: float) -> np.ndarray:
+    """The matrix of the shift ``(dy, dx)``: it reads pixel ``(x - dx, y - dy)``."""
+    return np.array([[1.0, 0.0, -dx], [0.0, 1.0, -dy]])
 
 
 def _image(value: Any, name: str) -> np.ndarray:
@@ -143,8 +213,11 @@ def align(
     pyramid: int | str = "auto",
     features: Features = "intensity",
     subpixel: bool = False,
+    motion: Motion = "translation",
+    max_iterations: int = 50,
+    tolerance: float = 0.01,
 ) -> Alignment:
-    """Find the shift that lands ``moving`` on ``reference``.
+    """Find the shift (or warp) that lands ``moving`` on ``reference``.
 
     Every candidate ``(dy, dx)`` in ``[-max_shift, max_shift]^2`` is scored
     (rayon-parallel; the result is identical for any thread count): the
@@ -178,6 +251,22 @@ def align(
     subpixel : bool
         Refine the peak with a parabola through its neighbours on each axis
         (float shift, at most 0.5 px from the integer one).
+    motion : {"translation", "euclidean", "similarity", "affine"}
+        ``"translation"`` is the exhaustive shift search above. The others
+        start from its shift and refine a rotation (``"euclidean"``), a
+        rotation and isotropic scale (``"similarity"``) or a general linear
+        map (``"affine"``) with the translation by maximising the ECC
+        (Evangelidis & Psarakis 2008, as OpenCV's ``findTransformECC``),
+        Gauss-Newton steps coarse to fine through a pyramid whose coarsest
+        level keeps >= 160 pixels per side; the per-pixel sums run in Rust
+        over row bands and do not depend on the thread count. ECC ignores
+        gain and offset between the channels, whatever ``metric`` the shift
+        search used.
+    max_iterations : int
+        Most Gauss-Newton steps per pyramid level.
+    tolerance : float
+        A level stops once a step moves no corner of the window by more
+        than this many full-resolution pixels.
 
     Returns
     -------
@@ -188,8 +277,11 @@ def align(
     ValueError
         Different shapes; ``max_shift`` negative or not smaller than the
         image; images too small for the search (an overlap of fewer than 2
-        pixels per axis at some level); ``crop`` outside [0, 0.5); NaN or
-        infinite samples; an unknown metric, features or pyramid.
+        pixels per axis at some level) or for the motion (fewer than 64
+        window pixels per parameter); ``crop`` outside [0, 0.5); NaN or
+        infinite samples; an unknown metric, features, pyramid or motion;
+        a channel ECC cannot follow (constant, or without texture along
+        some parameter) or a warp that leaves the moving image.
     TypeError
         Unsupported or different dtypes; a non-integer ``max_shift``.
 
@@ -201,6 +293,8 @@ def align(
     >>> align(ref, moving, max_shift=5).shift
     (3, -2)
     """
+    if motion not in MOTIONS:
+        raise ValueError(f"motion must be one of {', '.join(MOTIONS)}, got {motion!r}")
     k = operator.index(max_shift)
     shift, score, surface, origin, levels = _native.align_images(
         _image(reference, "reference"),
@@ -214,13 +308,52 @@ def align(
     )
     if not subpixel:
         shift = (int(shift[0]), int(shift[1]))
-    return Alignment(
+    found = Alignment(
         shift=shift,
         score=score,
         surface=surface,
         surface_origin=origin,
         levels=tuple(Level(*lv) for lv in levels),
         metric=str(metric),
+        matrix=_translation(*shift),
+        at_limit=k > 0 and max(abs(round(shift[0])), abs(round(shift[1]))) >= k,
+    )
+    if motion == "translation":
+        return found
+    return _refined(reference, moving, found, str(motion), crop, max_iterations, tolerance)
+
+
+def _refined(reference, moving, found: Alignment, motion, crop, max_iterations, tolerance):
+    """``found`` (a translation) refined under ``motion`` by ECC."""
+    matrix, ecc, iterations, converged = _native.refine_warp(
+        _image(reference, "reference"),
+        _image(moving, "moving"),
+        motion,
+        found.matrix.tolist(),
+        float(crop),
+        None,
+        operator.index(max_iterations),
+        float(tolerance),
+    )
+    m = np.array(matrix)
+    h, w = np.shape(reference)
+    centre = np.array([(w - 1) / 2, (h - 1) / 2])
+    # The moving point read at the reference's centre lands there.
+    dx, dy = centre - (m[:, :2] @ centre + m[:, 2])
+    # The similarity closest to the linear part (exact for the others):
+    # moving is rotated and scaled by the inverse of it.
+    a = 0.5 * (m[0, 0] + m[1, 1])
+    b = 0.5 * (m[1, 0] - m[0, 1])
+    return replace(
+        found,
+        shift=(float(dy), float(dx)),
+        motion=motion,
+        matrix=m,
+        rotation=-math.atan2(b, a),
+        scale=1.0 / math.hypot(a, b),
+        ecc=float(ecc),
+        iterations=tuple(iterations),
+        converged=bool(converged),
     )
 
 
@@ -295,6 +428,53 @@ def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
     return acc.astype(img.dtype)
 
 
+def apply_warp(
+    image: Any, matrix: Any, *, fill: float = 0, interpolation: str = "bilinear"
+) -> np.ndarray:
+    """Resample ``image`` through a 2x3 ``matrix`` (an :attr:`Alignment.matrix`):
+    ``out[y, x] = image at matrix @ (x, y, 1)``, with the remap kernel of
+    :func:`imgform_rs.remap` (taps outside the image read ``fill``).
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, C), uint8, uint16 or float32
+    matrix : array_like, shape (2, 3)
+    fill : number
+    interpolation : {"bilinear", "bicubic"}
+
+    Returns
+    -------
+    ndarray, same shape and dtype as ``image``
+
+    Raises
+    ------
+    ValueError
+        A matrix that is not 2x3 and finite; everything :func:`remap` refuses.
+
+    Examples
+    --------
+    >>> img = np.arange(12, dtype=np.float32).reshape(3, 4)
+    >>> apply_warp(img, [[1, 0, 1], [0, 1, 0]], fill=-1)[0]
+    array([ 1.,  2.,  3., -1.], dtype=float32)
+    """
+    from .remap import remap
+
+    m = np.asarray(matrix, dtype=np.float64)
+    if m.shape != (2, 3) or not np.all(np.isfinite(m)):
+        raise ValueError(f"matrix must be a finite 2x3 array, got {matrix!r}")
+    img = np.asarray(image)
+    if img.ndim not in (2, 3):
+        raise ValueError(f"image must be (H, W) or (H, W, C), got shape {img.shape}")
+    h, w = img.shape[:2]
+    # One row and one column term in float64, their sum in float32: exact to
+    # ~1e-4 px below 4000 px, well inside the remap's 1/256 px positions.
+    x = np.arange(w, dtype=np.float64)[None, :]
+    y = np.arange(h, dtype=np.float64)[:, None]
+    map_x = (m[0, 0] * x).astype(np.float32) + (m[0, 1] * y + m[0, 2]).astype(np.float32)
+    map_y = (m[1, 0] * x).astype(np.float32) + (m[1, 1] * y + m[1, 2]).astype(np.float32)
+    return remap(img, (map_x, map_y), interpolation=interpolation, fill=fill)
+
+
 def stack_channels(r: Any, g: Any, b: Any) -> np.ndarray:
     """Stack three (H, W) channels of one shape and dtype into an (H, W, 3) RGB
     image (channel order R, G, B as everywhere in imgform-rs).
@@ -316,55 +496,6 @@ def stack_channels(r: Any, g: Any, b: Any) -> np.ndarray:
     return np.stack(chans, axis=-1)
 
 
-def _normalised(channel: np.ndarray) -> np.ndarray:
-    """A channel scaled so its 1st..99th percentiles span 0..1."""
-    c = channel.astype(np.float32)
-    lo, hi = np.percentile(c, [1, 99])
-    return (c - lo) / max(float(hi - lo), 1e-12)
-
-
-def _frame_edge(profile: np.ndarray) -> int:
-    """How many leading entries of a border profile (outermost first) belong
-    to the scanning frame: the innermost frame-like entry within the
-    inspected band, plus one."""
-    bad = np.flatnonzero(profile)
-    return int(bad[-1]) + 1 if bad.size else 0
-
-
-def frame_box(rgb: np.ndarray) -> tuple[int, int, int, int]:
-    """The rows ``top:bottom`` and columns ``left:right`` of an aligned plate
-    that lie inside the scanning frame.
-
-    Each channel is normalised to its 1st..99th percentiles; a pixel's
-    disagreement is the mean absolute difference of its channels from their
-    mean. Within the outer ``FRAME_SEARCH`` of each side, a row (column)
-    counts as frame when its mean level is near black (< 0.1) or near white
-    (> 0.95) (the scanner's border and margin), or when the 75th percentile
-    of its disagreement exceeds the median row's by more than 0.05 (where the
-    frame lines and damaged edges of the three exposures fall apart after
-    alignment, leaving coloured stripes). The crop keeps what lies inside the
-    innermost such row. Scene content rarely trips this: a bright sky is
-    below 0.95 after the percentile stretch and its channels agree.
-    """
-    n = np.stack([_normalised(rgb[..., c]) for c in range(3)], axis=-1)
-    mean = n.mean(axis=-1)
-    spread = np.abs(n - mean[..., None]).mean(axis=-1)
-
-    def frame_like(axis: int) -> np.ndarray:
-        level = mean.mean(axis=axis)
-        disagree = np.percentile(spread, 75, axis=axis)
-        return (level < 0.1) | (level > 0.95) | (disagree - np.median(disagree) > 0.05)
-
-    rows, cols = frame_like(1), frame_like(0)
-    h, w = mean.shape
-    by, bx = int(FRAME_SEARCH * h), int(FRAME_SEARCH * w)
-    top = _frame_edge(rows[:by])
-    bottom = h - _frame_edge(rows[::-1][:by])
-    left = _frame_edge(cols[:bx])
-    right = w - _frame_edge(cols[::-1][:bx])
-    return top, bottom, left, right
-
-
 def colorize_plate(
     plate: Any,
     *,
@@ -376,15 +507,20 @@ def colorize_plate(
     features: Features = "intensity",
     subpixel: bool = False,
     frame: bool = True,
-) -> tuple[np.ndarray, dict[str, tuple[float, float] | tuple[int, int]]]:
+    motion: Motion = "translation",
+    white_balance: bool = False,
+    auto_contrast: bool = False,
+) -> tuple[np.ndarray, dict[str, Any]]:
     """Colourise a Prokudin-Gorskii glass-plate scan.
 
     The scan holds three exposures stacked top to bottom through blue, green
     and red filters. It is cut into thirds (a remainder of one or two rows at
     the bottom is dropped), the two other channels are aligned onto
     ``reference`` with :func:`align` and shifted (:func:`apply_shift`), and the
-    result is cropped twice: by the borders the shifts leave empty, then (with
-    ``frame=True``) by the scanning frame as :func:`frame_box` finds it.
+    result is cropped twice: to the area all three channels cover (the
+    borders the shifts leave empty are cut), then (with ``frame=True``) by
+    the scanning frame as :func:`frame_box` finds it. Frame detection reads
+    only the outer bands of the plate, a small part of the alignment's cost.
 
     Parameters
     ----------
@@ -393,19 +529,31 @@ def colorize_plate(
     reference : {"g", "r", "b"}
         The channel the others are aligned onto (the lecture uses red).
     max_shift : int, optional
-        Default ``max(15, round(0.05 * min(H, W)))``: 15 for the small
-        published JPGs, ~160 for a full-resolution scan.
+        Default :func:`default_max_shift`: 20 % of the channel's shorter
+        side (at least 15), ~70 for the small published JPGs and ~650 for a
+        full-resolution scan; the coarse-to-fine search keeps it cheap and
+        exact at full resolution.
     metric, crop, pyramid, features, subpixel
         As in :func:`align`.
     frame : bool
         Crop the scanning frame.
+    motion : {"translation", "euclidean", "similarity", "affine"}
+        As in :func:`align`; other motions than a translation resample the
+        channels through their matrices (:func:`apply_warp`, bilinear) and
+        crop to the rectangle inside all three warped channels.
+    white_balance, auto_contrast : bool
+        Finish the cropped result with :func:`auto_balance` (grey-world
+        gains; a stretch of the 0.5 %..99.5 % quantiles to the full range).
 
     Returns
     -------
     rgb : ndarray, shape (h, w, 3), the plate's dtype
-    shifts : dict
-        ``{"r": (dy, dx), "g": ..., "b": ...}``, each relative to
-        ``reference`` (which gets ``(0, 0)``) in the ``np.roll`` convention.
+    found : dict
+        For a translation ``{"r": (dy, dx), "g": ..., "b": ...}``, each
+        relative to ``reference`` (which gets ``(0, 0)``) in the ``np.roll``
+        convention. For other motions the :class:`Alignment` of each channel
+        (``.matrix``, ``.rotation``, ``.scale``, ``.shift``, ``.ecc``); the
+        reference's is the identity.
 
     Raises
     ------
@@ -435,36 +583,118 @@ def colorize_plate(
         raise ValueError(f'reference must be "r", "g" or "b", got {reference!r}')
     h = arr.shape[0] // 3
     chans = {"b": arr[:h], "g": arr[h : 2 * h], "r": arr[2 * h : 3 * h]}
-    k = max(15, round(0.05 * min(h, arr.shape[1]))) if max_shift is None else max_shift
+    k = default_max_shift(h, arr.shape[1]) if max_shift is None else max_shift
     ref = chans[reference]
-    shifts: dict[str, Any] = {}
+    found: dict[str, Alignment] = {}
     for name in "rgb":
-        if name == reference:
-            shifts[name] = (0.0, 0.0) if subpixel else (0, 0)
-            continue
-        found = align(
-            ref,
-            chans[name],
-            max_shift=k,
-            metric=metric,
-            crop=crop,
-            pyramid=pyramid,
-            features=features,
-            subpixel=subpixel,
-        )
-        shifts[name] = found.shift
-        chans[name] = apply_shift(chans[name], found.shift)
-    rgb = stack_channels(chans["r"], chans["g"], chans["b"])
-    dys = [s[0] for s in shifts.values()]
-    dxs = [s[1] for s in shifts.values()]
-    # Rows/columns the shifts emptied: up to the largest shift on each side.
-    top, left = int(np.ceil(max(dys))), int(np.ceil(max(dxs)))
-    bottom, right = int(np.ceil(max(-d for d in dys))), int(np.ceil(max(-d for d in dxs)))
-    rgb = rgb[top : rgb.shape[0] - bottom, left : rgb.shape[1] - right]
+        if name != reference:
+            found[name] = align(
+                ref,
+                chans[name],
+                max_shift=k,
+                metric=metric,
+                crop=crop,
+                pyramid=pyramid,
+                features=features,
+                subpixel=subpixel,
+                motion=motion,
+            )
+    if motion == "translation":
+        zero = (0.0, 0.0) if subpixel else (0, 0)
+        shifts = {c: found[c].shift if c in found else zero for c in "rgb"}
+        common = _common_area(h, arr.shape[1], shifts.values())
+        aligned = [_shifted_crop(chans[c], shifts[c], common) for c in "rgb"]
+    else:
+        found[reference] = _identity(metric, motion)
+        shifts = {c: found[c] for c in "rgb"}
+        rows, cols = _warped_area(h, arr.shape[1], [a.matrix for a in shifts.values()])
+        aligned = [
+            chans[c][rows, cols]
+            if c == reference
+            else apply_warp(chans[c], found[c].matrix)[rows, cols]
+            for c in "rgb"
+        ]
     if frame:
-        t, b, lft, rgt = frame_box(rgb)
-        rgb = rgb[t:b, lft:rgt]
-    return np.ascontiguousarray(rgb), shifts
+        t, b, lft, rgt = channels_frame_box(aligned)
+        aligned = [c[t:b, lft:rgt] for c in aligned]
+    rgb = np.stack(aligned, axis=-1)
+    if white_balance or auto_contrast:
+        rgb = auto_balance(rgb, contrast=auto_contrast, white_balance=white_balance)
+    return rgb, shifts
+
+
+def describe_estimate(found: tuple | Alignment) -> str:
+    """One channel's entry of :func:`colorize_plate`'s result in words: its
+    shift, or for other motions the rotation, scale, centre shift and ECC
+    (what ``imgform align`` reports per plate)."""
+    if not isinstance(found, Alignment):
+        return str(found)
+    dy, dx = found.shift
+    text = (
+        f"rotation {math.degrees(found.rotation):.3f} deg, scale {found.scale:.5f}, "
+        f"shift ({dy:.2f}, {dx:.2f}), ECC {found.ecc:.3f}"
+    )
+    return text + " (LOW CONFIDENCE)" if found.low_confidence else text
+
+
+def default_max_shift(height: int, width: int) -> int:
+    """:func:`colorize_plate`'s search range for channels of ``height x
+    width``: ``DEFAULT_RANGE`` of the shorter side (at least 15), so any shift
+    a real plate has is inside it; the pyramid keeps the wide range cheap."""
+    return min(max(15, round(DEFAULT_RANGE * min(height, width))), min(height, width) - 1)
+
+
+def _common_area(h: int, w: int, shifts) -> tuple[slice, slice]:
+    """The rows and columns every shifted channel covers: the borders the
+    shifts empty, up to the largest shift on each side, are left out."""
+    dys = [s[0] for s in shifts]
+    dxs = [s[1] for s in shifts]
+    top, left = math.ceil(max(dys)), math.ceil(max(dxs))
+    bottom, right = math.ceil(max(-d for d in dys)), math.ceil(max(-d for d in dxs))
+    return slice(top, max(top, h - bottom)), slice(left, max(left, w - right))
+
+
+def _identity(metric: str, motion: str) -> Alignment:
+    """The reference channel's alignment onto itself."""
+    return Alignment(
+        shift=(0.0, 0.0),
+        score=math.nan,
+        surface=np.empty((0, 0)),
+        surface_origin=(0, 0),
+        levels=(),
+        metric=metric,
+        motion=motion,
+        matrix=_translation(0, 0),
+        ecc=1.0,
+    )
+
+
+def _warped_area(h: int, w: int, matrices) -> tuple[slice, slice]:
+    """The rows and columns inside every warped channel: for each matrix
+    (reference pixel to channel position) the moving image's edges are
+    mapped back into the reference and the box inside them kept, one pixel
+    in so that no bilinear tap reads outside."""
+    top, bottom, left, right = 0.0, h - 1.0, 0.0, w - 1.0
+    for m in matrices:
+        inv = np.linalg.inv(np.vstack([m, [0.0, 0.0, 1.0]]))[:2]
+        corners = np.array([[0, 0, 1], [w - 1, 0, 1], [0, h - 1, 1], [w - 1, h - 1, 1]], float)
+        (x00, y00), (x10, y10), (x01, y01), (x11, y11) = corners @ inv.T
+        top, bottom = max(top, y00, y10), min(bottom, y01, y11)
+        left, right = max(left, x00, x01), min(right, x10, x11)
+    t, lft = math.ceil(top) + 1, math.ceil(left) + 1
+    b, rgt = math.floor(bottom), math.floor(right)
+    return slice(t, max(t, b)), slice(lft, max(lft, rgt))
+
+
+def _shifted_crop(channel: np.ndarray, shift, area: tuple[slice, slice]) -> np.ndarray:
+    """``apply_shift(channel, shift)[area]``; for an integer shift a view of
+    ``channel`` (no copy of the whole plate before the crop)."""
+    dy, dx = shift
+    rows, cols = area
+    if float(dy).is_integer() and float(dx).is_integer():
+        dy, dx = int(dy), int(dx)
+        return channel[rows.start - dy : rows.stop - dy, cols.start - dx : cols.stop - dx]
+    return apply_shift(channel, shift)[rows, cols]
 
 
 def read_plate(path: str | Path) -> np.ndarray:

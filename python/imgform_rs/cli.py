@@ -94,11 +94,14 @@ def _align(args: argparse.Namespace) -> int:
             "metric": args.metric,
             "max_shift": args.max_shift,
             "features": args.features,
+            "motion": args.motion,
+            "white_balance": args.white_balance,
+            "auto_contrast": args.auto_contrast,
         }
         return _on_cluster(args, align_many, args.plates, "plates", **options)
 
     from ._png import for_png, write_png
-    from .align import colorize_plate, read_plate
+    from .align import colorize_plate, describe_estimate, read_plate
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -111,12 +114,15 @@ def _align(args: argparse.Namespace) -> int:
         else:
             start = time.perf_counter()
             try:
-                rgb, shifts = colorize_plate(
+                rgb, found = colorize_plate(
                     read_plate(path),
                     reference=args.reference,
                     metric=args.metric,
                     max_shift=args.max_shift,
                     features=args.features,
+                    motion=args.motion,
+                    white_balance=args.white_balance,
+                    auto_contrast=args.auto_contrast,
                 )
                 write_png(target, for_png(rgb))
             except (ValueError, TypeError, OSError) as exc:
@@ -124,7 +130,11 @@ def _align(args: argparse.Namespace) -> int:
                 print(f"imgform align: {path}: {exc}", file=sys.stderr)
             else:
                 took = time.perf_counter() - start
-                moved = ", ".join(f"{c.upper()} {shifts[c]}" for c in "rgb" if c != args.reference)
+                moved = ", ".join(
+                    f"{c.upper()} {describe_estimate(found[c])}"
+                    for c in "rgb"
+                    if c != args.reference
+                )
                 print(f"{path}: {moved} onto {args.reference.upper()} in {took:.2f} s -> {target}")
         _progress(i, len(args.plates))
     if failed:
@@ -326,9 +336,21 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-shift",
         type=int,
         default=None,
-        help="largest |dy|, |dx| searched (default: 5%% of a channel's shorter side, >= 15)",
+        help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15)",
     )
     align.add_argument("--features", default="intensity", choices=["intensity", "gradient"])
+    align.add_argument(
+        "--motion",
+        default="translation",
+        choices=["translation", "euclidean", "similarity", "affine"],
+        help="motion model between the exposures (default: translation, the exact shift search)",
+    )
+    align.add_argument(
+        "--white-balance", action="store_true", help="grey-world balance of the result"
+    )
+    align.add_argument(
+        "--auto-contrast", action="store_true", help="stretch the result to the full range"
+    )
     align.add_argument(
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )

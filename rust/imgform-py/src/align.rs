@@ -1,6 +1,6 @@
 //! Bindings of `imgform_core::align`.
 
-use imgform_core::align::{self, Features, Metric, Options, Pyramid};
+use imgform_core::align::{self, EccOptions, Features, Matrix, Metric, Motion, Options, Pyramid};
 use imgform_core::image::{ImageView, Sample};
 use numpy::{Element, PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyTypeError;
@@ -136,8 +136,54 @@ fn align_images<'py>(
     dispatch_image!(img, align_of(py, moving, opts))
 }
 
+/// What a refinement returns: (matrix rows, score, iterations per level,
+/// converged).
+type RefineTuple = ([[f64; 3]; 2], f64, Vec<usize>, bool);
+
+fn refine_of<'py, T: Element + Sample>(
+    a: PyReadonlyArrayDyn<'py, T>,
+    py: Python<'py>,
+    b: &Bound<'py, PyAny>,
+    motion: Motion,
+    init: Matrix,
+    opts: EccOptions,
+) -> PyResult<RefineTuple> {
+    let res = with_views(py, a, b, ("reference", "moving"), |va, vb| {
+        align::refine(va, vb, motion, &init, &opts)
+    })?;
+    Ok((res.matrix, res.score, res.iterations, res.converged))
+}
+
+/// Refines `init` (2x3, reference pixel to moving position) under `motion`
+/// by ECC, coarse to fine; `levels=None` is the automatic pyramid.
+#[pyfunction]
+#[pyo3(signature = (reference, moving, motion, init, crop, levels, max_iterations, tolerance))]
+#[allow(clippy::too_many_arguments)]
+fn refine_warp(
+    py: Python<'_>,
+    reference: &Bound<'_, PyAny>,
+    moving: &Bound<'_, PyAny>,
+    motion: &str,
+    init: [[f64; 3]; 2],
+    crop: f64,
+    levels: Option<usize>,
+    max_iterations: usize,
+    tolerance: f64,
+) -> PyResult<RefineTuple> {
+    let motion = Motion::parse(motion).map_err(to_pyerr)?;
+    let opts = EccOptions {
+        crop,
+        levels,
+        max_iterations,
+        tolerance,
+    };
+    let img = AnyImage::extract(reference, "reference")?;
+    dispatch_image!(img, refine_of(py, moving, motion, init, opts))
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(similarity, m)?)?;
     m.add_function(wrap_pyfunction!(align_images, m)?)?;
+    m.add_function(wrap_pyfunction!(refine_warp, m)?)?;
     Ok(())
 }

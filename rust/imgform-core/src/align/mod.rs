@@ -11,11 +11,15 @@
 //! at most [`COARSE_RADIUS`] pixels, then refines by [`REFINE_RADIUS`] at each
 //! finer level: a few hundred candidates at the top, 25 per level below.
 
+mod ecc;
 mod metric;
+mod motion;
 mod pyramid;
 mod search;
 
+pub use ecc::{refine, EccOptions, Refined};
 pub use metric::Metric;
+pub use motion::{invert, Matrix, Motion, IDENTITY};
 use pyramid::{Converted, Plane, Rows};
 
 use crate::error::{CoreError, Result};

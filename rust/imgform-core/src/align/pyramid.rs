@@ -147,6 +147,19 @@ impl Plane {
         &self.data[y * self.width..(y + 1) * self.width]
     }
 
+    /// `src` as a plane (same offset), rows converted in parallel.
+    pub fn from_rows(src: &impl Rows) -> Self {
+        let (w, h) = (src.width(), src.height());
+        let mut data = vec![0.0f32; w * h];
+        for_each_row(&mut data, w, |y, row| src.fill_row(y, row));
+        Self {
+            data,
+            width: w,
+            height: h,
+            offset: src.offset(),
+        }
+    }
+
     /// The 2x2 box average of `src` (odd last row/column dropped): halves
     /// the resolution with the cheapest filter that still suppresses the
     /// aliasing a plain decimation would feed to the coarse search.
