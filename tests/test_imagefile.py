@@ -118,6 +118,22 @@ def test_each_profile_describes_its_space():
     assert icc_profile("camera", "srgb") is None
 
 
+def test_a_profile_is_the_same_bytes_whenever_it_is_made():
+    import hashlib
+    import time
+
+    first = icc_profile("display_p3", "srgb")
+    icc_profile.cache_clear()
+    time.sleep(1.1)  # LittleCMS stamps the second a profile is made
+    again = icc_profile("display_p3", "srgb")
+    assert again == first
+    assert first[24:36] == bytes.fromhex("07ea00010001000000000000")  # 2026-01-01 00:00:00
+    # The profile ID is the MD5 of the profile with flags, intent and ID zeroed.
+    blank = bytearray(first)
+    blank[44:48], blank[64:68], blank[84:100] = bytes(4), bytes(4), bytes(16)
+    assert hashlib.md5(blank).digest() == first[84:100]
+
+
 def test_profiles_convert_between_spaces_as_the_matrices_do(tmp_path):
     """Pillow converts our Adobe RGB file to sRGB through the embedded profile;
     for colours inside sRGB that is the developed sRGB picture."""

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import struct
 from typing import Any
 
 from .colorspace import COLOR_SPACES
@@ -35,6 +36,13 @@ _CURVES: dict[str, tuple[int, tuple[float, ...]]] = {
     "romm": (_TOED, (1.8, 1.0, 0.0, 1 / 16, 1 / 32)),
 }
 _DESC, _CPRT = 0x64657363, 0x63707274  # 'desc', 'cprt'
+#: The profiles' creation date and time, ICC header bytes 24-35 (year, month,
+#: day, hour, minute, second as big-endian u16). LittleCMS stamps the moment a
+#: profile is made, so two processes (a batch's workers and the caller) wrote
+#: files that differed in those bytes; a fixed date makes a profile, and every
+#: file embedding it, the same bytes wherever and whenever it is made.
+_CREATED = struct.pack(">6H", 2026, 1, 1, 0, 0, 0)
+_CREATED_AT = 24
 
 
 class _XyY(ctypes.Structure):
@@ -63,6 +71,7 @@ def _lcms() -> Any:
         "cmsWriteTag": (ctypes.c_int, [vp, u32, vp]),
         "cmsMD5computeID": (ctypes.c_int, [vp]),
         "cmsSaveProfileToMem": (ctypes.c_int, [vp, vp, ctypes.POINTER(u32)]),
+        "cmsOpenProfileFromMem": (vp, [ctypes.c_char_p, u32]),
         "cmsCloseProfile": (ctypes.c_int, [vp]),
     }
     for name, (restype, argtypes) in signatures.items():
@@ -104,12 +113,26 @@ def icc_profile(color: str, tone: str) -> bytes | None:
         encoding = "linear" if tone == "linear" else f"{tone} curve"
         _text(lib, profile, _DESC, f"{space.title}, {encoding} (imgform-rs)")
         _text(lib, profile, _CPRT, "No copyright, use freely")
-        lib.cmsMD5computeID(profile)
-        size = ctypes.c_uint32(0)
-        lib.cmsSaveProfileToMem(profile, None, ctypes.byref(size))
-        buffer = ctypes.create_string_buffer(size.value)
-        if not lib.cmsSaveProfileToMem(profile, buffer, ctypes.byref(size)):
-            raise RuntimeError(f"LittleCMS could not write the {space.title} profile")
-        return buffer.raw[: size.value]
+        stamped = _save(lib, profile, space.title)
     finally:
         lib.cmsCloseProfile(profile)
+    # LittleCMS has no setter for the date: it reads it back from the header.
+    end = _CREATED_AT + len(_CREATED)
+    dated = stamped[:_CREATED_AT] + _CREATED + stamped[end:]
+    profile = lib.cmsOpenProfileFromMem(dated, len(dated))
+    if not profile:
+        raise RuntimeError(f"LittleCMS could not read back the {space.title} profile")
+    try:
+        lib.cmsMD5computeID(profile)
+        return _save(lib, profile, space.title)
+    finally:
+        lib.cmsCloseProfile(profile)
+
+
+def _save(lib: Any, profile: int, title: str) -> bytes:
+    size = ctypes.c_uint32(0)
+    lib.cmsSaveProfileToMem(profile, None, ctypes.byref(size))
+    buffer = ctypes.create_string_buffer(size.value)
+    if not lib.cmsSaveProfileToMem(profile, buffer, ctypes.byref(size)):
+        raise RuntimeError(f"LittleCMS could not write the {title} profile")
+    return buffer.raw[: size.value]
