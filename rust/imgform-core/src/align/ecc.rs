@@ -42,7 +42,7 @@ pub struct EccOptions {
     /// Fraction of each border of the reference left out, in `[0, 0.5)`.
     pub crop: f64,
     /// Halvings of the coarsest level; `None` halves while the shorter side
-    /// stays >= [`MIN_LEVEL_SIDE`].
+    /// stays >= `MIN_LEVEL_SIDE`.
     pub levels: Option<usize>,
     /// Most Gauss-Newton steps per level.
     pub max_iterations: usize,
@@ -360,7 +360,7 @@ fn displacement(before: &Centred, after: &Centred, half: (f64, f64)) -> f64 {
 /// [`crate::CoreError::Shape`] for images of different shapes or with more
 /// than one channel; [`crate::CoreError::InvalidArgument`] for NaN samples,
 /// a non-finite `init`, bad options, images too small for the motion (fewer
-/// than [`MIN_PIXELS_PER_PARAM`] window pixels per parameter at the coarsest
+/// than `MIN_PIXELS_PER_PARAM` window pixels per parameter at the coarsest
 /// level), a channel without texture (constant, or no gradient along some
 /// parameter), or a warp that leaves too little overlap.
 pub fn refine<T: Sample>(
