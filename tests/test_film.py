@@ -220,6 +220,8 @@ def _broken(tmp_path, edit) -> str:
         (lambda d: d.__setitem__("kind", "print"), "kind must be one of"),
         (lambda d: d["couplers"].__setitem__("matrix", [[0.1, -0.1, 0]] * 3), "coupler_matrix"),
         (lambda d: d["layers"][0].pop("dye_density"), "missing field 'dye_density'"),
+        (lambda d: d["layers"].append(3), "list of layer objects"),
+        (lambda d: d.__setitem__("halation", {"strength": [2.0, 0, 0]}), "halation must hold"),
     ],
 )
 def test_bad_stocks_are_refused_with_a_clear_error(tmp_path, edit, message):

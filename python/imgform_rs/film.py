@@ -292,7 +292,9 @@ def stock_from_dict(data: dict[str, Any]) -> Stock:
     name = str(data.get("name", "<unnamed>"))
     if data.get("format") != STOCK_FORMAT:
         _fail(name, f"format must be {STOCK_FORMAT!r}, got {data.get('format')!r}")
-    if not isinstance(data.get("layers"), list):
+    if not isinstance(data.get("layers"), list) or not all(
+        isinstance(layer, dict) for layer in data["layers"]
+    ):
         _fail(name, "layers must be a list of layer objects")
     couplers = data.get("couplers", {})
     halation = data.get("halation", {})
