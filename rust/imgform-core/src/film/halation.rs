@@ -66,10 +66,13 @@ mod tests {
         ex[c..c + 3].copy_from_slice(&[1.0, 1.0, 1.0]);
         let mut out = vec![0.0; ex.len()];
         halation(&ex, w, h, &[0.2, 0.05, 0.0], 4.0, &mut out).unwrap();
+        // The point keeps 1 - a and gets back a times the blur's centre tap
+        // squared (rows, then columns).
+        let centre = gaussian_taps(4.0)[0].powi(2);
         for (i, a) in [0.2f32, 0.05, 0.0].iter().enumerate() {
             let total: f32 = out.iter().skip(i).step_by(3).sum();
             assert!((total - 1.0).abs() < 1e-5, "{i}: {total}");
-            assert!(out[c + i] <= 1.0 - a + 1e-3);
+            assert!((out[c + i] - (1.0 - a + a * centre)).abs() < 1e-6, "{i}");
         }
         // Red (first) glows most, blue not at all, 5 px from the point.
         let near = ((30 * w) + 35) * 3;
