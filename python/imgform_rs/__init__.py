@@ -6,6 +6,7 @@ order, camera frame, CFA patterns, shift sign) are set out in the
 documentation's conventions page, ``docs/conventions.rst``.
 """
 
+from . import film as film  # a submodule with its own API page, not in __all__
 from . import spectral as spectral  # a submodule with its own API page, not in __all__
 from ._exif import ShotInfo
 from ._native import RawError

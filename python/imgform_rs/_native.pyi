@@ -244,6 +244,27 @@ def focal_stack(
     aperture: list[bool],
 ) -> npt.NDArray[np.uint8] | npt.NDArray[np.uint16] | npt.NDArray[np.float32]: ...
 
+# --- film ---
+def film_develop(
+    exposure: npt.NDArray[np.float32],
+    gain: float,
+    curves: list[tuple[float, float, list[float]]],
+    matrix: list[float],
+    diffusion: float,
+) -> npt.NDArray[np.float32]: ...
+def film_transmit(
+    density: npt.NDArray[np.float32],
+    base: list[float],
+    dyes: list[float],
+    response: list[float],
+) -> npt.NDArray[np.float32]: ...
+def film_halation(
+    exposure: npt.NDArray[np.float32], strength: list[float], sigma: float
+) -> npt.NDArray[np.float32]: ...
+def film_grain(
+    density: npt.NDArray[np.float32], per_grain: list[float], seed: int
+) -> npt.NDArray[np.float32]: ...
+
 # --- spectral ---
 def spectral_weights(wavelengths: list[float], rule: str) -> list[float]: ...
 def check_wavelengths(wavelengths: list[float]) -> None: ...

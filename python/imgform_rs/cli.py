@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 # Sample data beside the checkout (shared/ is not part of the project).
 SAMPLE_PLATE = Path("../shared/data/pg/cathedral.jpg")
@@ -139,6 +143,63 @@ def _align(args: argparse.Namespace) -> int:
         _progress(i, len(args.plates))
     if failed:
         print(f"imgform align: {failed} of {len(args.plates)} plates failed", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _srgb_to_linear(img: np.ndarray) -> np.ndarray:
+    """An 8- or 16-bit (or float) sRGB image as linear float32, (H, W, 3)."""
+    import numpy as np
+
+    scale = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(img.dtype, 1.0)
+    v = img.astype(np.float32) / np.float32(scale)
+    if v.ndim == 2:
+        v = np.repeat(v[..., None], 3, axis=-1)
+    v = v[..., :3]
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def _film(args: argparse.Namespace) -> int:
+    import time
+
+    import imageio.v3 as iio
+    import numpy as np
+
+    from . import film
+    from ._png import for_png, write_png
+
+    try:
+        stock = film.load_stock(args.stock)
+        paper = None if args.paper is None else film.load_stock(args.paper)
+    except (ValueError, OSError) as exc:
+        print(f"imgform film: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    failed = 0
+    for i, name in enumerate(args.images, start=1):
+        path = Path(name)
+        target = out / f"{path.stem}.png"
+        start = time.perf_counter()
+        try:
+            rgb = _srgb_to_linear(np.asarray(iio.imread(path.read_bytes(), extension=path.suffix)))
+            result = film.simulate(
+                rgb,
+                stock,
+                paper=paper,
+                exposure_ev=args.ev,
+                couplers=not args.no_couplers,
+            )
+            write_png(target, for_png(result))
+        except Exception as exc:  # imageio raises many types for bad files
+            failed += 1
+            reason = (str(exc).splitlines() or [type(exc).__name__])[0]
+            print(f"imgform film: {path}: {reason}", file=sys.stderr)
+        else:
+            took = time.perf_counter() - start
+            print(f"{path}: {stock.name}, {args.ev:+g} EV in {took:.2f} s -> {target}")
+        _progress(i, len(args.images), "images")
+    if failed:
+        print(f"imgform film: {failed} of {len(args.images)} images failed", file=sys.stderr)
     return 1 if failed else 0
 
 
@@ -356,6 +417,24 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_cluster_options(align)
     align.set_defaults(run=_align)
+    films = sub.add_parser(
+        "film",
+        help="photograph images on simulated colour film (negative + print, or a slide)",
+        description="Take each 8/16-bit sRGB image as the scene, expose it on a film stock, "
+        "develop it, print a negative on paper (balanced for mid grey), and write what one "
+        "sees under D65 to OUTDIR/<name>.png (16-bit sRGB).",
+    )
+    films.add_argument("images", nargs="+", metavar="IMAGE", help="PNG, JPEG or TIFF files")
+    films.add_argument("-o", "--out", required=True, metavar="OUTDIR", help="output folder")
+    films.add_argument(
+        "--stock",
+        default="generic-negative",
+        help="a shipped stock name or a stock .json file (default: generic-negative)",
+    )
+    films.add_argument("--paper", default=None, help="printing paper (default: the generic one)")
+    films.add_argument("--ev", type=float, default=0.0, help="exposure change in stops")
+    films.add_argument("--no-couplers", action="store_true", help="switch DIR couplers off")
+    films.set_defaults(run=_film)
     from .demosaic import DEMOSAIC_METHODS
     from .develop import COLORS, DEFAULT_DEMOSAIC, HIGHLIGHTS, TONES
 

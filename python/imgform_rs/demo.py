@@ -18,6 +18,9 @@ Renders :mod:`imgform_rs.scene` through
 8. a plenoptic camera's light field (a grid of sub-aperture views),
    refocused after capture on the near, middle and far box (a focal stack
    as PNGs and an animated GIF), and with a smaller synthetic aperture;
+9. colour film (:mod:`imgform_rs.film`): the pinhole picture printed from
+   the generic negative at -2, 0 and +2 EV, as a slide and as a
+   black-and-white print (``film.png``);
 
 and writes PNGs under the output folder.
 """
@@ -251,6 +254,32 @@ def _light_field(out: Path, log: Callable[[str], None]) -> list[Path]:
     return written
 
 
+def _film_strip(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray:
+    """The scene, then as printed from the generic colour negative at -2, 0
+    and +2 EV (a lab balancing each print), a slide and a black-and-white
+    print, side by side; 16-bit sRGB."""
+    from . import film
+
+    v = image.astype(np.float32) / 255.0
+    linear = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    panels = [v]
+    runs = [
+        ("generic-negative", -2.0),
+        ("generic-negative", 0.0),
+        ("generic-negative", 2.0),
+        ("generic-reversal", 0.0),
+        ("generic-bw-pan", 0.0),
+    ]
+    for stock, ev in runs:
+        start = time.perf_counter()
+        panels.append(film.simulate(linear, stock, exposure_ev=ev))
+        ms = 1e3 * (time.perf_counter() - start)
+        log(f"film.simulate {stock} {ev:+g} EV: {image.shape[1]}x{image.shape[0]} in {ms:.0f} ms")
+    gap = np.ones((image.shape[0], 4, 3), np.float32)
+    strip = np.concatenate([p for panel in panels for p in (panel, gap)][:-1], axis=1)
+    return np.floor(np.clip(strip, 0, 1) * 65535 + 0.5).astype(np.uint16)
+
+
 def run(
     out: Path,
     log: Callable[[str], None] = print,
@@ -312,6 +341,7 @@ def run(
     written.append(write_png(out / "demosaic_methods.png", strip))
     written += _raw_round_trip(out, pinhole, log)
     written += _light_field(out, log)
+    written.append(write_png(out / "film.png", _film_strip(pinhole, log)))
     if camera_raw is not None:
         start = time.perf_counter()
         rgb = develop(camera_raw)

@@ -19,6 +19,7 @@ pub mod defocus;
 pub mod demosaic;
 pub mod develop;
 pub mod distortion;
+pub mod film;
 pub mod intrinsics;
 pub mod lightfield;
 pub mod metrology;

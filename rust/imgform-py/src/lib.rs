@@ -16,6 +16,7 @@ mod defocus;
 mod demosaic;
 mod develop;
 mod distortion;
+mod film;
 mod lightfield;
 mod metrology;
 mod optics;
@@ -37,6 +38,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     demosaic::register(m)?;
     develop::register(m)?;
     distortion::register(m)?;
+    film::register(m)?;
     metrology::register(m)?;
     lightfield::register(m)?;
     optics::register(m)?;

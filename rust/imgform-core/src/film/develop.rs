@@ -1,0 +1,268 @@
+//! Development: exposures to dye amounts, with DIR couplers.
+//!
+//! Each layer `i` develops the density `D_i = f_i(log10(g H_i))` of its
+//! characteristic curve `f_i` (`g` the exposure gain, `2^EV`). DIR couplers
+//! release, where dye forms in a donor layer `j`, an inhibitor that diffuses
+//! (Gaussian of the diffusion length, [`super::diffuse`]) and slows
+//! development in a receiver layer `i`. We model its effect as a loss of log
+//! exposure proportional to the donors' developed density,
+//!
+//! `D_i = c_i(log10(g H_i) - Σ_j A_ij G * (D_j - D_j,min))`,
+//!
+//! with `D_j` from the curves without inhibition (the development the
+//! donors would reach) and `A` the donor -> receiver matrix, as in the
+//! interimage models of Hanson and Horton (1952) and the description of DIR
+//! couplers in Hunt, *The Reproduction of Colour*, 6th ed., sec. 14.8.
+//! The receivers' curves `c_i` are the stated ones pre-corrected
+//! ([`Curve::pre_corrected`]) so that a neutral, uniform wedge, where the
+//! blur changes nothing and every layer sees one log exposure, develops
+//! exactly the stated curves: couplers then change only colour contrast
+//! (interimage effects) and edges, as they do in a real stock whose
+//! datasheet curves are measured on neutral wedges.
+
+use super::curve::Curve;
+use super::diffuse::{blur, gaussian_taps};
+use super::{check_lengths, check_samples};
+use crate::error::{all_finite, positive, Result};
+use crate::invalid;
+use crate::parallel::for_each_row;
+
+/// The layers of one emulsion and their couplers, validated once.
+#[derive(Debug, Clone)]
+pub struct Emulsion {
+    curves: Vec<Curve>,
+    /// `None` without couplers: development is then the curves exactly.
+    couplers: Option<Couplers>,
+}
+
+/// DIR couplers: the donor -> receiver matrix, the diffusion taps and the
+/// receivers' pre-corrected curves.
+#[derive(Debug, Clone)]
+struct Couplers {
+    matrix: Vec<f32>,
+    taps: Vec<f32>,
+    corrected: Vec<Curve>,
+}
+
+impl Emulsion {
+    /// An emulsion of `curves.len()` layers; `matrix` is `n x n`, row `i`
+    /// receiving from column `j`, every entry >= 0 (an inhibitor never adds
+    /// exposure); `diffusion` is the inhibitors' diffusion length in pixels.
+    ///
+    /// # Errors
+    /// [`crate::CoreError::InvalidArgument`] for no layers, a matrix of the
+    /// wrong size or with a negative or non-finite entry, a negative or
+    /// non-finite diffusion length, or couplers too strong to pre-correct.
+    pub fn new(curves: Vec<Curve>, matrix: &[f64], diffusion: f64) -> Result<Self> {
+        let n = curves.len();
+        if n == 0 || matrix.len() != n * n {
+            return Err(invalid!(
+                "an emulsion needs >= 1 layer and an n x n coupler matrix, got {n} layers and \
+                 {} matrix entries",
+                matrix.len()
+            ));
+        }
+        all_finite("the DIR coupler matrix", matrix)?;
+        if let Some(i) = matrix.iter().position(|a| *a < 0.0) {
+            return Err(invalid!(
+                "DIR coupler strengths must be >= 0 (inhibitors only remove exposure), entry \
+                 ({}, {}) is {}",
+                i / n,
+                i % n,
+                matrix[i]
+            ));
+        }
+        if !(diffusion.is_finite() && diffusion >= 0.0) {
+            return Err(invalid!(
+                "the DIR diffusion length must be finite and >= 0 pixels, got {diffusion}"
+            ));
+        }
+        let couplers = if matrix.iter().all(|a| *a == 0.0) {
+            None
+        } else {
+            Some(Couplers::new(&curves, matrix, diffusion)?)
+        };
+        Ok(Self { curves, couplers })
+    }
+
+    /// Number of layers.
+    pub fn layers(&self) -> usize {
+        self.curves.len()
+    }
+
+    /// Develops exposures `(height, width, layers)` (>= 0, relative to the
+    /// stock's reference white) at gain `gain` into densities, same shape.
+    ///
+    /// # Errors
+    /// [`crate::CoreError::Shape`] for mismatched buffers;
+    /// [`crate::CoreError::InvalidArgument`] for a gain that is not > 0 or
+    /// an exposure that is negative or not finite (the first one named).
+    pub fn develop(
+        &self,
+        exposure: &[f32],
+        width: usize,
+        height: usize,
+        gain: f64,
+        out: &mut [f32],
+    ) -> Result<()> {
+        let n = self.layers();
+        check_lengths(width, height, (exposure, n), (out, n))?;
+        let gain = positive("the exposure gain", gain)? as f32;
+        check_samples("exposures", exposure, width, n)?;
+        let log_h = |p: &[f32], i: usize| (gain * p[i]).log10();
+        for_each_row(out, width * n, |y, row| {
+            let src = &exposure[y * width * n..][..width * n];
+            for (p, d) in src.chunks_exact(n).zip(row.chunks_exact_mut(n)) {
+                for (i, (v, c)) in d.iter_mut().zip(&self.curves).enumerate() {
+                    *v = c.eval(log_h(p, i));
+                }
+            }
+        });
+        let Some(dir) = &self.couplers else {
+            return Ok(());
+        };
+        let mins: Vec<f32> = self.curves.iter().map(Curve::min_density).collect();
+        for_each_row(out, width * n, |_, row| {
+            for d in row.chunks_exact_mut(n) {
+                d.iter_mut().zip(&mins).for_each(|(v, m)| *v -= m);
+            }
+        });
+        let mut donors = vec![0.0f32; out.len()];
+        blur(out, width, height, n, &dir.taps, &mut donors);
+        for_each_row(out, width * n, |y, row| {
+            let src = &exposure[y * width * n..][..width * n];
+            let near = &donors[y * width * n..][..width * n];
+            for ((p, q), d) in src
+                .chunks_exact(n)
+                .zip(near.chunks_exact(n))
+                .zip(row.chunks_exact_mut(n))
+            {
+                for (i, v) in d.iter_mut().enumerate() {
+                    let a = &dir.matrix[i * n..][..n];
+                    let inhibition: f32 = a.iter().zip(q).map(|(a, q)| a * q).sum();
+                    *v = dir.corrected[i].eval(log_h(p, i) - inhibition);
+                }
+            }
+        });
+        Ok(())
+    }
+}
+
+impl Couplers {
+    fn new(curves: &[Curve], matrix: &[f64], diffusion: f64) -> Result<Self> {
+        let n = curves.len();
+        let corrected = curves
+            .iter()
+            .enumerate()
+            .map(|(i, c)| {
+                c.pre_corrected(|x| {
+                    (0..n)
+                        .map(|j| {
+                            let d = curves[j].eval(x as f32) - curves[j].min_density();
+                            matrix[i * n + j] * f64::from(d)
+                        })
+                        .sum()
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let taps = if diffusion > 0.0 {
+            gaussian_taps(diffusion)
+        } else {
+            vec![1.0]
+        };
+        Ok(Self {
+            matrix: matrix.iter().map(|&a| a as f32).collect(),
+            taps,
+            corrected,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Three logistic layers of slopes 0.6, 0.65, 0.7 over log H -3..1.
+    fn curves() -> Vec<Curve> {
+        [0.6, 0.65, 0.7]
+            .iter()
+            .map(|g| {
+                let d: Vec<f64> = (0..401)
+                    .map(|k| {
+                        let x = -3.0 + 0.01 * k as f64;
+                        0.2 + 2.0 / (1.0 + (-2.0 * g * (x + 1.0)).exp())
+                    })
+                    .collect();
+                Curve::new(-3.0, 0.01, &d).unwrap()
+            })
+            .collect()
+    }
+
+    const MATRIX: [f64; 9] = [0.0, 0.15, 0.1, 0.1, 0.0, 0.12, 0.05, 0.1, 0.0];
+
+    fn wedge(w: usize, h: usize) -> Vec<f32> {
+        // Columns step through log H = -3.2..0.8, the same in every layer.
+        (0..w * h * 3)
+            .map(|i| 10f32.powf(-3.2 + 4.0 * ((i / 3) % w) as f32 / (w - 1) as f32))
+            .collect()
+    }
+
+    #[test]
+    fn without_couplers_density_is_the_curve() {
+        let e = Emulsion::new(curves(), &[0.0; 9], 2.0).unwrap();
+        let (w, h) = (41, 3);
+        let ex = wedge(w, h);
+        let mut out = vec![0.0; ex.len()];
+        e.develop(&ex, w, h, 2.0, &mut out).unwrap();
+        for (i, (d, x)) in out.iter().zip(&ex).enumerate() {
+            assert_eq!(*d, e.curves[i % 3].eval((2.0 * x).log10()));
+        }
+    }
+
+    #[test]
+    fn couplers_keep_a_uniform_neutral_on_the_curves_but_change_colour_edges() {
+        let e = Emulsion::new(curves(), &MATRIX, 1.5).unwrap();
+        let (w, h) = (30, 4);
+        for col in 0..w {
+            // A uniform field per exposure: no blur, no edge.
+            let x = -3.2 + 4.0 * col as f32 / (w - 1) as f32;
+            let ex = vec![10f32.powf(x); w * h * 3];
+            let mut out = vec![0.0; ex.len()];
+            e.develop(&ex, w, h, 1.0, &mut out).unwrap();
+            for (i, d) in out.iter().enumerate() {
+                assert!((d - e.curves[i % 3].eval(x)).abs() < 2e-3, "{x} {i}: {d}");
+            }
+        }
+        // Red exposed 3x more than green and blue: the red donor inhibits
+        // green more than a neutral of green's exposure would (interimage
+        // effect), so green falls below its curve.
+        let mut ex = vec![0.1f32; 20 * 20 * 3];
+        ex.chunks_mut(3).for_each(|p| p[0] = 0.3);
+        let mut out = vec![0.0; ex.len()];
+        e.develop(&ex, 20, 20, 1.0, &mut out).unwrap();
+        assert!(out[1] < e.curves[1].eval(-1.0) - 0.01, "{}", out[1]);
+    }
+
+    #[test]
+    fn bad_inputs_are_refused() {
+        let e = Emulsion::new(curves(), &MATRIX, 1.0).unwrap();
+        let mut out = vec![0.0; 12];
+        let mut ex = vec![0.5f32; 12];
+        ex[7] = f32::NAN;
+        let err = e.develop(&ex, 2, 2, 1.0, &mut out).unwrap_err();
+        assert!(
+            err.to_string().contains("row 1, column 0), channel 1"),
+            "{err}"
+        );
+        assert!(e.develop(&ex[..9], 2, 2, 1.0, &mut out).is_err());
+        assert!(e.develop(&[0.5; 12], 2, 2, 0.0, &mut out).is_err());
+        let mut m = MATRIX;
+        m[4] = -0.1;
+        assert!(Emulsion::new(curves(), &m, 1.0)
+            .unwrap_err()
+            .to_string()
+            .contains("(1, 1)"));
+        assert!(Emulsion::new(curves(), &MATRIX[..4], 1.0).is_err());
+        assert!(Emulsion::new(curves(), &MATRIX, f64::NAN).is_err());
+    }
+}
