@@ -20,6 +20,7 @@ pub mod demosaic;
 pub mod develop;
 pub mod distortion;
 pub mod intrinsics;
+pub mod lens;
 pub mod lightfield;
 pub mod metrology;
 pub mod optics;

@@ -16,6 +16,7 @@ mod defocus;
 mod demosaic;
 mod develop;
 mod distortion;
+mod lens;
 mod lightfield;
 mod metrology;
 mod optics;
@@ -38,6 +39,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     develop::register(m)?;
     distortion::register(m)?;
     metrology::register(m)?;
+    lens::register(m)?;
     lightfield::register(m)?;
     optics::register(m)?;
     projection::register(m)?;
