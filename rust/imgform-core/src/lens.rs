@@ -251,7 +251,7 @@ impl Normalization {
     }
 
     #[inline(always)]
-    fn to_normalized(&self, u: f64, v: f64) -> (f64, f64) {
+    fn to_normalized(self, u: f64, v: f64) -> (f64, f64) {
         (
             u * self.scale - self.center.0,
             v * self.scale - self.center.1,
@@ -259,7 +259,7 @@ impl Normalization {
     }
 
     #[inline(always)]
-    fn to_pixel(&self, x: f64, y: f64) -> (f64, f64) {
+    fn to_pixel(self, x: f64, y: f64) -> (f64, f64) {
         (
             (x + self.center.0) / self.scale,
             (y + self.center.1) / self.scale,
