@@ -344,3 +344,16 @@ def test_real_raw_matches_its_camera_and_an_overridden_lens() -> None:
     assert m.profile is not None and m.profile.camera == "Canon / Canon EOS Kiss X4"
     out = develop(raw, lens_correction=m, demosaic="bilinear")
     assert out.shape == develop(raw, demosaic="bilinear").shape
+
+
+def test_non_square_photosites_are_left_alone_or_refused(tmp_path) -> None:
+    cfa = (1500 + np.arange(48 * 64) % 300).astype(np.uint16).reshape(48, 64)
+    path = tmp_path / "wide.dng"
+    write_dng(path, cfa, "RGGB", white_level=4095, pixel_aspect=2.0, model="Canon EOS 550D")
+    raw = load_raw(path)
+    assert raw.pixel_aspect != 1
+    np.testing.assert_array_equal(develop(raw, lens_correction="auto"), develop(raw))
+    profile = _kit(raw).profile
+    assert profile is not None
+    with pytest.raises(ValueError, match="square photosites"):
+        develop(raw, lens_correction=profile)

@@ -306,7 +306,8 @@ def develop(
         from the photosites above black before anything else (linear light),
         distortion and TCA in one resampling of the developed image before it
         is oriented (bilinear; the border the correction uncovers is 0).
-        Sensors with non-square photosites are not corrected.
+        Sensors with non-square photosites are not corrected (``"auto"``
+        leaves them as they are, a profile raises ``ValueError``).
 
     Returns
     -------
@@ -367,7 +368,7 @@ def develop(
     matrix = np.eye(3) if color == "camera" else srgb_to(color) @ raw.camera_to_srgb
     pattern = raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64)
     tiles = _tiles(raw, scale4)
-    profile = lens_profile(raw, lens_correction)
+    profile = _lens_profile(raw, lens_correction)
     cfa, correction = raw.cfa, None
     if profile is not None:
         correction = profile.native(raw.cfa.shape[1], raw.cfa.shape[0])
@@ -392,7 +393,7 @@ def develop(
     return _orient(rgb, raw.flip) if orientation == "auto" else rgb
 
 
-def lens_profile(raw: RawImage, lens_correction: Any) -> Any:
+def _lens_profile(raw: RawImage, lens_correction: Any) -> Any:
     """The :class:`~imgform_rs.lens.LensProfile` that ``lens_correction``
     (as :func:`develop` takes it) selects for ``raw``, or ``None``."""
     auto = isinstance(lens_correction, str) and lens_correction == "auto"
