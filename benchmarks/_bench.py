@@ -96,6 +96,7 @@ PEERS = (
     "scikit-image",
     "colour-demosaicing",
     "rawpy",
+    "lensfunpy",
     "eari-demosaic",
     "demosaicnet",
     "torch",

@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 
 import imgform_rs
-from imgform_rs import batch, colorspace, dispersion, dng, film, scene, spectral
+from imgform_rs import batch, colorspace, dispersion, dng, film, lens, scene, spectral
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -47,6 +47,7 @@ PUBLIC = {
     "imgform_rs.dispersion": _defined_here(dispersion),
     "imgform_rs.dng": _defined_here(dng),
     "imgform_rs.film": _defined_here(film),
+    "imgform_rs.lens": list(lens.__all__),
     "imgform_rs.scene": _defined_here(scene),
     "imgform_rs.spectral": _defined_here(spectral),
 }

@@ -73,6 +73,31 @@ class NativeCamera:
         self, plane_normal: npt.NDArray[np.float64]
     ) -> tuple[float, float, float]: ...
 
+# --- lens ---
+@final
+class NativeLensCorrection:
+    def __new__(
+        cls,
+        width: int,
+        height: int,
+        crop: float,
+        calibration_crop: float,
+        aspect_ratio: float,
+        center: tuple[float, float],
+        distortion: str,
+        distortion_terms: Sequence[float],
+        tca: str,
+        tca_terms: Sequence[float],
+        vignetting: tuple[float, float, float] | None = None,
+    ) -> NativeLensCorrection: ...
+    def positions(self) -> npt.NDArray[np.float64]: ...
+    def correct_geometry(
+        self, image: npt.NDArray[Any], interpolation: str = "bilinear", fill: float = 0.0
+    ) -> npt.NDArray[Any]: ...
+    def devignette(
+        self, image: npt.NDArray[Any], black: npt.NDArray[np.float64]
+    ) -> npt.NDArray[Any]: ...
+
 # --- remap ---
 @final
 class RemapMap:

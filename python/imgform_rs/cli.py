@@ -214,6 +214,7 @@ def _develop_options(args: argparse.Namespace) -> dict:
         "highlights": args.highlights,
         "bps": args.bps,
         "orientation": args.orientation,
+        "lens_correction": args.lens,
     }
 
 
@@ -227,9 +228,21 @@ def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
     from .develop import develop_to
 
     start = time.perf_counter()
-    _, (h, w) = develop_to(path, target, args.quality, args.overwrite, _develop_options(args))
+    options, source, lens = _develop_options(args), path, ""
+    if args.lens == "auto":
+        from .lens import match_lens
+        from .raw import load_raw
+
+        source = load_raw(path)
+        match = match_lens(source)
+        if match.profile is not None and source.pixel_aspect != 1:
+            lens = "; lens correction: none (non-square photosites)"
+        else:
+            lens = "; " + match.report()
+        options["lens_correction"] = match
+    _, (h, w) = develop_to(source, target, args.quality, args.overwrite, options)
     took = time.perf_counter() - start
-    return f"{path}: {w}x{h} in {took:.2f} s -> {target}"
+    return f"{path}: {w}x{h} in {took:.2f} s -> {target}{lens}"
 
 
 def _develop(args: argparse.Namespace) -> int:
@@ -474,6 +487,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="transfer curve (default: the colour space's own)",
     )
     dev.add_argument("--orientation", default="auto", choices=["auto", "none"])
+    dev.add_argument(
+        "--lens",
+        default="off",
+        choices=["auto", "off"],
+        help="auto: correct distortion, lateral CA and vignetting with the lensfun profile "
+        "of the file's camera and lens (needs lensfunpy; each file's line says what was "
+        "matched and applied); off (default): no lens corrections",
+    )
     dev.add_argument("--format", default="png", choices=list(_SUFFIX))
     dev.add_argument(
         "--quality", type=_quality, default=92, help="JPEG quality, 1-100 (default: 92)"

@@ -250,6 +250,7 @@ def develop(
     highlights: str = "clip",
     bps: int | str = 8,
     orientation: str = "auto",
+    lens_correction: Any = "off",
 ) -> npt.NDArray[Any]:
     """Develop a raw file into an RGB image.
 
@@ -297,6 +298,16 @@ def develop(
     orientation : {"auto", "none"}
         Rotate / mirror as the camera recorded it, or keep the sensor's layout
         (non-square pixels are squared up either way).
+    lens_correction : {"off", "auto"}, LensProfile or LensMatch
+        Lens corrections from the lensfun database (:mod:`imgform_rs.lens`,
+        needs the ``lens`` extra). ``"auto"`` looks the camera and lens up
+        from the file (:func:`~imgform_rs.lens.match_lens`; no match develops
+        uncorrected); a profile or match applies that. Vignetting is removed
+        from the photosites above black before anything else (linear light),
+        distortion and TCA in one resampling of the developed image before it
+        is oriented (bilinear; the border the correction uncovers is 0).
+        Sensors with non-square photosites are not corrected (``"auto"``
+        leaves them as they are, a profile raises ``ValueError``).
 
     Returns
     -------
@@ -310,6 +321,8 @@ def develop(
     ValueError
         For an unknown option, a bad white balance or exposure, or an
         X-Trans sensor with a Bayer-only demosaicer.
+    ImportError
+        ``lens_correction="auto"`` without lensfunpy installed.
 
     Notes
     -----
@@ -355,10 +368,16 @@ def develop(
     matrix = np.eye(3) if color == "camera" else srgb_to(color) @ raw.camera_to_srgb
     pattern = raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64)
     tiles = _tiles(raw, scale4)
+    profile = _lens_profile(raw, lens_correction)
+    cfa, correction = raw.cfa, None
+    if profile is not None:
+        correction = profile.native(raw.cfa.shape[1], raw.cfa.shape[0])
+        if profile.vignetting is not None:
+            cfa = correction.devignette(raw.cfa, tiles[0])
 
     def run(matrix: np.ndarray, tone: str, bps: str) -> np.ndarray:
         m = np.ascontiguousarray(matrix, np.float64)
-        return _native.develop(raw.cfa, pattern, *tiles, m, tone, demosaic, bps)
+        return _native.develop(cfa, pattern, *tiles, m, tone, demosaic, bps)
 
     if auto and highlights == "clip":
         # LibRaw clips after the matrix and again after brightening; with a
@@ -367,8 +386,47 @@ def develop(
         linear = run(matrix, "linear", "16")
         matrix = matrix * _auto_gain(linear, _stretched_pixels(linear.shape, raw.pixel_aspect))
         del linear
-    rgb = _stretch(run(matrix, _tone_for(color, tone), _BPS[bps]), raw.pixel_aspect)
+    rgb = run(matrix, _tone_for(color, tone), _BPS[bps])
+    if correction is not None and profile is not None and profile.corrects_geometry:
+        rgb = correction.correct_geometry(rgb, "bilinear", 0.0)
+    rgb = _stretch(rgb, raw.pixel_aspect)
     return _orient(rgb, raw.flip) if orientation == "auto" else rgb
+
+
+def _lens_profile(raw: RawImage, lens_correction: Any) -> Any:
+    """The :class:`~imgform_rs.lens.LensProfile` that ``lens_correction``
+    (as :func:`develop` takes it) selects for ``raw``, or ``None``."""
+    auto = isinstance(lens_correction, str) and lens_correction == "auto"
+    if isinstance(lens_correction, str):
+        if lens_correction == "off":
+            return None
+        if lens_correction != "auto":
+            raise ValueError(
+                'lens_correction must be "auto", "off", a LensProfile or a LensMatch, '
+                f"got {lens_correction!r}"
+            )
+        from .lens import match_lens
+
+        lens_correction = match_lens(raw)
+    from .lens import LensMatch, LensProfile
+
+    if isinstance(lens_correction, LensMatch):
+        lens_correction = lens_correction.profile
+    if lens_correction is None:
+        return None
+    if not isinstance(lens_correction, LensProfile):
+        raise TypeError(
+            'lens_correction must be "auto", "off", a LensProfile or a LensMatch, '
+            f"got {type(lens_correction).__name__}"
+        )
+    if raw.pixel_aspect != 1:
+        if auto:
+            return None
+        raise ValueError(
+            f"{raw.source}: lens corrections need square photosites, "
+            f"this sensor's are {raw.pixel_aspect:g}:1"
+        )
+    return lens_correction
 
 
 def raw_exif(raw: RawImage, orientation: str = "auto") -> bytes:

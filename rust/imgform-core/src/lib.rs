@@ -21,6 +21,7 @@ pub mod develop;
 pub mod distortion;
 pub mod film;
 pub mod intrinsics;
+pub mod lens;
 pub mod lightfield;
 pub mod metrology;
 pub mod optics;

@@ -17,6 +17,7 @@ mod demosaic;
 mod develop;
 mod distortion;
 mod film;
+mod lens;
 mod lightfield;
 mod metrology;
 mod optics;
@@ -40,6 +41,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     distortion::register(m)?;
     film::register(m)?;
     metrology::register(m)?;
+    lens::register(m)?;
     lightfield::register(m)?;
     optics::register(m)?;
     projection::register(m)?;

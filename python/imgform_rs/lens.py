@@ -1,0 +1,477 @@
+"""Lens corrections from the lensfun database: distortion, lateral chromatic
+aberration (TCA) and vignetting.
+
+The database and the interpolation of its coefficients between calibrated
+focal lengths, apertures and distances are lensfun's, through lensfunpy (the
+``lens`` extra: ``pip install imgform-rs[lens]``; its wheel bundles liblensfun
+0.3.4 and the database). The corrections themselves run in Rust with
+lensfun's models and coordinate conventions: positions agree with lensfunpy's
+``apply_subpixel_geometry_distortion`` and vignetting gains with its
+``apply_color_modification`` (tested over a sample of real database entries).
+
+What lensfun corrects and how:
+
+- distortion (``poly3``, ``poly5``, ``ptlens``) and TCA (``linear``,
+  ``poly3``) together, each output channel read once from the source at its
+  own distorted and magnified position (no double resampling);
+- vignetting (``pa``) as a gain on *linear* values (:func:`develop` applies it
+  to the raw photosites, above black, before anything else);
+- the image is mapped onto the calibration sensor through the diagonal (the
+  crop factors), the sensor's aspect ratio and the profile's centre offset;
+  the image keeps its size (no automatic zoom: lensfun's ``scale=1``), so
+  corrected barrel distortion leaves a border of ``fill`` at the edges.
+
+Geometry conversions (fisheye to rectilinear) are not done: a fisheye
+profile's distortion is corrected within the fisheye projection, as lensfun
+does without ``LF_MODIFY_GEOMETRY``.
+
+Matching (:func:`match_lens`) follows lensfun's rules: a camera's maker and
+model and a lens name are searched strictly (every word of the name must be
+in the entry), then loosely; lensfun drops lenses calibrated on a sensor
+smaller than the camera's (crop factor more than 4 % larger) because the
+image would reach beyond the calibrated circle. Several candidates: the one
+lensfun scores highest, ties broken by name; a loose search is only accepted
+with a unique best score. Everything is reported in :class:`LensMatch`;
+nothing found is not an error.
+"""
+
+from __future__ import annotations
+
+import functools
+import glob
+import math
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _native
+from .remap import ImageT, Interpolation
+
+__all__ = ["LensMatch", "LensProfile", "find_profile", "lens_database", "match_lens"]
+
+# lensfun's defaults: a lens without <aspect-ratio> was calibrated on a 3:2
+# sensor; an unknown focus distance is "far" (lensfunpy's default 1000 m).
+_DEFAULT_ASPECT = 1.5
+_FAR = 1000.0
+# lensfun's crop-factor rule (lens.cpp, _lf_lens_compare_score): a lens
+# calibrated on a sensor whose crop factor exceeds the camera's by more than
+# 1 / 0.96 does not cover the camera's frame.
+_CROP_TOLERANCE = 0.96
+# A focal length this far outside a lens's range is a wrong match or wrong
+# metadata, not an extrapolation worth applying.
+_FOCAL_TOLERANCE = 0.02
+
+
+def _lensfunpy() -> Any:
+    try:
+        import lensfunpy
+    except ImportError as e:
+        raise ImportError("lens corrections need lensfunpy: pip install imgform-rs[lens]") from e
+    return lensfunpy
+
+
+@functools.lru_cache(maxsize=1)
+def lens_database() -> Any:
+    """lensfunpy's bundled database (``lensfunpy.Database``), loaded once.
+
+    Only the database in lensfunpy's wheel is read, not a system copy, so
+    that the profile fields lensfunpy does not expose (the calibration
+    sensor's aspect ratio) are read from the same files.
+    """
+    return _lensfunpy().Database(load_common=False, load_bundled=True)
+
+
+@functools.lru_cache(maxsize=1)
+def _aspect_ratios() -> dict[tuple[str, str, float], float]:
+    """``<aspect-ratio>`` of every lens in the bundled database, keyed by
+    maker, model and crop factor: lensfunpy does not expose it, and it
+    scales every coordinate of a lens calibrated on a 4:3 or 16:9 sensor."""
+    root = os.path.join(os.path.dirname(_lensfunpy().__file__), "db_files")
+    ratios = {}
+    for path in sorted(glob.glob(os.path.join(root, "*.xml"))):
+        for lens in ET.parse(path).getroot().iter("lens"):
+            key = (
+                _plain(lens, "maker"),
+                _plain(lens, "model"),
+                _crop_key(lens.findtext("cropfactor")),
+            )
+            ratios[key] = _ratio(lens.findtext("aspect-ratio"))
+    return ratios
+
+
+def _plain(element: ET.Element, tag: str) -> str:
+    """The text of the first ``tag`` child without a ``lang`` attribute
+    (the name lensfun and lensfunpy report)."""
+    for child in element.findall(tag):
+        if "lang" not in child.attrib:
+            return child.text or ""
+    return ""
+
+
+def _crop_key(value: Any) -> float:
+    return round(float(value or 0.0), 3)
+
+
+def _ratio(text: str | None) -> float:
+    """lensfun's parsing: ``"4:3"`` or a plain number."""
+    if not text:
+        return _DEFAULT_ASPECT
+    num, _, den = text.partition(":")
+    return float(num) / float(den) if den else float(num)
+
+
+def _model(calib: Any) -> tuple[str, tuple[float, ...]] | None:
+    """An interpolated lensfunpy calibration as (model name, terms)."""
+    if calib is None:
+        return None
+    name = calib.model.name.lower()
+    if name == "none":
+        return None
+    return name, tuple(float(t) for t in calib.terms)
+
+
+@dataclass(frozen=True)
+class LensProfile:
+    """The corrections of one lens on one camera at one setting.
+
+    Attributes
+    ----------
+    lens, camera : str
+        The database entries, ``"maker / model"``.
+    crop_factor : float
+        The camera's crop factor.
+    calibration_crop : float
+        The crop factor of the sensor the lens was calibrated on.
+    aspect_ratio : float
+        Long over short side of that sensor.
+    center : (float, float)
+        The profile's optical-centre offset (lensfun's normalised units).
+    focal_length, aperture, distance : float
+        The setting the coefficients were interpolated for (mm, f-number,
+        metres; aperture 0 when unknown).
+    distortion, tca : (str, tuple of float) or None
+        Model name and terms in lensfun's order.
+    vignetting : (float, float, float) or None
+        ``k1, k2, k3`` of the ``pa`` model.
+    """
+
+    lens: str
+    camera: str
+    crop_factor: float
+    calibration_crop: float
+    aspect_ratio: float
+    center: tuple[float, float]
+    focal_length: float
+    aperture: float
+    distance: float
+    distortion: tuple[str, tuple[float, ...]] | None
+    tca: tuple[str, tuple[float, ...]] | None
+    vignetting: tuple[float, float, float] | None
+
+    @property
+    def corrects_geometry(self) -> bool:
+        return self.distortion is not None or self.tca is not None
+
+    def native(self, width: int, height: int) -> Any:
+        """The Rust correction for images of ``width x height`` pixels."""
+        dist = self.distortion or ("none", ())
+        tca = self.tca or ("none", ())
+        return _native.NativeLensCorrection(
+            int(width),
+            int(height),
+            self.crop_factor,
+            self.calibration_crop,
+            self.aspect_ratio,
+            self.center,
+            dist[0],
+            list(dist[1]),
+            tca[0],
+            list(tca[1]),
+            self.vignetting,
+        )
+
+    def positions(self, width: int, height: int) -> npt.NDArray[np.float64]:
+        """Where each corrected pixel is read from in the uncorrected image.
+
+        Returns
+        -------
+        ndarray, float64, shape (height, width, 3, 2)
+            ``(x, y)`` in pixels per channel R, G, B: the layout of
+            lensfunpy's ``apply_subpixel_geometry_distortion``.
+        """
+        return self.native(width, height).positions()
+
+    def correct(
+        self,
+        image: ImageT,
+        *,
+        vignetting: bool = True,
+        geometry: bool = True,
+        interpolation: Interpolation = "bilinear",
+        fill: float = 0,
+    ) -> ImageT:
+        """Correct an RGB image taken with this lens at this setting.
+
+        Parameters
+        ----------
+        image : ndarray (H, W, 3), uint8, uint16 or float32
+            *Linear* values when ``vignetting`` is on (the gain describes
+            light, not encoded values).
+        vignetting, geometry : bool
+            Which corrections to apply (those the profile has).
+        interpolation : {"bilinear", "bicubic"}
+        fill : float
+            Value read outside the source (the border barrel correction leaves).
+
+        Returns
+        -------
+        ndarray
+            Same shape and dtype; integer values clamp to the type's range.
+
+        Examples
+        --------
+        >>> p = LensProfile("test", "test", 1.5, 1.5, 1.5, (0.0, 0.0), 20.0, 4.0, 1000.0,
+        ...                 ("poly3", (-0.05,)), None, (-0.3, 0.0, 0.0))
+        >>> img = np.ones((40, 60, 3), np.float32)
+        >>> out = p.correct(img, geometry=False)
+        >>> bool(out[0, 0, 0] > 1.0), round(float(out[20, 30, 0]), 3)  # corner, near centre
+        (True, 1.0)
+        """
+        h, w = np.shape(image)[:2]
+        native = self.native(w, h)
+        out = image
+        if vignetting and self.vignetting is not None:
+            out = native.devignette(out, np.zeros((1, 1)))
+        if geometry and self.corrects_geometry:
+            out = native.correct_geometry(out, interpolation, float(fill))
+        return out
+
+    def describe(self) -> str:
+        """One line: the entries, the setting and the models applied."""
+        models = [
+            f"distortion {self.distortion[0]}" if self.distortion else "",
+            f"TCA {self.tca[0]}" if self.tca else "",
+            "vignetting pa" if self.vignetting else "",
+        ]
+        applied = ", ".join(m for m in models if m) or "nothing (no calibration at this setting)"
+        setting = f"{self.focal_length:g} mm"
+        if self.aperture:
+            setting += f" f/{self.aperture:g}"
+        return f"{self.lens} on {self.camera} at {setting}: {applied}"
+
+
+@dataclass(frozen=True)
+class LensMatch:
+    """What :func:`match_lens` looked for, found and chose.
+
+    Attributes
+    ----------
+    profile : LensProfile or None
+        ``None`` when nothing is applied; ``reason`` says why.
+    camera, lens : str
+        The names searched for (from the file or the overrides).
+    candidates : tuple of str
+        Lens entries lensfun returned, best first (the first is the chosen one).
+    reason : str
+        Why there is no profile, or notes on the one chosen ("loose match",
+        "vignetting skipped: aperture unknown").
+    """
+
+    profile: LensProfile | None
+    camera: str = ""
+    lens: str = ""
+    candidates: tuple[str, ...] = field(default_factory=tuple)
+    reason: str = ""
+
+    def report(self) -> str:
+        """One line for a per-file report."""
+        if self.profile is None:
+            return f"lens correction: none ({self.reason})"
+        extra = f" [{self.reason}]" if self.reason else ""
+        more = len(self.candidates) - 1
+        alts = f"; {more} other candidate(s): {', '.join(self.candidates[1:4])}" if more > 0 else ""
+        return f"lens correction: {self.profile.describe()}{extra}{alts}"
+
+
+def _name(entry: Any) -> str:
+    return f"{entry.maker} / {entry.model}"
+
+
+def _best(entries: list[Any]) -> list[Any]:
+    """lensfun's scores, best first; ties by name so the choice never
+    depends on the database's order."""
+    return sorted(entries, key=lambda e: (-e.score, e.maker, e.model))
+
+
+def _find_camera(db: Any, maker: str, model: str) -> tuple[Any | None, str]:
+    if not (maker or model):
+        return None, "the file names no camera"
+    for loose in (False, True):
+        found = _best(db.find_cameras(maker or None, model or None, loose_search=loose))
+        if not found:
+            continue
+        if loose and len(found) > 1 and found[0].score == found[1].score:
+            return None, f"camera {maker} {model!r} is ambiguous in lensfun: " + ", ".join(
+                _name(c) for c in found[:3]
+            )
+        return found[0], "loose camera match" if loose else ""
+    return None, f"camera {(maker + ' ' + model).strip()!r} is not in the lensfun database"
+
+
+def _find_lenses(db: Any, camera: Any, lens: str) -> tuple[list[Any], str]:
+    for loose in (False, True):
+        found = _best(db.find_lenses(camera, None, lens, loose_search=loose))
+        found = [f for f in found if camera.crop_factor >= f.crop_factor * _CROP_TOLERANCE]
+        if not found:
+            continue
+        if loose and len(found) > 1 and found[0].score == found[1].score:
+            return [], f"lens {lens!r} is ambiguous in lensfun: " + ", ".join(
+                _name(f) for f in found[:3]
+            )
+        return found, "loose lens match" if loose else ""
+    return [], f"lens {lens!r} is not in the lensfun database for {_name(camera)}"
+
+
+def _fixed_lens(db: Any, camera: Any) -> tuple[list[Any], str]:
+    """A compact camera's own lens: files of fixed-lens cameras rarely name
+    it, and lensfun lists it under the camera's private mount. Accepted only
+    when that mount holds exactly one lens."""
+    found = [f for f in db.find_lenses(camera) if camera.mount in f.mounts]
+    if len(found) == 1:
+        return found, "the camera's fixed lens"
+    return [], "the file names no lens"
+
+
+def _positive(value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return 0.0
+    return v if math.isfinite(v) and v > 0 else 0.0
+
+
+def find_profile(
+    lens: str,
+    camera: str | tuple[str, str],
+    *,
+    focal_length: float,
+    aperture: float | None = None,
+    distance: float | None = None,
+) -> LensMatch:
+    """Look a lens up by name for a camera and interpolate its corrections.
+
+    Parameters
+    ----------
+    lens : str
+        Lens name as cameras write it (e.g. ``"EF-S 18-55mm f/3.5-5.6 IS"``).
+    camera : str or (maker, model)
+        ``"Canon EOS 550D"`` or ``("Canon", "Canon EOS 550D")``.
+    focal_length : float
+        Millimetres; must lie within the lens's range.
+    aperture : float, optional
+        f-number; without it vignetting is not corrected.
+    distance : float, optional
+        Focus distance in metres (default far).
+
+    Returns
+    -------
+    LensMatch
+        With ``profile=None`` and the reason when nothing applies.
+
+    Raises
+    ------
+    ImportError
+        lensfunpy is not installed.
+    """
+    maker, model = camera if isinstance(camera, tuple) else ("", str(camera))
+    db = lens_database()
+    cam, note = _find_camera(db, maker, model)
+    searched = (maker + " " + model).strip()
+    if cam is None:
+        return LensMatch(None, searched, lens, (), note)
+    found, lens_note = _find_lenses(db, cam, lens) if lens else _fixed_lens(db, cam)
+    names = tuple(_name(f) for f in found)
+    if not found:
+        return LensMatch(None, searched, lens, names, lens_note)
+    chosen = found[0]
+    focal = _positive(focal_length)
+    lo, hi = chosen.min_focal or 0.0, chosen.max_focal or 0.0
+    if not focal:
+        return LensMatch(None, searched, lens, names, "focal length unknown")
+    if lo and hi and not (lo * (1 - _FOCAL_TOLERANCE) <= focal <= hi * (1 + _FOCAL_TOLERANCE)):
+        return LensMatch(
+            None,
+            searched,
+            lens,
+            names,
+            f"focal length {focal:g} mm is outside {_name(chosen)}'s {lo:g}-{hi:g} mm",
+        )
+    ap = _positive(aperture)
+    dist = _positive(distance) or _FAR
+    vig = chosen.interpolate_vignetting(focal, ap, dist) if ap else None
+    notes = [n for n in (note, lens_note) if n]
+    if not ap and chosen.calib_vignetting:
+        notes.append("vignetting skipped: aperture unknown")
+    key = (chosen.maker, chosen.model, _crop_key(chosen.crop_factor))
+    profile = LensProfile(
+        lens=_name(chosen),
+        camera=_name(cam),
+        crop_factor=float(cam.crop_factor),
+        calibration_crop=float(chosen.crop_factor),
+        aspect_ratio=_aspect_ratios().get(key, _DEFAULT_ASPECT),
+        center=(float(chosen.center_x), float(chosen.center_y)),
+        focal_length=focal,
+        aperture=ap,
+        distance=dist,
+        distortion=_model(chosen.interpolate_distortion(focal)),
+        tca=_model(chosen.interpolate_tca(focal)),
+        vignetting=tuple(float(k) for k in vig.terms[:3]) if vig is not None else None,  # type: ignore[arg-type]
+    )
+    return LensMatch(profile, searched, lens, names, "; ".join(notes))
+
+
+def match_lens(
+    raw: Any,
+    *,
+    lens: str | None = None,
+    camera: str | None = None,
+    focal_length: float | None = None,
+    aperture: float | None = None,
+    distance: float | None = None,
+) -> LensMatch:
+    """Find the lensfun profile for a raw from its metadata.
+
+    The camera's maker and model come from the file's TIFF tags
+    (:attr:`RawImage.make` / ``model``, else LibRaw's), the lens, focal
+    length and aperture from LibRaw (:attr:`RawImage.shot`). Each can be
+    overridden.
+
+    Parameters
+    ----------
+    raw : RawImage
+    lens, camera : str, optional
+        Names to search instead of the file's.
+    focal_length, aperture, distance : float, optional
+        Setting instead of the file's (distance: metres, default far).
+
+    Returns
+    -------
+    LensMatch
+        ``profile=None`` with the reason when nothing matches (not an error).
+    """
+    shot = raw.shot
+    if camera is not None:
+        cam: str | tuple[str, str] = camera
+    else:
+        cam = (raw.make or shot.make, raw.model or shot.model)
+    return find_profile(
+        shot.lens if lens is None else lens,
+        cam,
+        focal_length=shot.focal_length if focal_length is None else focal_length,
+        aperture=shot.f_number if aperture is None else aperture,
+        distance=distance,
+    )
