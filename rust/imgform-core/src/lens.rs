@@ -454,9 +454,9 @@ impl LensCorrection {
 }
 
 /// The largest distance, in pixels, between an interpolated source position
-/// and the exact one that a [`PositionGrid`] accepts at its cells' centres:
-/// below the 1/512 px rounding of the sampler's fixed point, and far below
-/// the 0.01 px to which lensfun's own positions are reproduced.
+/// and the exact one that the geometry correction's grid accepts at its
+/// cells' centres: below the 1/512 px rounding of the sampler's fixed point,
+/// and far below the 0.01 px to which lensfun's own positions are reproduced.
 pub const GRID_TOLERANCE: f64 = 0.002;
 
 /// The coarsest grid step tried, in pixels. Lens models are smooth low-order
