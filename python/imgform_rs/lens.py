@@ -201,7 +201,10 @@ class LensProfile:
         -------
         ndarray, float64, shape (height, width, 3, 2)
             ``(x, y)`` in pixels per channel R, G, B: the layout of
-            lensfunpy's ``apply_subpixel_geometry_distortion``.
+            lensfunpy's ``apply_subpixel_geometry_distortion``. These are
+            the positions :meth:`correct` samples at: exact on a grid of at
+            most 16 px, bilinearly interpolated in between to within
+            0.002 px of the exact ones.
         """
         return self.native(width, height).positions()
 

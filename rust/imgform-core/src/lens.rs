@@ -18,14 +18,17 @@
 //! Correcting reads every output pixel from where the lens put it: the
 //! undistorted position is distorted first, then red and blue are
 //! magnified by the TCA model (lensfun's `ApplySubpixelGeometryDistortion`
-//! order), and each channel is sampled once from the source with
-//! [`crate::remap`]'s sampler. Vignetting divides linear values by the
+//! order), and the three channels are sampled in one pass from the source
+//! with [`crate::remap`]'s sampler, each at its own position. Vignetting divides linear values by the
 //! calibrated falloff `1 + k1 r² + k2 r⁴ + k3 r⁶` (the `pa` model) at the
 //! pixel's own position, so it belongs before any tone curve and before the
 //! geometry is resampled (it describes the uncorrected image).
 //!
 //! # Precision
-//! Everything is evaluated in `f64` per pixel. lensfun works in `f32`,
+//! Everything is evaluated in `f64`. The positions are exact on a grid of
+//! nodes at most 16 px apart and bilinearly interpolated in between, the
+//! step refined until the interpolation is within 0.002 px of the exact
+//! positions at every cell centre (`GRID_TOLERANCE`). lensfun works in `f32`,
 //! accumulates pixel steps, and its SSE paths approximate square roots with
 //! `rcp(rsqrt(x))` (12 bits): against its scalar path positions agree to a
 //! few thousandths of a pixel, against its SSE path (whole-row calls on
@@ -34,8 +37,8 @@
 use crate::error::{positive, CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
-use crate::parallel::for_each_row;
-use crate::remap::{check_fill, resample, to_fixed, Coords, Interpolation, Resample};
+use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
+use crate::remap::{check_fill, resample_channels, to_fixed, ChannelRows, Interpolation, Resample};
 
 /// Radial distortion models of lensfun, as the ratio `r_d / r_u` of the
 /// distorted to the undistorted radius (normalised coordinates).
@@ -280,16 +283,22 @@ pub struct LensCorrection {
 }
 
 impl LensCorrection {
-    /// Where the corrected image's pixel `(u, v)` of channel `channel` (0,
-    /// 1, 2 = R, G, B) lies in the uncorrected one, in pixels.
+    /// Where the corrected image's pixel `(u, v)` lies in the uncorrected
+    /// one, in pixels: `(x, y)` of R, G and B. The distortion is evaluated
+    /// once and each channel's TCA applied to its result.
     #[inline(always)]
-    pub fn source(&self, channel: usize, u: f64, v: f64) -> (f64, f64) {
+    pub fn sources(&self, u: f64, v: f64) -> [f64; 6] {
         let n = &self.normalization;
         let (x, y) = n.to_normalized(u, v);
         let d = self.distortion.ratio(x * x + y * y);
         let (x, y) = (x * d, y * d);
-        let t = self.tca.ratio(channel, x * x + y * y);
-        n.to_pixel(x * t, y * t)
+        let r2 = x * x + y * y;
+        let mut out = [0.0; 6];
+        for (c, xy) in out.chunks_exact_mut(2).enumerate() {
+            let t = self.tca.ratio(c, r2);
+            (xy[0], xy[1]) = n.to_pixel(x * t, y * t);
+        }
+        out
     }
 
     /// The vignetting gain at pixel `(u, v)` (1 without a vignetting model).
@@ -302,9 +311,10 @@ impl LensCorrection {
         })
     }
 
-    /// Writes the source positions of every pixel, `(H, W, 3, 2)` as
-    /// `(x, y)` per channel R, G, B: the layout of lensfunpy's
-    /// `apply_subpixel_geometry_distortion`.
+    /// Writes the source positions the geometry correction samples at,
+    /// `(H, W, 3, 2)` as `(x, y)` per channel R, G, B (the layout of
+    /// lensfunpy's `apply_subpixel_geometry_distortion`): exact on a coarse
+    /// grid, interpolated in between to within [`GRID_TOLERANCE`] px.
     ///
     /// # Errors
     /// `out` not `height * width * 6` long.
@@ -319,22 +329,23 @@ impl LensCorrection {
                 out.len()
             )));
         }
-        for_each_row(out, row_len, |v, row| {
-            for (u, px) in row.chunks_exact_mut(6).enumerate() {
-                for (c, xy) in px.chunks_exact_mut(2).enumerate() {
-                    let (x, y) = self.source(c, u as f64, v as f64);
-                    xy[0] = x;
-                    xy[1] = y;
-                }
+        let grid = PositionGrid::new(self);
+        for_each_band(out, row_len, ROWS_PER_TASK, |v0, band| {
+            let mut line = Vec::new();
+            for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
+                grid.row(v0 + i, &mut line, |u, p| {
+                    row[6 * u..6 * u + 6].copy_from_slice(&p);
+                });
             }
         });
         Ok(())
     }
 
-    /// Resamples an RGB image into its distortion- and TCA-corrected form:
-    /// each channel of `out` (contiguous, the source's shape) is read once
-    /// from `src` at [`LensCorrection::source`]. Taps outside the source
-    /// read `fill`, as in [`crate::remap`].
+    /// Resamples an RGB image into its distortion- and TCA-corrected form in
+    /// one pass: each channel of `out` (contiguous, the source's shape) is
+    /// read from `src` at its own position (see
+    /// [`LensCorrection::positions`]). Taps outside the source read `fill`,
+    /// as in [`crate::remap`].
     ///
     /// # Errors
     /// An image that is not `height x width x 3`, a `fill` the sample type
@@ -348,23 +359,7 @@ impl LensCorrection {
     ) -> Result<()> {
         self.check_image(src, 3)?;
         let fill = check_fill::<T>(fill)?;
-        for channel in 0..3 {
-            let coords = ChannelSource {
-                lens: self,
-                channel,
-            };
-            resample(
-                src,
-                &coords,
-                self.width,
-                self.height,
-                channel..channel + 1,
-                interpolation,
-                fill,
-                out,
-            )?;
-        }
-        Ok(())
+        resample_channels(src, &PositionGrid::new(self), interpolation, fill, out)
     }
 
     /// Removes vignetting: `out = black + (src - black) * gain`, where
@@ -400,21 +395,47 @@ impl LensCorrection {
         }
         let tile_rows = black_tile.len() / black_width;
         let channels = src.channels();
-        for_each_row(out, row_len, |v, row| {
-            let blacks = &black_tile[(v % tile_rows) * black_width..][..black_width];
-            for (u, (px, s)) in row
-                .chunks_exact_mut(channels)
-                .zip(src.row(v).chunks_exact(channels))
-                .enumerate()
-            {
-                let gain = self.gain(u as f64, v as f64);
-                let black = blacks[u % black_width];
-                for (o, &value) in px.iter_mut().zip(s) {
-                    *o = T::from_f32((black + (f64::from(value.to_f32()) - black) * gain) as f32);
+        let gains = self.gain_rows();
+        for_each_band(out, row_len, ROWS_PER_TASK, |v0, band| {
+            let mut gain = vec![0.0; self.width];
+            for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
+                let v = v0 + i;
+                gains.row(v, &mut gain);
+                let blacks = &black_tile[(v % tile_rows) * black_width..][..black_width];
+                for (u, ((px, s), &g)) in row
+                    .chunks_exact_mut(channels)
+                    .zip(src.row(v).chunks_exact(channels))
+                    .zip(&gain)
+                    .enumerate()
+                {
+                    let black = blacks[u % black_width];
+                    for (o, &value) in px.iter_mut().zip(s) {
+                        *o = T::from_f32((black + (f64::from(value.to_f32()) - black) * g) as f32);
+                    }
                 }
             }
         });
         Ok(())
+    }
+
+    /// The vignetting gains by row: `r²` splits into a column and a row term,
+    /// so each row's gains cost one polynomial per pixel and no coordinate
+    /// transform (the same bits as [`LensCorrection::gain`]).
+    fn gain_rows(&self) -> GainRows {
+        let n = &self.normalization;
+        let square = |p: f64, scale: f64, centre: f64| {
+            let d = p * scale - centre;
+            d * d
+        };
+        GainRows {
+            vignetting: self.vignetting,
+            columns: (0..self.width)
+                .map(|u| square(u as f64, n.scale, n.center.0))
+                .collect(),
+            scale: n.scale,
+            centre: n.center.1,
+            to_diagonal: n.to_diagonal,
+        }
     }
 
     fn check_image<T: Copy>(&self, src: &ImageView<T>, channels: usize) -> Result<()> {
@@ -432,18 +453,199 @@ impl LensCorrection {
     }
 }
 
-/// The source positions of one channel, computed per pixel: no map is
-/// stored (three dense maps of a 24 MP image would take 576 MB).
-struct ChannelSource<'a> {
-    lens: &'a LensCorrection,
-    channel: usize,
+/// The largest distance, in pixels, between an interpolated source position
+/// and the exact one that the geometry correction's grid accepts at its
+/// cells' centres: below the 1/512 px rounding of the sampler's fixed point,
+/// and far below the 0.01 px to which lensfun's own positions are reproduced.
+pub const GRID_TOLERANCE: f64 = 0.002;
+
+/// The coarsest grid step tried, in pixels. Lens models are smooth low-order
+/// polynomials of the radius, so on camera-sized images bilinear
+/// interpolation over 16 px cells is already within [`GRID_TOLERANCE`];
+/// tiny images (a radius of tens of pixels) need finer steps.
+const COARSEST_STEP: usize = 16;
+
+/// Source positions evaluated exactly only at grid nodes and bilinearly
+/// interpolated in between: the lens models (a square root, TCA per
+/// channel) cost far more than a 6-wide interpolation, and a 24 MP image
+/// needs ~100 k nodes instead of 24 M evaluations.
+///
+/// The step halves from [`COARSEST_STEP`] until every cell centre (where
+/// bilinear interpolation strays furthest from a smooth function) is within
+/// [`GRID_TOLERANCE`] of the exact position; at step 1 every pixel is a node.
+struct PositionGrid {
+    columns: Axis,
+    rows: Axis,
+    /// `(x, y)` of R, G and B per node, rows of `columns.nodes.len()`.
+    nodes: Vec<[f64; 6]>,
 }
 
-impl Coords for ChannelSource<'_> {
+/// The nodes along one side and, per pixel, the cell it falls in and its
+/// weight towards the cell's far node.
+struct Axis {
+    nodes: Vec<usize>,
+    cell: Vec<usize>,
+    weight: Vec<f64>,
+}
+
+impl Axis {
+    /// Every `step`-th pixel of `n` and the last one; a side of one pixel
+    /// has its node twice (a cell of zero length, weight 0).
+    fn new(n: usize, step: usize) -> Self {
+        let mut nodes: Vec<usize> = (0..n).step_by(step).collect();
+        if nodes.len() < 2 || nodes[nodes.len() - 1] != n - 1 {
+            nodes.push(n - 1);
+        }
+        let mut cell = Vec::with_capacity(n);
+        let mut weight = Vec::with_capacity(n);
+        for (i, pair) in nodes.windows(2).enumerate() {
+            let (a, b) = (pair[0], pair[1]);
+            // The last cell takes its far node too.
+            let end = if i + 2 == nodes.len() { b + 1 } else { b };
+            for p in a..end.min(n) {
+                cell.push(i);
+                weight.push(if b > a {
+                    (p - a) as f64 / (b - a) as f64
+                } else {
+                    0.0
+                });
+            }
+        }
+        Self {
+            nodes,
+            cell,
+            weight,
+        }
+    }
+}
+
+impl PositionGrid {
+    fn new(lens: &LensCorrection) -> Self {
+        let mut step = COARSEST_STEP;
+        loop {
+            let grid = Self::with_step(lens, step);
+            if step == 1 || grid.worst_error(lens) <= GRID_TOLERANCE {
+                return grid;
+            }
+            step /= 2;
+        }
+    }
+
+    fn with_step(lens: &LensCorrection, step: usize) -> Self {
+        let columns = Axis::new(lens.width, step);
+        let rows = Axis::new(lens.height, step);
+        let mut nodes = vec![[0.0; 6]; columns.nodes.len() * rows.nodes.len()];
+        for_each_row(&mut nodes, columns.nodes.len(), |j, line| {
+            let v = rows.nodes[j] as f64;
+            for (p, &u) in line.iter_mut().zip(&columns.nodes) {
+                *p = lens.sources(u as f64, v);
+            }
+        });
+        Self {
+            columns,
+            rows,
+            nodes,
+        }
+    }
+
+    /// The largest coordinate error at the cells' centres; infinite when a
+    /// position there is not finite (such a grid is refined to step 1).
+    fn worst_error(&self, lens: &LensCorrection) -> f64 {
+        let centres = |nodes: &[usize]| -> Vec<usize> {
+            nodes.windows(2).map(|c| (c[0] + c[1]) / 2).collect()
+        };
+        let (us, vs) = (centres(&self.columns.nodes), centres(&self.rows.nodes));
+        let mut worst = 0.0f64;
+        for &v in &vs {
+            for &u in &us {
+                let exact = lens.sources(u as f64, v as f64);
+                for (a, b) in self.at(u, v).iter().zip(exact) {
+                    let e = (a - b).abs();
+                    worst = if e.is_nan() {
+                        f64::INFINITY
+                    } else {
+                        worst.max(e)
+                    };
+                }
+            }
+        }
+        worst
+    }
+
+    /// The interpolated positions of pixel `(u, v)`: the same operations in
+    /// the same order as [`PositionGrid::row`], so the same bits.
+    fn at(&self, u: usize, v: usize) -> [f64; 6] {
+        let n = self.columns.nodes.len();
+        let (j, ty) = (self.rows.cell[v], self.rows.weight[v]);
+        let (i, tx) = (self.columns.cell[u], self.columns.weight[u]);
+        let node = |j: usize, i: usize| &self.nodes[j * n + i];
+        let left = lerp(node(j, i), node(j + 1, i), ty);
+        let right = lerp(node(j, i + 1), node(j + 1, i + 1), ty);
+        lerp(&left, &right, tx)
+    }
+
+    /// Calls `f(u, positions)` for every pixel of row `v`, interpolating the
+    /// grid rows around it into `line` first.
     #[inline(always)]
-    fn at(&self, x: usize, y: usize) -> (i32, i32) {
-        let (sx, sy) = self.lens.source(self.channel, x as f64, y as f64);
-        (to_fixed(sx), to_fixed(sy))
+    fn row(&self, v: usize, line: &mut Vec<[f64; 6]>, mut f: impl FnMut(usize, [f64; 6])) {
+        let n = self.columns.nodes.len();
+        let j = self.rows.cell[v];
+        let t = self.rows.weight[v];
+        let (above, below) = (&self.nodes[j * n..][..n], &self.nodes[(j + 1) * n..][..n]);
+        line.clear();
+        line.extend(above.iter().zip(below).map(|(a, b)| lerp(a, b, t)));
+        for (u, (&i, &t)) in self
+            .columns
+            .cell
+            .iter()
+            .zip(&self.columns.weight)
+            .enumerate()
+        {
+            f(u, lerp(&line[i], &line[i + 1], t));
+        }
+    }
+}
+
+/// `a + (b - a) t` per coordinate.
+#[inline(always)]
+fn lerp(a: &[f64; 6], b: &[f64; 6], t: f64) -> [f64; 6] {
+    std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t)
+}
+
+impl ChannelRows for PositionGrid {
+    type Scratch = Vec<[f64; 6]>;
+
+    fn fill_row(&self, y: usize, line: &mut Vec<[f64; 6]>, xy: &mut [i32]) {
+        self.row(y, line, |u, p| {
+            for (q, c) in xy[6 * u..6 * u + 6].iter_mut().zip(p) {
+                *q = to_fixed(c);
+            }
+        });
+    }
+}
+
+/// See [`LensCorrection::gain_rows`].
+struct GainRows {
+    vignetting: Option<Vignetting>,
+    /// `x²` of each column in normalised units.
+    columns: Vec<f64>,
+    scale: f64,
+    centre: f64,
+    to_diagonal: f64,
+}
+
+impl GainRows {
+    /// Writes row `v`'s gains into `out` (one per column).
+    fn row(&self, v: usize, out: &mut [f64]) {
+        let Some(vig) = self.vignetting else {
+            out.fill(1.0);
+            return;
+        };
+        let y = v as f64 * self.scale - self.centre;
+        let y2 = y * y;
+        for (g, &x2) in out.iter_mut().zip(&self.columns) {
+            *g = vig.gain((x2 + y2) * self.to_diagonal * self.to_diagonal);
+        }
     }
 }
 
@@ -480,6 +682,108 @@ mod tests {
         }
     }
 
+    fn source(c: &LensCorrection, channel: usize, u: f64, v: f64) -> (f64, f64) {
+        let p = c.sources(u, v);
+        (p[2 * channel], p[2 * channel + 1])
+    }
+
+    fn strong(width: usize, height: usize, distortion: RadialDistortion) -> LensCorrection {
+        LensCorrection {
+            width,
+            height,
+            normalization: Normalization::new(width, height, 1.5, 1.5, 1.5, (0.01, -0.02)).unwrap(),
+            distortion,
+            tca: Tca::Poly3 {
+                v: [1.002, 0.998],
+                c: [0.001, -0.001],
+                b: [0.0005, -0.0004],
+            },
+            vignetting: None,
+        }
+    }
+
+    #[test]
+    fn interpolated_positions_stay_within_the_tolerance_of_the_exact_ones() {
+        let models = [
+            RadialDistortion::Poly3 { k1: -0.08 },
+            RadialDistortion::Poly5 { k1: 0.1, k2: -0.04 },
+            RadialDistortion::PtLens {
+                a: 0.02,
+                b: -0.06,
+                c: 0.03,
+            },
+        ];
+        // Tiny (steps refine), odd, one-pixel-wide and camera-like shapes.
+        for (w, h) in [(37, 23), (1, 9), (400, 267), (1201, 800)] {
+            for d in models {
+                let c = strong(w, h, d);
+                let mut pos = vec![0.0; w * h * 6];
+                c.positions(&mut pos).unwrap();
+                let mut worst = 0.0f64;
+                for (i, p) in pos.chunks_exact(6).enumerate() {
+                    let exact = c.sources((i % w) as f64, (i / w) as f64);
+                    for (a, b) in p.iter().zip(exact) {
+                        worst = worst.max((a - b).abs());
+                    }
+                }
+                // Cell centres are checked against GRID_TOLERANCE; elsewhere
+                // bilinear error is smaller for these smooth models.
+                assert!(worst <= GRID_TOLERANCE, "{w}x{h} {d:?}: {worst}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_typical_lens_on_a_24_mp_frame_needs_only_a_coarse_grid() {
+        // Bilinear error grows with the step squared and shrinks with the
+        // image size: k1 = -0.02 on 6000 x 4000 px is within tolerance at 8 px.
+        let c = strong(6000, 4000, RadialDistortion::Poly3 { k1: -0.02 });
+        let grid = PositionGrid::new(&c);
+        assert!(grid.columns.nodes[1] >= 8, "step {}", grid.columns.nodes[1]);
+        assert_eq!(*grid.columns.nodes.last().unwrap(), 5999);
+        assert_eq!(*grid.rows.nodes.last().unwrap(), 3999);
+    }
+
+    /// Channel `channel`'s positions of a grid, read pixel by pixel through
+    /// the remap sampler's per-pixel path.
+    struct OneChannel<'a>(&'a [f64], usize, usize);
+
+    impl crate::remap::Coords for OneChannel<'_> {
+        fn at(&self, x: usize, y: usize) -> (i32, i32) {
+            let p = &self.0[6 * (y * self.2 + x) + 2 * self.1..];
+            (to_fixed(p[0]), to_fixed(p[1]))
+        }
+    }
+
+    #[test]
+    fn one_pass_over_three_channels_equals_the_per_channel_passes() {
+        let (w, h) = (61, 41);
+        let c = strong(w, h, RadialDistortion::Poly3 { k1: -0.05 });
+        let img: Vec<u8> = (0..w * h * 3).map(|i| (i * 53 % 251) as u8).collect();
+        let view = ImageView::contiguous(&img, w, h, 3).unwrap();
+        let mut pos = vec![0.0; w * h * 6];
+        c.positions(&mut pos).unwrap();
+        for interp in [Interpolation::Bilinear, Interpolation::Bicubic] {
+            let mut fused = vec![0u8; img.len()];
+            c.correct_geometry(&view, interp, 7.0, &mut fused).unwrap();
+            let mut separate = vec![0u8; img.len()];
+            for ch in 0..3 {
+                crate::remap::resample(
+                    &view,
+                    &OneChannel(&pos, ch, w),
+                    w,
+                    h,
+                    ch..ch + 1,
+                    interp,
+                    7.0,
+                    &mut separate,
+                )
+                .unwrap();
+            }
+            assert_eq!(fused, separate);
+        }
+    }
+
     #[test]
     fn a_3_2_image_of_the_calibration_sensor_is_normalised_to_its_short_side() {
         // W - 1 = 60, H - 1 = 40: the short half-side is 20 px.
@@ -504,7 +808,7 @@ mod tests {
         c.vignetting = None;
         for (u, v) in [(0.0, 0.0), (60.0, 40.0), (13.0, 7.0)] {
             for ch in 0..3 {
-                let (x, y) = c.source(ch, u, v);
+                let (x, y) = source(&c, ch, u, v);
                 assert!((x - u).abs() < 1e-9 && (y - v).abs() < 1e-9);
             }
             assert_eq!(c.gain(u, v), 1.0);
@@ -514,20 +818,20 @@ mod tests {
     #[test]
     fn barrel_distortion_reads_the_corners_from_nearer_the_centre() {
         let c = correction(RadialDistortion::Poly3 { k1: -0.05 }, Tca::None);
-        let (x, y) = c.source(1, 0.0, 0.0);
+        let (x, y) = source(&c, 1, 0.0, 0.0);
         assert!(x > 0.0 && y > 0.0);
         // The centre itself does not move.
-        let (x, y) = c.source(1, 30.0, 20.0);
+        let (x, y) = source(&c, 1, 30.0, 20.0);
         assert!((x - 30.0).abs() < 1e-9 && (y - 20.0).abs() < 1e-9);
     }
 
     #[test]
     fn tca_moves_red_and_blue_only() {
         let c = correction(RadialDistortion::None, Tca::Linear { kr: 1.01, kb: 0.99 });
-        let g = c.source(1, 0.0, 0.0);
+        let g = source(&c, 1, 0.0, 0.0);
         assert!((g.0).abs() < 1e-9);
-        let r = c.source(0, 0.0, 0.0);
-        let b = c.source(2, 0.0, 0.0);
+        let r = source(&c, 0, 0.0, 0.0);
+        let b = source(&c, 2, 0.0, 0.0);
         assert!(r.0 < 0.0 && b.0 > 0.0);
     }
 
@@ -581,6 +885,15 @@ mod tests {
         let want = 200.0 + 800.0 * c.gain(0.0, 0.0);
         assert_eq!(out[0], (want + 0.5) as u16);
         assert_eq!(out[30 + 20 * 61], 1000);
+        // Rows of gains are the per-pixel gains, bit for bit.
+        let rows = c.gain_rows();
+        let mut row = vec![0.0; 61];
+        for v in [0, 17, 40] {
+            rows.row(v, &mut row);
+            for (u, &g) in row.iter().enumerate() {
+                assert_eq!(g, c.gain(u as f64, v as f64));
+            }
+        }
     }
 
     #[test]

@@ -54,7 +54,7 @@ use crate::error::{CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::intrinsics::Intrinsics;
 use crate::invalid;
-use crate::parallel::for_each_row;
+use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
 
 #[cfg(target_arch = "x86_64")]
 #[path = "remap_avx2.rs"]
@@ -624,56 +624,16 @@ impl<T: Resample, S: Coords> Job<'_, T, S> {
         c0: usize,
     ) {
         let nc = if NC > 0 { NC } else { self.src.channels() };
-        // Both fit i32: sides are at most MAX_SIDE.
-        let (w, h) = (self.src.width() as i32, self.src.height() as i32);
-        let taps = TAPS as i32;
-        // Offset of the first tap from floor(position): 0 for 2 taps, -1 for 4.
-        let lead = taps / 2 - 1;
         let interpolation = if TAPS == 2 {
             Interpolation::Bilinear
         } else {
             Interpolation::Bicubic
         };
-        let fill = T::from_f32(self.fill);
-        let fill_v = V::load(fill);
+        let taps = Taps::<T, V, TAPS, NC>::new(self.src, table, self.fill);
         for_each_row(out, row_len, |y, row| {
             let mut pixel = |x: usize, px: &mut [T]| {
-                let px = &mut px[c0..c0 + N];
                 let (sx, sy) = self.coords.at(x, y);
-                // The arithmetic shift is floor; NOWHERE lands far outside.
-                let (ix, iy) = ((sx >> FRAC_BITS) - lead, (sy >> FRAC_BITS) - lead);
-                if ix <= -taps || iy <= -taps || ix >= w || iy >= h {
-                    // No tap touches the image.
-                    px.fill(fill);
-                    return;
-                }
-                let wx = &table[(sx & FRAC_MASK) as usize];
-                let wy = &table[(sy & FRAC_MASK) as usize];
-                let value = if ix >= 0 && iy >= 0 && ix + taps <= w && iy + taps <= h {
-                    // Windows of exactly the samples the taps read, so that the
-                    // tap indices below are provably in bounds and unchecked.
-                    let start = ix as usize * nc + c0;
-                    let len = (TAPS - 1) * nc + N;
-                    let rows: [&[T]; TAPS] =
-                        std::array::from_fn(|j| &self.src.row(iy as usize + j)[start..start + len]);
-                    convolve::<TAPS, N, V>(wx, wy, |i, j| {
-                        std::array::from_fn(|c| V::load(rows[j][i * nc + c]))
-                    })
-                } else {
-                    convolve::<TAPS, N, V>(wx, wy, |i, j| {
-                        let (tx, ty) = (ix + i as i32, iy + j as i32);
-                        std::array::from_fn(|c| {
-                            if tx >= 0 && ty >= 0 && tx < w && ty < h {
-                                V::load(self.src.at(tx as usize, ty as usize, c0 + c))
-                            } else {
-                                fill_v
-                            }
-                        })
-                    })
-                };
-                for (p, v) in px.iter_mut().zip(value) {
-                    *p = v.store();
-                }
+                taps.sample::<N>(sx, sy, c0, &mut px[c0..c0 + N]);
             };
             // Whole pixels only: the kernels write every channel.
             if N == nc {
@@ -688,6 +648,167 @@ impl<T: Resample, S: Coords> Job<'_, T, S> {
             }
         });
     }
+}
+
+/// The sampler of one source with one weight table: reads the taps around a
+/// fixed-point position, shared by the per-pixel and per-channel passes so
+/// that both compute the same bits. `NC` is the image's channel count, 0 for
+/// "read it at run time".
+struct Taps<'a, T, V, const TAPS: usize, const NC: usize> {
+    src: &'a ImageView<'a, T>,
+    table: &'a [[V; TAPS]; STEPS],
+    fill: T,
+    fill_v: V,
+    // Both fit i32: sides are at most MAX_SIDE.
+    w: i32,
+    h: i32,
+}
+
+impl<'a, T: Resample, V: Arith<T>, const TAPS: usize, const NC: usize> Taps<'a, T, V, TAPS, NC> {
+    fn new(src: &'a ImageView<'a, T>, table: &'a [[V; TAPS]; STEPS], fill: f32) -> Self {
+        let fill = T::from_f32(fill);
+        Self {
+            src,
+            table,
+            fill,
+            fill_v: V::load(fill),
+            w: src.width() as i32,
+            h: src.height() as i32,
+        }
+    }
+
+    /// Writes channels `c0..c0 + N` of the source sampled at `(sx, sy)`
+    /// (fixed point) into `px` (`N` long).
+    #[inline(always)]
+    fn sample<const N: usize>(&self, sx: i32, sy: i32, c0: usize, px: &mut [T]) {
+        let nc = if NC > 0 { NC } else { self.src.channels() };
+        let (w, h) = (self.w, self.h);
+        let taps = TAPS as i32;
+        // Offset of the first tap from floor(position): 0 for 2 taps, -1 for 4.
+        let lead = taps / 2 - 1;
+        // The arithmetic shift is floor; NOWHERE lands far outside.
+        let (ix, iy) = ((sx >> FRAC_BITS) - lead, (sy >> FRAC_BITS) - lead);
+        if ix <= -taps || iy <= -taps || ix >= w || iy >= h {
+            // No tap touches the image.
+            px.fill(self.fill);
+            return;
+        }
+        let wx = &self.table[(sx & FRAC_MASK) as usize];
+        let wy = &self.table[(sy & FRAC_MASK) as usize];
+        let value = if ix >= 0 && iy >= 0 && ix + taps <= w && iy + taps <= h {
+            // Windows of exactly the samples the taps read, so that the
+            // tap indices below are provably in bounds and unchecked.
+            let start = ix as usize * nc + c0;
+            let len = (TAPS - 1) * nc + N;
+            let rows: [&[T]; TAPS] =
+                std::array::from_fn(|j| &self.src.row(iy as usize + j)[start..start + len]);
+            convolve::<TAPS, N, V>(wx, wy, |i, j| {
+                std::array::from_fn(|c| V::load(rows[j][i * nc + c]))
+            })
+        } else {
+            convolve::<TAPS, N, V>(wx, wy, |i, j| {
+                let (tx, ty) = (ix + i as i32, iy + j as i32);
+                std::array::from_fn(|c| {
+                    if tx >= 0 && ty >= 0 && tx < w && ty < h {
+                        V::load(self.src.at(tx as usize, ty as usize, c0 + c))
+                    } else {
+                        self.fill_v
+                    }
+                })
+            })
+        };
+        for (p, v) in px.iter_mut().zip(value) {
+            *p = v.store();
+        }
+    }
+}
+
+/// Per-channel source positions computed a row at a time: lateral chromatic
+/// aberration reads each channel of an RGB image from its own place, and a
+/// row of positions computed at once (from a coarse grid, say) costs far
+/// less than each position on its own.
+pub(crate) trait ChannelRows: Sync {
+    /// Working memory of [`ChannelRows::fill_row`], made once per band of
+    /// rows so that no row allocates.
+    type Scratch: Default;
+
+    /// Writes the positions of output row `y` into `xy`: per pixel, the
+    /// fixed-point `(x, y)` of R, G and B in turn (`6 * width` values).
+    fn fill_row(&self, y: usize, scratch: &mut Self::Scratch, xy: &mut [i32]);
+}
+
+/// Resamples an RGB image whose channels are read from different places
+/// (`coords`) into `out`, a contiguous image of the source's size, in one
+/// pass: every source row band is visited once for all three channels.
+///
+/// # Errors
+/// [`CoreError::Shape`] when `src` does not have 3 channels, is too large,
+/// or `out` is not its size.
+pub(crate) fn resample_channels<T: Resample, S: ChannelRows>(
+    src: &ImageView<T>,
+    coords: &S,
+    interpolation: Interpolation,
+    fill: f32,
+    out: &mut [T],
+) -> Result<()> {
+    let (width, height) = (src.width(), src.height());
+    if src.channels() != 3 || out.len() != width * height * 3 {
+        return Err(CoreError::Shape(format!(
+            "per-channel resampling needs an RGB image and an output of its size, got {}x{}x{} and {} samples",
+            height,
+            width,
+            src.channels(),
+            out.len()
+        )));
+    }
+    if width > MAX_SIDE || height > MAX_SIDE {
+        return Err(CoreError::Shape(format!(
+            "images are limited to {MAX_SIDE} pixels per side, got {height}x{width}"
+        )));
+    }
+    match interpolation {
+        Interpolation::Bilinear => channel_rows(
+            &Taps::<T, T::Bilinear, 2, 3>::new(
+                src,
+                &std::array::from_fn(<T::Bilinear as Arith<T>>::bilinear),
+                fill,
+            ),
+            coords,
+            out,
+        ),
+        Interpolation::Bicubic => channel_rows(
+            &Taps::<T, f32, 4, 3>::new(
+                src,
+                &std::array::from_fn(|k| keys_weights(k as f32 / ONE as f32)),
+                fill,
+            ),
+            coords,
+            out,
+        ),
+    }
+    Ok(())
+}
+
+/// [`resample_channels`]' loop: bands of rows in parallel, each filling one
+/// row of positions at a time into buffers made once per band.
+fn channel_rows<T: Resample, V: Arith<T>, const TAPS: usize, S: ChannelRows>(
+    taps: &Taps<T, V, TAPS, 3>,
+    coords: &S,
+    out: &mut [T],
+) {
+    let row_len = 3 * taps.src.width();
+    for_each_band(out, row_len, ROWS_PER_TASK, |y0, band| {
+        let mut scratch = S::Scratch::default();
+        let mut xy = vec![0i32; 2 * row_len];
+        for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
+            coords.fill_row(y0 + i, &mut scratch, &mut xy);
+            for (px, p) in row.chunks_exact_mut(3).zip(xy.chunks_exact(6)) {
+                for c in 0..3 {
+                    taps.sample::<1>(p[2 * c], p[2 * c + 1], c, &mut px[c..=c]);
+                }
+            }
+        }
+    });
 }
 
 /// `Σ_j wy[j] Σ_i wx[i] tap(i, j)` for `N` channels at once: the separable
