@@ -735,7 +735,7 @@ def expose(image: Any, stock: str | Path | Stock, *, exposure_ev: float = 0.0) -
     Examples
     --------
     >>> H = expose(np.full((1, 1, 3), 0.18, np.float32), "generic-negative")
-    >>> np.round(H, 4).tolist()
+    >>> np.round(H.astype(float), 4).tolist()
     [[[0.18, 0.18, 0.18]]]
     """
     st = load_stock(stock)
@@ -801,8 +801,8 @@ def develop(
     Examples
     --------
     >>> D = develop(np.full((1, 1, 3), 0.18, np.float32), "generic-negative")
-    >>> np.round(D, 2).tolist()
-    [[[0.84, 0.88, 0.92]]]
+    >>> np.round(D.astype(float), 2).tolist()
+    [[[1.35, 1.39, 1.43]]]
     """
     st = load_stock(stock)
     arr = _image(exposure, "exposure", len(st.layers))
