@@ -8,6 +8,7 @@
 //! columns, with mirrored edges so that a uniform field stays exactly
 //! uniform (the neutral wedge relies on this).
 
+use crate::image::mirror;
 use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
 
 /// Taps of a normalised Gaussian of standard deviation `sigma` (pixels),
@@ -19,19 +20,6 @@ pub fn gaussian_taps(sigma: f64) -> Vec<f32> {
         .collect();
     let total = raw[0] + 2.0 * raw[1..].iter().sum::<f64>();
     raw.iter().map(|w| (w / total) as f32).collect()
-}
-
-/// Index `i` reflected into `0..n` about the edge samples (`-1 -> 1`), the
-/// mirror that keeps a uniform field uniform; `n == 1` gives 0.
-#[inline(always)]
-fn mirror(i: isize, n: usize) -> usize {
-    let n = n as isize;
-    if n == 1 {
-        return 0;
-    }
-    let period = 2 * (n - 1);
-    let j = i.rem_euclid(period);
-    (if j < n { j } else { period - j }) as usize
 }
 
 /// Blurs `src` `(height, width, channels)` into `out` with the symmetric
