@@ -128,3 +128,28 @@ def test_render_dispersion_refuses_bad_input_by_name():
     # red's focal length, 0.35 mm longer, reaches past it.
     with pytest.raises(ValueError, match="at 700 nm the focal length reaches the sensor"):
         render_dispersion(_two_points(), [400, 500, 700], glass, **{**args, "focus_distance": 1e7})
+
+
+def test_bad_glasses_spectra_grids_and_depths_are_refused():
+    glass = Glass.from_abbe(1.5168, 64.17)
+    args = dict(f_d=50.0, N=4.0, focus_distance=2000.0, depth=2000.0, pixel_pitch=0.05)
+    wl = [400.0, 500.0, 600.0]
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        Glass.from_sellmeier([1, 0, 0], [-1, 0, 0])
+    with pytest.raises(ValueError, match='law must be "cauchy" or "sellmeier"'):
+        Glass("foo", (1.0, 2.0))
+    with pytest.raises(ValueError, match="needs 2 finite coefficients"):
+        Glass("cauchy", (1.5,))
+    with pytest.raises(TypeError, match="glass must be a Glass"):
+        render_dispersion(_two_points(), wl, "N-BK7", **args)  # type: ignore[arg-type]
+    for bad in (np.nan, -1.0):
+        cube = _two_points()
+        cube[7, 9, 2] = bad
+        with pytest.raises(ValueError, match=r"pixel \(row 7, column 9\) is not"):
+            render_dispersion(cube, wl, glass, **args)
+    with pytest.raises(ValueError, match="strictly increasing"):
+        render_dispersion(_two_points(), wl[::-1], glass, **args)
+    with pytest.raises(ValueError, match=r"\(H, W\) = \(41, 61\) map, got shape \(3, 3\)"):
+        render_dispersion(_two_points(), wl, glass, **{**args, "depth": np.ones((3, 3))})
+    with pytest.raises(ValueError, match="focus_distance must be finite and beyond"):
+        render_dispersion(_two_points(), wl, glass, **{**args, "focus_distance": 20.0})

@@ -56,6 +56,17 @@ class Glass:
     law: str
     coefficients: tuple[float, ...]
 
+    def __post_init__(self) -> None:
+        counts = {"cauchy": 2, "sellmeier": 6}
+        if self.law not in counts:
+            raise ValueError(f'law must be "cauchy" or "sellmeier", got {self.law!r}')
+        coeffs = as_float_array(self.coefficients, "coefficients")
+        if coeffs.shape != (counts[self.law],) or not np.isfinite(coeffs).all():
+            raise ValueError(
+                f"a {self.law} glass needs {counts[self.law]} finite coefficients, "
+                f"got {self.coefficients!r}"
+            )
+
     @classmethod
     def from_abbe(cls, n_d: float, abbe_number: float) -> Glass:
         """The Cauchy glass through ``n_d`` at the d line whose F - C index
@@ -75,8 +86,13 @@ class Glass:
         bs, cs = as_float_array(b, "b"), as_float_array(c, "c")
         if bs.shape != (3,) or cs.shape != (3,):
             raise ValueError(f"b and c must hold 3 values each, got {bs.shape} and {cs.shape}")
-        if not (np.isfinite(bs).all() and np.isfinite(cs).all() and (bs >= 0).all()):
-            raise ValueError("Sellmeier coefficients must be finite, with b >= 0")
+        finite = np.isfinite(bs).all() and np.isfinite(cs).all()
+        if not (finite and (bs >= 0).all() and (cs >= 0).all()):
+            # C_i are squared resonance wavelengths (µm²): never negative.
+            raise ValueError(
+                f"Sellmeier coefficients must be finite and >= 0, got b={bs.tolist()}, "
+                f"c={cs.tolist()}"
+            )
         return cls("sellmeier", (*bs.tolist(), *cs.tolist()))
 
     def index(self, wavelength: Any) -> Float64Array:
@@ -132,6 +148,17 @@ def focal_shift(glass: Glass, wavelengths: Any, f_d: float) -> Float64Array:
     return focal_lengths(glass, wavelengths, f_d) - _positive(f_d, "f_d")
 
 
+def _check_radiance(cube: npt.NDArray[np.float32]) -> None:
+    """Radiance is finite and >= 0; the first bad pixel is named."""
+    bad = ~(np.isfinite(cube) & (cube >= 0)).all(axis=2)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        raise ValueError(
+            "radiance must be finite and >= 0 at every wavelength; pixel "
+            f"(row {row}, column {col}) is not"
+        )
+
+
 def render_dispersion(
     radiance: npt.NDArray[np.float32],
     wavelengths: Any,
@@ -179,22 +206,39 @@ def render_dispersion(
     Raises
     ------
     TypeError, ValueError
-        A non-float32 or wrongly shaped image, a mismatched grid, or a
+        A non-float32 or wrongly shaped image, negative or NaN radiance (the
+        first bad pixel is named), a grid that is not strictly increasing or
+        does not match the image, a depth map of another shape, or a
         wavelength whose focal length reaches the sensor (it focuses nothing).
     """
+    from .spectral import check_wavelengths
+
+    if not isinstance(glass, Glass):
+        raise TypeError(f"glass must be a Glass, got {type(glass).__name__}")
     cube = np.asarray(radiance)
     if cube.dtype != np.float32 or cube.ndim != 3:
         raise TypeError(
             f"radiance must be a float32 (H, W, L) array, got {cube.dtype} of shape {cube.shape}"
         )
-    wl = as_float_array(wavelengths, "wavelengths")
+    wl = check_wavelengths(wavelengths)
     if wl.shape != (cube.shape[2],):
         raise ValueError(
             f"wavelengths must hold the image's {cube.shape[2]} samples, got shape {wl.shape}"
         )
+    _check_radiance(cube)
     h, w = cube.shape[:2]
-    depth_map = np.broadcast_to(np.asarray(depth, np.float64), (h, w))
+    depth_arr = as_float_array(depth, "depth")
+    if depth_arr.ndim != 0 and depth_arr.shape != (h, w):
+        raise ValueError(
+            f"depth must be a scalar or an (H, W) = ({h}, {w}) map, got shape {depth_arr.shape}"
+        )
+    depth_map = np.broadcast_to(depth_arr, (h, w))
     f_d, N = _positive(f_d, "f_d"), _positive(N, "N")
+    if not (np.isfinite(focus_distance) and focus_distance > f_d):
+        raise ValueError(
+            f"focus_distance must be finite and beyond the focal length f_d = {f_d:g} mm, "
+            f"got {focus_distance!r}"
+        )
     sensor = float(image_distance(f_d, focus_distance))
     aperture = f_d / N
     fs = focal_lengths(glass, wl, f_d)

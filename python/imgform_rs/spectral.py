@@ -30,7 +30,7 @@ import numpy.typing as npt
 
 from . import _native
 from ._arrays import Float64Array, as_float_array
-from .cfa import as_pattern
+from .cfa import as_pattern, pattern_cells
 
 Float32Array = npt.NDArray[np.float32]
 Rule = Literal["trapezoid", "riemann"]
@@ -68,6 +68,11 @@ def wavelengths(start: float = 380.0, stop: float = 780.0, step: float = 10.0) -
     >>> len(wl), wl[0], wl[-1]
     (41, np.float64(380.0), np.float64(780.0))
     """
+    if not all(np.isfinite(v) for v in (start, stop, step)) or step <= 0:
+        raise ValueError(
+            f"start, stop and step must be finite with step > 0, got start={start}, "
+            f"stop={stop}, step={step}"
+        )
     n = round((stop - start) / step)
     if not (n >= 1 and abs(start + n * step - stop) <= 1e-9 * abs(stop)):
         raise ValueError(
@@ -96,6 +101,14 @@ def check_wavelengths(wl: Any) -> Float64Array:
         raise ValueError(f"wavelengths must be a 1-D array, got shape {arr.shape}")
     _native.check_wavelengths(arr.tolist())
     return np.ascontiguousarray(arr)
+
+
+def _check_int(value: Any, name: str, least: int) -> int:
+    """``value`` as an int >= ``least``; a float such as 14.5 is refused,
+    not truncated."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
+    return int(value)
 
 
 def _spectra(values: Any, wl: Float64Array, name: str) -> Float64Array:
@@ -336,6 +349,8 @@ class Sensor:
     pattern_seed: int = 0
 
     def __post_init__(self) -> None:
+        _check_int(self.bit_depth, "bit_depth", 1)
+        _check_int(self.black_level, "black_level", 0)
         self.native(seed=0, exposure_time=1.0)  # validates every parameter
 
     @property
@@ -524,6 +539,21 @@ class PhotonTransfer(NamedTuple):
     fitted: npt.NDArray[np.bool_]
 
 
+def _check_pairs(pairs: list[Any]) -> None:
+    """Every exposure a pair of 2-D frames, all of one shape (one sensor)."""
+    shapes = set()
+    for i, pair in enumerate(pairs):
+        if isinstance(pair, np.ndarray) or len(pair) != 2:
+            raise ValueError(
+                f"each exposure must be a pair (frame, frame) of 2-D raws; item {i} is not"
+            )
+        shapes.update(np.shape(frame) for frame in pair)
+    if len(shapes) != 1 or len(next(iter(shapes))) != 2:
+        raise ValueError(
+            f"all flat and dark frames must be 2-D raws of one shape, got shapes {sorted(shapes)}"
+        )
+
+
 def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
     """Photon-transfer analysis of flat-field and dark frame pairs.
 
@@ -550,8 +580,9 @@ def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
     Raises
     ------
     ValueError
-        Fewer than three exposures, mismatched pair counts, or no exposure
-        below 70 % of saturation.
+        Fewer than three exposures, mismatched pair counts, items that are
+        not pairs, frames of different shapes, or no exposure below 70 % of
+        saturation.
     """
     flats, darks = list(flats), list(darks)
     if len(flats) != len(darks) or len(flats) < 3:
@@ -559,6 +590,7 @@ def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
             "photon_transfer needs one dark pair per flat pair and at least 3 exposures, "
             f"got {len(flats)} flat and {len(darks)} dark pairs"
         )
+    _check_pairs(flats + darks)
     f = np.array([flat_pair_stats(a, b) for a, b in flats])
     d = np.array([flat_pair_stats(a, b) for a, b in darks])
     mean = f[:, 0] - d[:, 0]
@@ -624,9 +656,15 @@ def cos4_falloff(
     for name, value in (("focal_length", focal_length), ("pixel_pitch", pixel_pitch)):
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    if not (int(height) > 0 and int(width) > 0):
-        raise ValueError(f"height and width must be > 0, got {height} x {width}")
-    cx, cy = ((width - 1) / 2, (height - 1) / 2) if center is None else map(float, center)
+    if not all(isinstance(v, (int, np.integer)) and v > 0 for v in (height, width)):
+        raise ValueError(f"height and width must be ints > 0, got {height!r} x {width!r}")
+    if center is None:
+        cx, cy = (width - 1) / 2, (height - 1) / 2
+    else:
+        c = as_float_array(center, "center")
+        if c.shape != (2,) or not np.isfinite(c).all():
+            raise ValueError(f"center must be two finite numbers (cx, cy), got {center!r}")
+        cx, cy = c.tolist()
     scale = pixel_pitch * 1e-3 / focal_length
     ty = ((np.arange(height) - cy) * scale)[:, None] ** 2
     tx = ((np.arange(width) - cx) * scale)[None, :] ** 2
@@ -678,6 +716,13 @@ class SpectralCamera:
         )
         if sens.shape != (len(grid), 3):
             raise ValueError(f"sensitivities must have shape (L, 3), got {sens.shape}")
+        if not (sens.max(axis=0) > 0).all():
+            raise ValueError(
+                "sensitivities must be > 0 somewhere in every channel (R, G, B), got a "
+                f"channel of zeros (peaks {sens.max(axis=0).tolist()})"
+            )
+        pattern_cells(self.pattern)  # refuses an unknown CFA pattern by name
+        quadrature_weights(grid, self.rule)  # refuses an unknown rule or a non-uniform riemann grid
         for name in ("pixel_pitch", "f_number", "peak_qe"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -715,13 +760,26 @@ class SpectralCamera:
         ValueError
             A grid mismatch, a wrong shape, or negative / NaN radiance.
         """
+        self._check_samples(radiance, "radiance")
         native = self.sensor.native(seed=seed, exposure_time=exposure_time)
         return native.capture_spectral(radiance, self.response(), as_pattern(self.pattern))
+
+    def _check_samples(self, spectra: Any, name: str) -> None:
+        """The spectra's last axis matches this camera's grid (a mismatch is
+        a different grid, not a wrong response)."""
+        n = np.shape(spectra)[-1:]
+        if n != (len(self.wavelengths),):
+            raise ValueError(
+                f"{name} must have one sample per wavelength of the camera's grid "
+                f"({len(self.wavelengths)}, {self.wavelengths[0]:g}-{self.wavelengths[-1]:g} nm) "
+                f"along its last axis, got shape {np.shape(spectra)}"
+            )
 
     def camera_rates(self, radiance: Any) -> Float32Array:
         """Noise-free mean electron rates (e-/s) of every channel, shape (..., 3),
         of radiance (..., L): what the sensor's photodiodes average to."""
         arr = np.asarray(radiance, np.float32)
+        self._check_samples(arr, "radiance")
         lead = arr.shape[:-1]
         cube = arr.reshape((-1, 1, arr.shape[-1]) if arr.ndim < 3 else arr.shape)
         return _native.spectral_integrate(cube, self.response()).reshape(*lead, 3)
@@ -846,6 +904,8 @@ def luminance_scale(spd: Any, wl: Any, luminance: float) -> Float64Array:
     cd/m² (683 lm/W x ∫ L ȳ dλ, trapezoidal)."""
     grid = check_wavelengths(wl)
     spd = _spectra(spd, grid, "spd")
+    if not (np.isfinite(luminance) and luminance >= 0):
+        raise ValueError(f"luminance must be a finite number >= 0 (cd/m²), got {luminance!r}")
     lum = 683.0 * np.sum(spd * cie_cmfs(grid)[:, 1] * quadrature_weights(grid))
     if not lum > 0:
         raise ValueError("spd has no luminance: it is zero where the eye sees")
@@ -855,17 +915,53 @@ def luminance_scale(spd: Any, wl: Any, luminance: float) -> Float64Array:
 # --- characterisation ---------------------------------------------------------------------
 
 
+def _white(white_xyz: Any) -> Float64Array:
+    """A reference white: three finite XYZ values >= 0 with Y > 0."""
+    white = as_float_array(white_xyz, "white_xyz")
+    if white.shape != (3,) or not (np.isfinite(white).all() and (white >= 0).all()):
+        raise ValueError(
+            f"white_xyz must be 3 finite values X, Y, Z >= 0, got {np.asarray(white_xyz)!r}"
+        )
+    if not white[1] > 0:
+        raise ValueError(f"white_xyz must have a luminance Y > 0, got {white.tolist()}")
+    return white
+
+
+def _xyz_rows(xyz: Any, name: str) -> Float64Array:
+    """Colours (..., 3), finite."""
+    arr = as_float_array(xyz, name)
+    if arr.shape[-1:] != (3,) or not np.isfinite(arr).all():
+        raise ValueError(f"{name} must be finite XYZ values, shape (..., 3), got shape {arr.shape}")
+    return arr
+
+
 def xyz_to_lab(xyz: Any, white_xyz: Any) -> Float64Array:
     """CIE L*a*b* of XYZ relative to ``white_xyz`` (CIE 15; colour-science)."""
     colour = _colour()
-    white = as_float_array(white_xyz, "white_xyz")
-    return colour.XYZ_to_Lab(as_float_array(xyz, "xyz") / white[1], colour.XYZ_to_xy(white))
+    white = _white(white_xyz)
+    return colour.XYZ_to_Lab(_xyz_rows(xyz, "xyz") / white[1], colour.XYZ_to_xy(white))
 
 
 def delta_e2000(xyz: Any, xyz_ref: Any, white_xyz: Any) -> Float64Array:
-    """CIEDE2000 colour differences between XYZ rows (white ``white_xyz``)."""
+    """CIEDE2000 colour differences between XYZ rows (white ``white_xyz``).
+
+    Raises
+    ------
+    ValueError
+        Rows of different shapes, non-finite values, or a white without
+        luminance.
+
+    Examples
+    --------
+    >>> white = [0.9505, 1.0, 1.089]
+    >>> float(delta_e2000([0.2, 0.2, 0.2], [0.2, 0.2, 0.2], white))
+    0.0
+    """
     colour = _colour()
-    lab, lab_ref = xyz_to_lab(xyz, white_xyz), xyz_to_lab(xyz_ref, white_xyz)
+    a, b = _xyz_rows(xyz, "xyz"), _xyz_rows(xyz_ref, "xyz_ref")
+    if a.shape != b.shape:
+        raise ValueError(f"xyz and xyz_ref must have one shape, got {a.shape} and {b.shape}")
+    lab, lab_ref = xyz_to_lab(a, white_xyz), xyz_to_lab(b, white_xyz)
     return np.asarray(colour.delta_E(lab, lab_ref, method="CIE 2000"))
 
 
@@ -923,6 +1019,9 @@ def fit_color_matrix(
         )
     if method not in ("least_squares", "de2000"):
         raise ValueError(f'method must be "least_squares" or "de2000", got {method!r}')
+    if not (np.isfinite(rgb).all() and np.isfinite(target).all()):
+        raise ValueError("camera_rgb and xyz must be finite (a NaN or inf patch has no colour)")
+    _white(white_xyz)
     # Camera values in e-/s are ~1e10 times XYZ; fitting on values scaled to
     # order 1 keeps the optimiser's steps and tolerances meaningful.
     scale = float(np.abs(rgb).max()) or 1.0
@@ -1095,6 +1194,8 @@ def colorchecker_scene(
     """
     grid = check_wavelengths(wl)
     spd = _spectra(illuminant_radiance, grid, "illuminant_radiance")
+    _check_int(patch, "patch", 1)
+    _check_int(gap, "gap", 0)
     _, refl = colorchecker(grid)
     h, w = 4 * patch + 5 * gap, 6 * patch + 7 * gap
     image = np.empty((h, w, len(grid)), np.float32)
