@@ -11,8 +11,16 @@ Renders :mod:`imgform_rs.scene` through
    through-focus PSFs of a lens with and without spherical aberration;
 5. a Bayer sensor: the pinhole picture mosaiced and demosaiced by every
    method, with each method's CPSNR;
-6. a simulated raw capture of the scene, written as a DNG and developed
-   back through LibRaw's decoder and our pipeline by every demosaicer;
+6. the scene rendered spectrally (upsampled to reflectances under D65, an
+   (H, W, L) radiance) and recorded by a :class:`~imgform_rs.spectral.SpectralCamera`,
+   written as a DNG with its fitted colour matrix and developed back through
+   LibRaw's decoder and our pipeline by every demosaicer; the ColorChecker
+   through the same camera beside the chart, each patch's CIEDE2000 written
+   on it (``colorchecker.png``); the lecture's Figure 4a for three glasses
+   (``focal_shift.png``) and the scene through a dispersive singlet
+   (``dispersion_ca.png``: achromatic, longitudinal, longitudinal + lateral);
+   these need colour-science (``imgform-rs[spectral]``) and are skipped,
+   saying so, without it;
 7. when the shared sample data sit beside the checkout, the Prokudin-Gorskii
    plate aligned and one real camera raw developed;
 8. a plenoptic camera's light field (a grid of sub-aperture views),
@@ -35,15 +43,23 @@ from pathlib import Path
 import numpy as np
 
 from . import scene
+from . import spectral as sp
 from ._png import write_png
+from ._spectral_figures import (
+    Lens,
+    colorchecker_figure,
+    demo_camera,
+    dispersion_crops,
+    focal_shift_plot,
+    srgb_decode,
+)
 from .aberration import pupil_psf
 from .align import colorize_plate
 from .camera import Camera, vanishing_line, vanishing_point
-from .cfa import mosaic, simulate_sensor
+from .cfa import mosaic
 from .chromatic import add_lateral_ca, correct_lateral_ca
 from .demosaic import BAYER_DEMOSAIC_METHODS, demosaic
 from .develop import develop
-from .dng import write_dng
 from .lightfield import focal_stack, refocus, render_light_field, view_disparity
 from .optics import circle_of_confusion, field_of_view, hyperfocal_distance, render_defocus
 from .remap import undistort_image
@@ -58,6 +74,8 @@ BARREL = (-0.7, 0.25, 0.0, 0.0, 0.0)
 EYE, TARGET = (4.5, 1.6, -3.0), (-0.5, 0.9, 9.0)
 # Sky has no depth; put it far enough to be "at infinity" for the lens.
 SKY_DEPTH_MM = 1e7
+# 2 x 2 rays per pixel smooth the boxes' and the horizon's edges; the ground's
+# texture needs no more, since each ray averages it over its own footprint.
 SUPERSAMPLE = 2
 
 
@@ -67,14 +85,22 @@ def _camera(scale: int = 1, dist=None) -> Camera:
     return cam.look_at(EYE, TARGET)
 
 
+def render_rays(camera: Camera, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Colour (N, 3) in [0, 1] and z-depth (N,) (m, inf for sky) of the scene
+    seen through ``pixels`` (N, 2), the ground's texture averaged over each
+    pixel's footprint (the rays' differentials to the next column and row)."""
+    rays = camera.rays(pixels)
+    steps = [camera.rays(pixels + step) - rays for step in ((1.0, 0.0), (0.0, 1.0))]
+    colour, dist = scene.shade(camera.center, rays, (steps[0], steps[1]))
+    return colour, dist * (rays @ camera.R[2])
+
+
 def _render(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """Supersampled colour (uint8) and z-depth in mm (float32) of the scene."""
     h, w = camera.image_size
     v, u = np.mgrid[0:h, 0:w]
     pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
-    rays = camera.rays(pixels)
-    colour, dist = scene.shade(camera.center, rays)
-    z = dist * (rays @ camera.R[2])
+    colour, z = render_rays(camera, pixels)
     depth = np.where(np.isfinite(z), z * 1000.0, SKY_DEPTH_MM)
     s = SUPERSAMPLE
     colour = colour.reshape(h // s, s, w // s, s, 3).mean(axis=(1, 3))
@@ -190,22 +216,66 @@ def _aberration_strip() -> np.ndarray:
     return np.vstack(strips[:-1])
 
 
+# The scene's light: D65 with a white of 300 cd/m², a bright overcast day.
+SCENE_LUMINANCE = 300.0
+# The raw round trip's exposure puts a white reflector's brightest channel at
+# 80 % of saturation (margin for noise); develop lifts it back by log2(1/0.8).
+RAW_TARGET = 0.8
+
+
 def _raw_round_trip(out: Path, image: np.ndarray, log: Callable[[str], None]) -> list[Path]:
-    """The scene as a 12-bit camera would record it, written as a DNG, then
-    decoded by LibRaw and developed by us with each demosaicer."""
-    linear = ((image / 255.0) ** 2.2).astype(np.float32)
-    raw = simulate_sensor(
-        linear, "RGGB", full_well=40_000, read_noise=2.0, bit_depth=12, black_level=64, seed=1
+    """The scene rendered spectrally and recorded by the demo's spectral
+    camera, written as a DNG with its fitted colour matrix, then decoded by
+    LibRaw and developed by us with each demosaicer."""
+    cam = demo_camera()
+    wl = cam.wavelengths
+    light = sp.luminance_scale(sp.illuminant("D65", wl), wl, SCENE_LUMINANCE)
+    start = time.perf_counter()
+    radiance = (sp.rgb_to_reflectance(srgb_decode(image), wl) * light).astype(np.float32)
+    t = sp.auto_exposure(cam.camera_rates(light), cam.sensor, target=RAW_TARGET, percentile=100)
+    raw = cam.capture(radiance, exposure_time=t, seed=1)
+    ms = 1e3 * (time.perf_counter() - start)
+    log(
+        f"spectral scene {radiance.shape[1]}x{radiance.shape[0]}x{radiance.shape[2]} "
+        f"(380-780 nm) -> 14-bit raw ({1e3 * t:.2f} ms at f/{cam.f_number:g}) in {ms:.0f} ms"
     )
     dng = out / "scene.dng"
-    write_dng(dng, raw, "RGGB", white_level=4095, black_level=64)
+    sp.write_dng(dng, raw, cam, sp.characterise(cam))
     written = [dng]
     for method in BAYER_DEMOSAIC_METHODS:
         start = time.perf_counter()
-        rgb = develop(dng, demosaic=method)
+        rgb = develop(dng, demosaic=method, exposure=float(np.log2(1 / RAW_TARGET)))
         ms = 1e3 * (time.perf_counter() - start)
         log(f"develop scene.dng, {method:<20s} {ms:8.1f} ms   CPSNR {cpsnr(image, rgb):6.2f} dB")
     written.append(write_png(out / "scene_developed.png", rgb))
+    return written
+
+
+# The aberration crops' lens: the demo's 50 mm focused on the near box, at
+# f/2.8 so that the chromatic blur shows beside the depth blur (400 nm focuses
+# 1.33 mm short: a 0.47 mm disc, ~8 px); the crop is the near box's edge off
+# the axis, where lateral colour splits edges too.
+CA_F_NUMBER = 2.8
+CA_CROP = (slice(240, 360), slice(464, 624))
+
+
+def _spectral(
+    out: Path, image: np.ndarray, depth: np.ndarray, log: Callable[[str], None]
+) -> list[Path]:
+    """The spectral camera's raw round trip of the scene, the ColorChecker,
+    Figure 4a and the dispersion crops; nothing without colour-science."""
+    import importlib.util
+
+    if importlib.util.find_spec("colour") is None:
+        log("spectral figures skipped: they need colour-science (pip install imgform-rs[spectral])")
+        return []
+    written = _raw_round_trip(out, image, log)
+    chart, dng = colorchecker_figure(out, log)
+    written += [dng, write_png(out / "colorchecker.png", chart)]
+    written.append(write_png(out / "focal_shift.png", focal_shift_plot()))
+    lens = Lens(FOCAL_MM, CA_F_NUMBER, FOCUS_MM, PIXEL_PITCH_MM)
+    crops = dispersion_crops(srgb_decode(image), depth, lens, CA_CROP, log)
+    written.append(write_png(out / "dispersion_ca.png", crops))
     return written
 
 
@@ -260,9 +330,8 @@ def _film_strip(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray:
     print, side by side; 16-bit sRGB."""
     from . import film
 
-    v = image.astype(np.float32) / 255.0
-    linear = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
-    panels = [v]
+    linear = srgb_decode(image)
+    panels = [image.astype(np.float32) / 255.0]
     runs = [
         ("generic-negative", -2.0),
         ("generic-negative", 0.0),
@@ -339,7 +408,7 @@ def run(
         log(line)
     strip = _demosaic_strip(pinhole, log)
     written.append(write_png(out / "demosaic_methods.png", strip))
-    written += _raw_round_trip(out, pinhole, log)
+    written += _spectral(out, pinhole, depth, log)
     written += _light_field(out, log)
     written.append(write_png(out / "film.png", _film_strip(pinhole, log)))
     if camera_raw is not None:
