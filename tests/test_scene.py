@@ -78,7 +78,7 @@ def test_the_horizon_matches_a_heavily_supersampled_reference():
     n = 32
     grid = (np.stack(np.meshgrid(np.arange(n), np.arange(n)), -1).reshape(-1, 2) + 0.5) / n - 0.5
     reference = _point_sampled(camera, pixels, grid + rng.uniform(-0.5 / n, 0.5 / n, grid.shape))
-    ours, _ = demo.render_rays(camera, pixels)
+    ours, _ = scene.render(camera, pixels)
     quarters = np.array([[-0.25, -0.25], [0.25, -0.25], [-0.25, 0.25], [0.25, 0.25]])
     two_by_two = _point_sampled(camera, pixels, quarters)
     err_ours = np.sqrt(np.mean((ours - reference) ** 2))

@@ -28,11 +28,9 @@ PITCH_MM = SENSOR_MM / WIDTH
 camera = ig.Camera.from_fov(float(ig.field_of_view(F_MM, SENSOR_MM)), (HEIGHT, WIDTH))
 camera = camera.look_at(eye=(4.5, 1.6, -3.0), target=(-0.5, 0.9, 9.0))
 v, u = np.mgrid[0:HEIGHT, 0:WIDTH]
-rays = camera.rays(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
-colour, distance = scene.shade(camera.center, rays)
+colour, z = scene.render(camera, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
 image = (colour.reshape(HEIGHT, WIDTH, 3).clip(0, 1) * 255 + 0.5).astype(np.uint8)
 # render_defocus takes z-depth in mm; the sky (no hit) is put at 10 km.
-z = distance * (rays @ camera.R[2])
 depth = np.where(np.isfinite(z), z * 1000.0, 1e7).reshape(HEIGHT, WIDTH).astype(np.float32)
 
 # %%

@@ -29,8 +29,7 @@ BARREL = (-0.7, 0.25, 0.0, 0.0, 0.0)  # k1, k2, p1, p2, k3: OpenCV's order
 def render(camera):
     h, w = camera.image_size
     v, u = np.mgrid[0:h, 0:w]
-    rays = camera.rays(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
-    colour, _ = scene.shade(camera.center, rays)
+    colour, _ = scene.render(camera, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
     return (colour.reshape(h, w, 3).clip(0, 1) * 255 + 0.5).astype(np.uint8)
 
 

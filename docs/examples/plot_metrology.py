@@ -21,8 +21,7 @@ from imgform_rs import scene
 camera = ig.Camera.from_fov(float(ig.field_of_view(50.0, 36.0)), (480, 640))
 camera = camera.look_at(eye=(4.5, 1.6, -3.0), target=(-0.5, 0.9, 9.0))
 v, u = np.mgrid[0:480, 0:640]
-rays = camera.rays(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
-colour, _ = scene.shade(camera.center, rays)
+colour, _ = scene.render(camera, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))
 image = colour.reshape(480, 640, 3).clip(0, 1)
 
 rng = np.random.default_rng(0)

@@ -85,22 +85,12 @@ def _camera(scale: int = 1, dist=None) -> Camera:
     return cam.look_at(EYE, TARGET)
 
 
-def render_rays(camera: Camera, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Colour (N, 3) in [0, 1] and z-depth (N,) (m, inf for sky) of the scene
-    seen through ``pixels`` (N, 2), the ground's texture averaged over each
-    pixel's footprint (the rays' differentials to the next column and row)."""
-    rays = camera.rays(pixels)
-    steps = [camera.rays(pixels + step) - rays for step in ((1.0, 0.0), (0.0, 1.0))]
-    colour, dist = scene.shade(camera.center, rays, (steps[0], steps[1]))
-    return colour, dist * (rays @ camera.R[2])
-
-
 def _render(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """Supersampled colour (uint8) and z-depth in mm (float32) of the scene."""
     h, w = camera.image_size
     v, u = np.mgrid[0:h, 0:w]
     pixels = np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64)
-    colour, z = render_rays(camera, pixels)
+    colour, z = scene.render(camera, pixels)
     depth = np.where(np.isfinite(z), z * 1000.0, SKY_DEPTH_MM)
     s = SUPERSAMPLE
     colour = colour.reshape(h // s, s, w // s, s, 3).mean(axis=(1, 3))

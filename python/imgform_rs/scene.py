@@ -3,11 +3,14 @@
 A small NumPy ray caster, so the demo and the tests have a 3D scene with exact
 depth, parallel edges (for vanishing points) and sharp texture at every distance
 (for depth of field) without any asset file. World frame: y up, ground at y = 0.
+:func:`render` averages the ground's checkerboard over each pixel's footprint, so
+its horizon fades to grey instead of aliasing.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -218,3 +221,17 @@ def shade(
     box_colour = np.array([b.colour for b in BOXES])[which[hit_box]]
     colour[hit_box] = box_colour * lambert[:, None]
     return colour, t
+
+
+def render(camera: Any, pixels: Float64Array) -> tuple[Float64Array, Float64Array]:
+    """Colour (N, 3) in [0, 1] and z-depth (N,) (m; inf for sky) of the scene
+    seen by ``camera`` (an :class:`imgform_rs.Camera`) through ``pixels``
+    (N, 2), the ground's texture averaged over each pixel's footprint.
+
+    The footprint comes from the rays through the next column and the next
+    row (:func:`shade`'s ``footprint``), so lens distortion shapes it too.
+    """
+    rays = camera.rays(pixels)
+    d_du, d_dv = (camera.rays(pixels + step) - rays for step in ((1.0, 0.0), (0.0, 1.0)))
+    colour, dist = shade(camera.center, rays, (d_du, d_dv))
+    return colour, dist * (rays @ camera.R[2])
