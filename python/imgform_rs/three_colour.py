@@ -483,19 +483,44 @@ def photograph(
     b = max(1, round(0.02 * min(h, w))) if border is None else operator.index(border)
     if b < 0:
         raise ValueError(f"border must be >= 0, got {b}")
-    third = h + 2 * b
-    plate = np.zeros((3 * third, w + 2 * b, 1), np.float32)
+    plate = _exposed_plate(exposures, offsets, errors, (h, w), m, b)
+    return Plate(_developed_scan(plate, cam.plate, grain, int(seed)), offsets, errors, m, b)
+
+
+def _exposed_plate(
+    exposures: Float32Array,
+    offsets: dict[str, tuple[int, int]],
+    errors: dict[str, float],
+    frame: tuple[int, int],
+    margin: int,
+    border: int,
+) -> Float32Array:
+    """The plate's exposure (3 (h + 2 border), w + 2 border, 1): each
+    filter's frame of the scene at its offset, times its exposure error, in
+    its third (blue at the top); 0 on the unexposed border."""
+    h, w = frame
+    third = h + 2 * border
+    plate = np.zeros((3 * third, w + 2 * border, 1), np.float32)
     for i, c in enumerate(PLATE_ORDER):
-        (dy, dx), k = offsets[c], CHANNELS.index(c)
-        frame = exposures[m + dy : m + dy + h, m + dx : m + dx + w, k]
-        plate[i * third + b : i * third + b + h, b : b + w, 0] = frame * 2.0 ** errors[c]
-    stock = cam.plate
+        y, x = margin + offsets[c][0], margin + offsets[c][1]
+        seen = exposures[y : y + h, x : x + w, CHANNELS.index(c)]
+        plate[i * third + border : i * third + border + h, border : border + w, 0] = (
+            seen * 2.0 ** errors[c]
+        )
+    return plate
+
+
+def _developed_scan(
+    plate: Float32Array, stock: film.Stock, grain: bool, seed: int
+) -> npt.NDArray[np.uint16]:
+    """The plate developed (curve, halation, grain) and scanned: base plus
+    density on the 16-bit scale of :data:`SCAN_DENSITY_RANGE`, rounded."""
     dens = film.develop(
-        plate, stock, couplers=False, grain=grain, seed=int(seed), frame_width_mm=FRAME_WIDTH_MM
+        plate, stock, couplers=False, grain=grain, seed=seed, frame_width_mm=FRAME_WIDTH_MM
     )[..., 0]
     total = dens + float(stock.base_density.mean())
     scan = np.floor(np.clip(total / SCAN_DENSITY_RANGE, 0.0, 1.0) * 65535.0 + 0.5)
-    return Plate(scan.astype(np.uint16), offsets, errors, m, b)
+    return scan.astype(np.uint16)
 
 
 # --- colourising ---------------------------------------------------------------------------
