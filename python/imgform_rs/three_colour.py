@@ -45,7 +45,7 @@ import numpy.typing as npt
 from . import film
 from . import spectral as sp
 from ._arrays import Float64Array
-from .align import colorize_plate
+from .align import apply_warp, colorize_plate
 
 Float32Array = npt.NDArray[np.float32]
 
@@ -323,6 +323,10 @@ class Plate:
         largest offset the scene allows).
     border : int
         The unexposed border around each frame, pixels.
+    rotation : dict
+        Each exposure's turn about its frame's centre, radians (positive
+        from +x towards +y); 0 for all unless :func:`photograph` was given
+        some.
     """
 
     image: npt.NDArray[np.uint16] = field(repr=False)
@@ -330,6 +334,7 @@ class Plate:
     exposure_ev: dict[str, float]
     margin: int
     border: int
+    rotation: dict[str, float] = field(default_factory=lambda: dict.fromkeys(CHANNELS, 0.0))
 
     @property
     def frame_shape(self) -> tuple[int, int]:
@@ -346,6 +351,34 @@ class Plate:
         """
         ref = self.offsets[_channel(reference)]
         return {c: (o[0] - ref[0], o[1] - ref[1]) for c, o in self.offsets.items()}
+
+    def true_matrices(self, reference: str = "b") -> dict[str, Float64Array]:
+        """The warps ``colorize_plate(..., motion="euclidean")`` should find:
+        per frame the 2x3 :attr:`~imgform_rs.Alignment.matrix` taking a
+        reference pixel ``p = (x, y)`` to the frame's pixel showing the same
+        scene point.
+
+        Frame ``c`` shows the scene at ``R_c (p - k) + k + t_c`` (``k`` the
+        frame's centre, ``t_c`` its offset in the scene): so
+        ``p' = R_c⁻¹ (R_ref (p - k) + t_ref - t_c) + k``.
+        """
+        ref = _channel(reference)
+        h, w = self.frame_shape
+        k = np.array([(w - 1) / 2, (h - 1) / 2])
+        out = {}
+        for c, (dy, dx) in self.offsets.items():
+            back = _rotation(-self.rotation[c])
+            linear = back @ _rotation(self.rotation[ref])
+            ry, rx = self.offsets[ref]
+            move = back @ np.array([rx - dx, ry - dy], np.float64)
+            out[c] = np.hstack([linear, (move + k - linear @ k)[:, None]])
+        return out
+
+
+def _rotation(angle: float) -> Float64Array:
+    """The 2x2 rotation by ``angle`` (from +x towards +y) in (x, y)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s], [s, c]])
 
 
 def _channel(name: str) -> str:
@@ -403,6 +436,7 @@ def photograph(
     exposure_ev: dict[str, float] | None = None,
     ev_spread: float = 0.2,
     border: int | None = None,
+    rotation: dict[str, float] | None = None,
     grain: bool = True,
     seed: int = 0,
 ) -> Plate:
@@ -440,6 +474,13 @@ def photograph(
         pixel further) must stay inside :func:`~imgform_rs.align`'s 10 %
         crop of a third, or the border's edge joins the comparison and
         pulls the shift towards its own.
+    rotation : dict, optional
+        ``{"r": radians, ...}``: each exposure turned about its frame's
+        centre (the camera rolled a little between the shots); the frame is
+        then resampled bilinearly from the scene's exposure
+        (:func:`~imgform_rs.apply_warp`), which the offset plus the
+        rotation's reach must keep inside the scene. None: no rotation, the
+        frames are exact crops.
     grain : bool
         The plate's Poisson grain.
     seed : int
@@ -483,27 +524,71 @@ def photograph(
     b = max(1, round(0.02 * min(h, w))) if border is None else operator.index(border)
     if b < 0:
         raise ValueError(f"border must be >= 0, got {b}")
-    plate = _exposed_plate(exposures, offsets, errors, (h, w), m, b)
-    return Plate(_developed_scan(plate, cam.plate, grain, int(seed)), offsets, errors, m, b)
+    turns = _rotations(rotation, offsets, (h, w), m)
+    plate = _exposed_plate(exposures, offsets, errors, turns, (h, w), m, b)
+    scan = _developed_scan(plate, cam.plate, grain, int(seed))
+    return Plate(scan, offsets, errors, m, b, turns)
+
+
+def _rotations(
+    rotation: Any, offsets: dict[str, tuple[int, int]], frame: tuple[int, int], margin: int
+) -> dict[str, float]:
+    """Each exposure's rotation, checked: finite, and with its offset
+    keeping the turned frame (and the bilinear taps) inside the scene."""
+    if rotation is None:
+        return dict.fromkeys(CHANNELS, 0.0)
+    if not isinstance(rotation, dict) or set(rotation) != set(CHANNELS):
+        raise ValueError(f'rotation must be a dict with keys "r", "g", "b", got {rotation!r}')
+    out = {c: float(rotation[c]) for c in CHANNELS}
+    h, w = frame
+    for c, angle in out.items():
+        # A corner of the frame moves by at most |angle| x the half-diagonal.
+        reach = abs(angle) * np.hypot(h - 1, w - 1) / 2 + 1
+        if not np.isfinite(angle) or max(map(abs, offsets[c])) + reach > margin:
+            raise ValueError(
+                f"rotation {c!r} = {angle!r} rad with shift {offsets[c]} reaches "
+                f"{max(map(abs, offsets[c])) + reach:.1f} px beyond the frame; the scene's "
+                f"margin is {margin} px"
+            )
+    return out
+
+
+def _frame(
+    exposure: Float32Array, offset: tuple[int, int], angle: float, frame: tuple[int, int]
+) -> Float32Array:
+    """The (h, w) part of one filter's ``exposure`` an exposure sees: a crop
+    at ``offset`` (exact), or turned by ``angle`` about the frame's centre
+    ``k``, frame pixel ``p`` reading the scene at ``R (p - k) + k + offset``."""
+    h, w = frame
+    y, x = offset
+    if angle == 0.0:
+        return exposure[y : y + h, x : x + w]
+    turn = _rotation(angle)
+    k = np.array([(w - 1) / 2, (h - 1) / 2])
+    matrix = np.hstack([turn, (k + [x, y] - turn @ k)[:, None]])
+    return apply_warp(exposure, matrix)[:h, :w]
 
 
 def _exposed_plate(
     exposures: Float32Array,
     offsets: dict[str, tuple[int, int]],
     errors: dict[str, float],
+    turns: dict[str, float],
     frame: tuple[int, int],
     margin: int,
     border: int,
 ) -> Float32Array:
     """The plate's exposure (3 (h + 2 border), w + 2 border, 1): each
-    filter's frame of the scene at its offset, times its exposure error, in
-    its third (blue at the top); 0 on the unexposed border."""
+    filter's frame of the scene at its offset and rotation, times its
+    exposure error, in its third (blue at the top); 0 on the unexposed
+    border."""
     h, w = frame
     third = h + 2 * border
     plate = np.zeros((3 * third, w + 2 * border, 1), np.float32)
     for i, c in enumerate(PLATE_ORDER):
-        y, x = margin + offsets[c][0], margin + offsets[c][1]
-        seen = exposures[y : y + h, x : x + w, CHANNELS.index(c)]
+        offset = (margin + offsets[c][0], margin + offsets[c][1])
+        channel = np.ascontiguousarray(exposures[..., CHANNELS.index(c)])
+        seen = _frame(channel, offset, turns[c], frame)
         plate[i * third + border : i * third + border + h, border : border + w, 0] = (
             seen * 2.0 ** errors[c]
         )
