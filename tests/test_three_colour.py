@@ -265,5 +265,12 @@ def test_bad_scenes_and_scans_are_refused():
         tc.colourise(np.zeros((90, 30), np.float32))
     with pytest.raises(ValueError, match='reference must be "r", "g" or "b"'):
         tc.colourise(tc.photograph(textured_scene(0, (40, 40))), reference="x")
+    plate = tc.photograph(textured_scene(0, (40, 40)))
+    with pytest.raises(ValueError, match='exposure_ev must be a dict with keys "r", "g", "b"'):
+        tc.colourise(plate, exposure_ev={"r": 0.1})
+    with pytest.raises(ValueError, match="exposure_ev must be finite"):
+        tc.colourise(plate, exposure_ev={"r": 0.1, "g": np.nan, "b": 0.0})
+    with pytest.raises(ValueError, match=r"matrix must be a finite 3x3 array, got shape \(2, 3\)"):
+        tc.colourise(plate, matrix=np.eye(3)[:2])
     with pytest.raises(ValueError, match="ev_spread"):
         tc.photograph(textured_scene(0, (40, 40)), ev_spread=-1)
