@@ -22,7 +22,17 @@ from pathlib import Path
 import pytest
 
 import imgform_rs
-from imgform_rs import batch, colorspace, dispersion, dng, film, lens, scene, spectral
+from imgform_rs import (
+    batch,
+    colorspace,
+    dispersion,
+    dng,
+    film,
+    lens,
+    scene,
+    spectral,
+    three_colour,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -50,6 +60,7 @@ PUBLIC = {
     "imgform_rs.lens": list(lens.__all__),
     "imgform_rs.scene": _defined_here(scene),
     "imgform_rs.spectral": _defined_here(spectral),
+    "imgform_rs.three_colour": _defined_here(three_colour),
 }
 
 

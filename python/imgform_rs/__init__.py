@@ -8,6 +8,7 @@ documentation's conventions page, ``docs/conventions.rst``.
 
 from . import film as film  # a submodule with its own API page, not in __all__
 from . import spectral as spectral  # a submodule with its own API page, not in __all__
+from . import three_colour as three_colour  # a submodule with its own API page, not in __all__
 from ._exif import ShotInfo
 from ._native import RawError
 from .aberration import (

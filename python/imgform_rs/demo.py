@@ -29,6 +29,9 @@ Renders :mod:`imgform_rs.scene` through
 9. colour film (:mod:`imgform_rs.film`): the pinhole picture printed from
    the generic negative at -2, 0 and +2 EV, as a slide and as a
    black-and-white print (``film.png``);
+10. Prokudin-Gorskii's camera (:mod:`imgform_rs.three_colour`): the pinhole
+    picture photographed through three filters onto one plate, aligned and
+    colourised, beside the scene (``three_colour.png``);
 
 and writes PNGs under the output folder.
 """
@@ -339,6 +342,37 @@ def _film_strip(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray:
     return np.floor(np.clip(strip, 0, 1) * 65535 + 0.5).astype(np.uint16)
 
 
+def _three_colour_figure(image: np.ndarray, log: Callable[[str], None]) -> np.ndarray:
+    """The simulated plate (B, G, R from the top), its colourised result and
+    the scene's own rendering of that area, side by side; 8-bit sRGB."""
+    from . import three_colour
+
+    v = image[::2, ::2].astype(np.float32) / 255.0
+    linear = np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+    start = time.perf_counter()
+    run = three_colour.experiment(linear, seed=1)
+    ms = 1e3 * (time.perf_counter() - start)
+    for line in [f"three-colour experiment in {ms:.0f} ms", *run.comparison.report().splitlines()]:
+        log(line)
+
+    def encode(rgb: np.ndarray) -> np.ndarray:
+        c = np.clip(rgb, 0.0, 1.0)
+        c = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+        return np.floor(c * 255 + 0.5).astype(np.uint8)
+
+    # The scan's 0-4 density range, levelled to the plate's own as a scanner would.
+    lo, hi = np.percentile(run.plate.image, (0.1, 99.9))
+    grey = np.clip((run.plate.image - lo) / (hi - lo), 0.0, 1.0)
+    plate = np.floor(grey * 255 + 0.5).astype(np.uint8)[..., None].repeat(3, axis=-1)
+    right = [encode(run.comparison.rgb), encode(run.comparison.scene)]
+    width = max(p.shape[1] for p in right)
+    column = np.full((plate.shape[0], width, 3), 255, np.uint8)
+    column[: right[0].shape[0], : right[0].shape[1]] = right[0]
+    top = right[0].shape[0] + 8
+    column[top : top + right[1].shape[0], : right[1].shape[1]] = right[1]
+    return np.hstack([plate, np.full((plate.shape[0], 8, 3), 255, np.uint8), column])
+
+
 def run(
     out: Path,
     log: Callable[[str], None] = print,
@@ -401,6 +435,7 @@ def run(
     written += _spectral(out, pinhole, depth, log)
     written += _light_field(out, log)
     written.append(write_png(out / "film.png", _film_strip(pinhole, log)))
+    written.append(write_png(out / "three_colour.png", _three_colour_figure(pinhole, log)))
     if camera_raw is not None:
         start = time.perf_counter()
         rgb = develop(camera_raw)
