@@ -252,15 +252,23 @@ CA_F_NUMBER = 2.8
 CA_CROP = (slice(240, 360), slice(464, 624))
 
 
+def _needs_colour_science(what: str, log: Callable[[str], None]) -> bool:
+    """Whether colour-science (the spectral data sets) is installed; the demo
+    skips the figures that need it, saying so, rather than fail without it."""
+    import importlib.util
+
+    if importlib.util.find_spec("colour") is None:
+        log(f"{what} skipped: they need colour-science (pip install imgform-rs[spectral])")
+        return False
+    return True
+
+
 def _spectral(
     out: Path, image: np.ndarray, depth: np.ndarray, log: Callable[[str], None]
 ) -> list[Path]:
     """The spectral camera's raw round trip of the scene, the ColorChecker,
     Figure 4a and the dispersion crops; nothing without colour-science."""
-    import importlib.util
-
-    if importlib.util.find_spec("colour") is None:
-        log("spectral figures skipped: they need colour-science (pip install imgform-rs[spectral])")
+    if not _needs_colour_science("spectral figures", log):
         return []
     written = _raw_round_trip(out, image, log)
     chart, dng = colorchecker_figure(out, log)
@@ -434,8 +442,9 @@ def run(
     written.append(write_png(out / "demosaic_methods.png", strip))
     written += _spectral(out, pinhole, depth, log)
     written += _light_field(out, log)
-    written.append(write_png(out / "film.png", _film_strip(pinhole, log)))
-    written.append(write_png(out / "three_colour.png", _three_colour_figure(pinhole, log)))
+    if _needs_colour_science("film and three-colour figures", log):
+        written.append(write_png(out / "film.png", _film_strip(pinhole, log)))
+        written.append(write_png(out / "three_colour.png", _three_colour_figure(pinhole, log)))
     if camera_raw is not None:
         start = time.perf_counter()
         rgb = develop(camera_raw)
