@@ -57,7 +57,7 @@ RETRIES = 3
 the file: those are reported, and re-running would fail again)."""
 
 _EXPECTED = (ValueError, TypeError, OSError)
-_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg"}
+_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg", "exr": ".exr"}
 
 
 @dataclass(frozen=True)
@@ -333,7 +333,7 @@ def develop_many(
 ) -> BatchReport:
     """Develop raw files on a Dask cluster, one task per file.
 
-    Each ``OUTDIR/<stem>.png`` (or ``.tif``, ``.jpg``), with its colour
+    Each ``OUTDIR/<stem>.png`` (or ``.tif``, ``.jpg``, ``.exr``), with its colour
     profile and the raw's EXIF (:func:`imgform_rs.develop_file`), is written atomically; existing
     outputs are kept unless ``overwrite``; the report is also written to
     ``OUTDIR/imgform-develop-report.json``.
@@ -349,7 +349,7 @@ def develop_many(
         closed afterwards.
     overwrite : bool
         Process files whose output exists (default: skip them).
-    format : {"png", "tiff", "jpeg"}
+    format : {"png", "tiff", "jpeg", "exr"}
     on_result : callable, optional
         ``on_result(result, done, total)`` as each file finishes (a progress bar).
     **develop_kwargs
@@ -386,7 +386,7 @@ def develop_many(
     (['ok'], ['skipped'])
     """
     if format not in _SUFFIX:
-        raise ValueError(f'format must be "png", "tiff" or "jpeg", got {format!r}')
+        raise ValueError(f'format must be "png", "tiff", "jpeg" or "exr", got {format!r}')
     return _run_batch(
         "develop",
         sources,

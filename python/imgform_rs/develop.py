@@ -53,7 +53,7 @@ import numpy.typing as npt
 
 from . import _native
 from ._exif import exif_bytes
-from ._imagefile import FORMATS, check_format, check_quality, write_image
+from ._imagefile import check_exr, check_format, check_quality, path_kind, write_image
 from .colorspace import COLOR_SPACES, srgb_to
 from .demosaic import DEMOSAIC_METHODS
 from .raw import RawImage, load_raw
@@ -486,8 +486,9 @@ def develop_file(
     ----------
     source : path, bytes, binary file object, rawpy.RawPy or RawImage
     path : str or PathLike
-        ``.jpg`` / ``.jpeg``, ``.png``, ``.tif`` / ``.tiff``; JPEG needs
-        ``bps=8``, float32 (``bps="float"``) needs TIFF.
+        ``.jpg`` / ``.jpeg``, ``.png``, ``.tif`` / ``.tiff``, ``.exr``; JPEG
+        needs ``bps=8``, float32 (``bps="float"``) needs TIFF or EXR, and EXR
+        also ``tone="linear"`` (with ``orientation="auto"``).
     quality : int
         JPEG quality, 1 to 100.
     overwrite : bool
@@ -525,21 +526,23 @@ def develop_to(
     """:func:`develop_file`, also returning the picture's ``(H, W)`` (for the
     command line's and the batch's reports)."""
     target = Path(path)
-    kind = FORMATS.get(target.suffix.lower())
-    if kind is None:
-        raise ValueError(f"path must end in .jpg, .jpeg, .png, .tif or .tiff, got {target.name!r}")
+    kind = path_kind(target)
     check_format(kind, options.get("bps", 8))
     check_quality(quality)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
     raw = source if isinstance(source, RawImage) else load_raw(source)
+    exif = raw_exif(raw, options.get("orientation", "auto"))
+    color, tone = options.get("color", "srgb"), options.get("tone", "auto")
+    if kind == "exr":
+        check_exr(color, _tone_for(color, tone), exif)
     rgb = develop(raw, **options)
     written = write_image(
         target,
         rgb,
-        color=options.get("color", "srgb"),
-        tone=options.get("tone", "auto"),
-        exif=raw_exif(raw, options.get("orientation", "auto")),
+        color=color,
+        tone=tone,
+        exif=exif,
         quality=quality,
         overwrite=overwrite,
     )
