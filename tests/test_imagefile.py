@@ -328,3 +328,23 @@ def test_develop_file_writes_linear_exr_and_checks_options_first(tmp_path):
     with pytest.raises(ValueError, match="no orientation"):
         ig.develop_file(path, tmp_path / "b.exr", orientation="none", **opts)
     assert not (tmp_path / "b.exr").exists()
+
+
+def test_cli_writes_exr_only_for_linear_float(tmp_path, capsys):
+    openexr = pytest.importorskip("OpenEXR")
+    from imgform_rs.cli import main
+
+    path = tmp_path / "a.dng"
+    cfa = (np.arange(40 * 56) % 3000 + 100).astype(np.uint16).reshape(40, 56)
+    write_dng(path, cfa, "RGGB", white_level=4095)
+    out = tmp_path / "out"
+    assert main(["develop", str(path), "-o", str(out), "--format", "exr"]) == 2
+    assert 'EXR files take bps "float"' in capsys.readouterr().err
+    assert main(["develop", str(path), "-o", str(out), "--format", "exr", "--bps", "float"]) == 2
+    assert "EXR files hold linear light" in capsys.readouterr().err
+    assert not out.exists()
+    argv = ["develop", str(path), "-o", str(out), "--format", "exr", "--bps", "float"]
+    assert main([*argv, "--tone", "linear", "--color", "aces2065_1"]) == 0
+    with openexr.File(str(out / "a.exr")) as exr:
+        white = dict(exr.header())["chromaticities"][6:]
+    np.testing.assert_allclose(white, (0.32168, 0.33767), atol=1e-7)

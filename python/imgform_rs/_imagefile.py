@@ -87,7 +87,8 @@ def path_kind(path: str | os.PathLike[str]) -> str:
     """The format a file name asks for ("png", "tiff", "jpeg", "exr")."""
     kind = FORMATS.get(Path(path).suffix.lower())
     if kind is None:
-        raise ValueError(f"path must end in {', '.join(FORMATS)}, got {Path(path).name!r}")
+        *others, last = FORMATS
+        raise ValueError(f"path must end in {', '.join(others)} or {last}, got {Path(path).name!r}")
     return kind
 
 
