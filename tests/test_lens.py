@@ -391,6 +391,21 @@ def test_non_square_photosites_are_left_alone_or_refused(tmp_path) -> None:
         develop(raw, lens_correction=profile)
 
 
+def test_the_cli_leaves_non_square_photosites_uncorrected_and_says_so(tmp_path, capsys) -> None:
+    """A file whose camera and lens lensfun knows, on a sensor with 2:1
+    photosites: --lens auto develops it uncorrected (it raised before)."""
+    from imgform_rs.cli import main
+
+    cfa = (1500 + np.arange(48 * 64) % 300).astype(np.uint16).reshape(48, 64)
+    path = tmp_path / "wide.dng"
+    write_dng(path, cfa, "RGGB", white_level=4095, pixel_aspect=2.0, **KIT)
+    assert match_lens(load_raw(path)).profile is not None
+    assert main(["develop", str(path), "-o", str(tmp_path / "out"), "--lens", "auto"]) == 0
+    assert (
+        capsys.readouterr().out.rstrip().endswith("; lens correction: none (non-square photosites)")
+    )
+
+
 # --- straight lines: a chessboard captured through a real profile -------------
 
 BOARD_W, BOARD_H, SQUARE = 600, 400, 36

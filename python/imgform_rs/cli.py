@@ -59,8 +59,10 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
 
     def report(result, done: int, total: int) -> None:
         if result.status == "ok":
-            took = f"{result.detail} in {result.seconds:.2f} s"
-            print(f"{result.source}: {took} -> {result.output}")
+            line = _file_line(
+                result.source, result.detail, result.seconds, result.output, result.note
+            )
+            print(line)
         elif result.status == "skipped":
             print(f"{result.source}: {result.output} exists, kept (use --overwrite to replace it)")
         else:
@@ -228,21 +230,15 @@ def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
     from .develop import develop_to
 
     start = time.perf_counter()
-    options, source, lens = _develop_options(args), path, ""
-    if args.lens == "auto":
-        from .lens import match_lens
-        from .raw import load_raw
-
-        source = load_raw(path)
-        match = match_lens(source)
-        if match.profile is not None and source.pixel_aspect != 1:
-            lens = "; lens correction: none (non-square photosites)"
-        else:
-            lens = "; " + match.report()
-        options["lens_correction"] = match
-    _, (h, w) = develop_to(source, target, args.quality, args.overwrite, options)
+    options = _develop_options(args)
+    _, (h, w), lens = develop_to(path, target, args.quality, args.overwrite, options)
     took = time.perf_counter() - start
-    return f"{path}: {w}x{h} in {took:.2f} s -> {target}{lens}"
+    return _file_line(str(path), f"{w}x{h}", took, str(target), lens)
+
+
+def _file_line(source: str, detail: str, seconds: float, target: str, note: str) -> str:
+    """One processed file's line, the same with or without a cluster."""
+    return f"{source}: {detail} in {seconds:.2f} s -> {target}" + (f"; {note}" if note else "")
 
 
 def _develop(args: argparse.Namespace) -> int:
@@ -255,6 +251,10 @@ def _develop(args: argparse.Namespace) -> int:
         check_format(args.format, args.bps)
         if args.format == "exr":
             check_exr(args.color, _tone_for(args.color, args.tone), None)
+        if args.lens == "auto":
+            from .lens import lens_database
+
+            lens_database()  # ImportError without lensfunpy, before any file
     except (ValueError, ImportError) as exc:
         print(f"imgform develop: {exc}", file=sys.stderr)
         return 2

@@ -522,9 +522,10 @@ def develop_file(
 
 def develop_to(
     source: Any, path: str | os.PathLike[str], quality: int, overwrite: bool, options: dict
-) -> tuple[Path, tuple[int, int]]:
-    """:func:`develop_file`, also returning the picture's ``(H, W)`` (for the
-    command line's and the batch's reports)."""
+) -> tuple[Path, tuple[int, int], str]:
+    """:func:`develop_file`, also returning the picture's ``(H, W)`` and the
+    line saying what lens correction was matched and applied ("" when off),
+    for the command line's and the batch's per-file reports."""
     target = Path(path)
     kind = path_kind(target)
     check_format(kind, options.get("bps", 8))
@@ -536,7 +537,8 @@ def develop_to(
     color, tone = options.get("color", "srgb"), options.get("tone", "auto")
     if kind == "exr":
         check_exr(color, _tone_for(color, tone), exif)
-    rgb = develop(raw, **options)
+    lens, lens_report = _resolve_lens(raw, options.get("lens_correction", "off"))
+    rgb = develop(raw, **{**options, "lens_correction": lens})
     written = write_image(
         target,
         rgb,
@@ -546,4 +548,27 @@ def develop_to(
         quality=quality,
         overwrite=overwrite,
     )
-    return written, (rgb.shape[0], rgb.shape[1])
+    return written, (rgb.shape[0], rgb.shape[1]), lens_report
+
+
+def _resolve_lens(raw: RawImage, lens_correction: Any) -> tuple[Any, str]:
+    """``lens_correction`` with ``"auto"`` looked up once for ``raw``, and
+    the report of what that matched and will apply ("" when off)."""
+    if isinstance(lens_correction, str) and lens_correction == "off":
+        return lens_correction, ""
+    if isinstance(lens_correction, str) and lens_correction == "auto":
+        from .lens import match_lens
+
+        match = match_lens(raw)
+        if match.profile is not None and raw.pixel_aspect != 1:
+            # develop leaves such sensors uncorrected under "auto" (see its docs).
+            return "off", "lens correction: none (non-square photosites)"
+        return match, match.report()
+    profile = _lens_profile(raw, lens_correction)  # checks type and photosites
+    if profile is not None:
+        return profile, f"lens correction: {profile.describe()}"
+    from .lens import LensMatch
+
+    if isinstance(lens_correction, LensMatch):  # one that found nothing says why
+        return lens_correction, lens_correction.report()
+    return lens_correction, ""
