@@ -348,3 +348,13 @@ def test_cli_writes_exr_only_for_linear_float(tmp_path, capsys):
     with openexr.File(str(out / "a.exr")) as exr:
         white = dict(exr.header())["chromaticities"][6:]
     np.testing.assert_allclose(white, (0.32168, 0.33767), atol=1e-7)
+
+
+def test_tiff_keeps_the_exif_in_ifd0_for_the_reason_the_module_gives(tmp_path):
+    """_imagefile's docstring: tifffile drops the EXIF sub-IFD's pointer from
+    extratags. If tifffile ever writes it, this fails: move the EXIF there."""
+    path = ig.write_image(tmp_path / "a.tif", rgb(np.uint16), exif=exif_bytes(SHOT, 0, True))
+    with tifffile.TiffFile(path) as tif:
+        tags = tif.pages[0].tags
+        assert "ExifTag" not in tags and tags["Make"].value == "Canon"
+    assert 34665 in tifffile.TIFF.TAG_FILTERED
