@@ -217,9 +217,18 @@ def test_write_image_refuses_what_it_cannot_write(tmp_path, name, image, kwargs,
 def test_a_real_raw_keeps_its_shot_details_in_every_format(tmp_path):
     source = RAW_DIR / "canon_powershot_s40_CRW_0113.CRW"
     raw = ig.load_raw(source)
-    for name, bps in [("s40.jpg", 8), ("s40.png", 16), ("s40.tif", "float")]:
+    for name, bps in [("s40.jpg", 8), ("s40.png", 16), ("s40.tif", "float"), ("s40.exr", "float")]:
         tone = "linear" if bps == "float" else "auto"
         out = ig.develop_file(raw, tmp_path / name, bps=bps, tone=tone, demosaic="bilinear")
+        if out.suffix == ".exr":
+            openexr = pytest.importorskip("OpenEXR")
+            with openexr.File(str(out)) as exr:
+                header = dict(exr.header())
+            assert header["capDate"] == "2021:03:26 21:14:52" and header["isoSpeed"] == 50
+            assert header["aperture"] == pytest.approx(2.8, abs=0.01)
+            assert header["expTime"] == pytest.approx(0.2013, abs=1e-4)
+            assert "cameraMake" not in header  # a CRW has no TIFF Make tag
+            continue
         if out.suffix == ".tif":
             with tifffile.TiffFile(out) as tif:
                 tags = {t.name: t.value for t in tif.pages[0].tags.values()}
