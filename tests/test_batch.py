@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -348,3 +349,38 @@ def test_cli_align_and_develop_on_a_scheduler(tmp_path, client, raws, capsys):
     assert "corrupt.dng" in err
     assert "1 of 2 raws failed" in err
     assert (tmp_path / "dev" / "shot0.png").is_file()
+
+
+def test_cli_on_a_scheduler_reports_each_files_lens_as_a_local_run_does(tmp_path, client, capsys):
+    """--lens auto on a cluster: each file's line and the JSON report say
+    what lensfun matched and applied, as ``imgform develop`` without one does."""
+    pytest.importorskip("lensfunpy")
+    cfa = (1200 + np.arange(64 * 96) % 700).astype(np.uint16).reshape(64, 96)
+    kit = dict(make="Canon", model="Canon EOS 550D", lens="EF-S 18-55mm f/3.5-5.6 IS")
+    known, unknown = tmp_path / "kit.dng", tmp_path / "unknown.dng"
+    write_dng(known, cfa, "RGGB", white_level=4095, focal_length=18, f_number=5.6, **kit)
+    write_dng(unknown, cfa, "RGGB", white_level=4095)
+    sources = [str(known), str(unknown)]
+    lines = {}
+    for where, extra in (("local", []), ("dask", ["--scheduler", client.scheduler.address])):
+        out = tmp_path / where
+        assert main(["develop", *sources, "-o", str(out), "--lens", "auto", *extra]) == 0
+        printed = capsys.readouterr().out.splitlines()
+        # Each file's line but for the time it took (the cluster adds "report: ...").
+        lines[where] = sorted(
+            re.sub(r" in [0-9.]+ s -> ", " -> ", line) for line in printed if " s -> " in line
+        )
+    assert len(lines["local"]) == 2
+    assert lines["dask"] == [
+        line.replace(str(tmp_path / "local"), str(tmp_path / "dask")) for line in lines["local"]
+    ]
+    report = json.loads((tmp_path / "dask" / "imgform-develop-report.json").read_text())
+    notes = {os.path.basename(f["source"]): f["note"] for f in report["files"]}
+    assert notes["kit.dng"].startswith(
+        "lens correction: Canon / Canon EF-S 18-55mm f/3.5-5.6 IS on Canon / Canon EOS 550D "
+        "at 18 mm f/5.6: distortion ptlens, TCA poly3, vignetting pa"
+    )
+    assert notes["unknown.dng"].startswith("lens correction: none (camera ")
+    np.testing.assert_array_equal(
+        iio.imread(tmp_path / "dask" / "kit.png"), iio.imread(tmp_path / "local" / "kit.png")
+    )

@@ -434,7 +434,9 @@ def test_write_image_round_trips_and_never_overwrites_by_default(tmp_path):
             ig.write_image(path, img)
         ig.write_image(path, img[::-1], overwrite=True)
         np.testing.assert_array_equal(iio_read(path), img[::-1])
-    with pytest.raises(ValueError, match=r"must end in \.jpg, \.jpeg, \.png, \.tif or \.tiff"):
+    with pytest.raises(
+        ValueError, match=r"must end in \.jpg, \.jpeg, \.png, \.tif, \.tiff or \.exr"
+    ):
         ig.write_image(tmp_path / "a.bmp", rgb16)
     with pytest.raises(ValueError, match="PNG takes uint8, uint16"):
         ig.write_image(tmp_path / "f.png", rgb16.astype(np.float32))

@@ -217,9 +217,18 @@ def test_write_image_refuses_what_it_cannot_write(tmp_path, name, image, kwargs,
 def test_a_real_raw_keeps_its_shot_details_in_every_format(tmp_path):
     source = RAW_DIR / "canon_powershot_s40_CRW_0113.CRW"
     raw = ig.load_raw(source)
-    for name, bps in [("s40.jpg", 8), ("s40.png", 16), ("s40.tif", "float")]:
+    for name, bps in [("s40.jpg", 8), ("s40.png", 16), ("s40.tif", "float"), ("s40.exr", "float")]:
         tone = "linear" if bps == "float" else "auto"
         out = ig.develop_file(raw, tmp_path / name, bps=bps, tone=tone, demosaic="bilinear")
+        if out.suffix == ".exr":
+            openexr = pytest.importorskip("OpenEXR")
+            with openexr.File(str(out)) as exr:
+                header = dict(exr.header())
+            assert header["capDate"] == "2021:03:26 21:14:52" and header["isoSpeed"] == 50
+            assert header["aperture"] == pytest.approx(2.8, abs=0.01)
+            assert header["expTime"] == pytest.approx(0.2013, abs=1e-4)
+            assert "cameraMake" not in header  # a CRW has no TIFF Make tag
+            continue
         if out.suffix == ".tif":
             with tifffile.TiffFile(out) as tif:
                 tags = {t.name: t.value for t in tif.pages[0].tags.values()}
@@ -232,3 +241,129 @@ def test_a_real_raw_keeps_its_shot_details_in_every_format(tmp_path):
             assert sub[36867] == "2021:03:26 21:14:52" and sub[34855] == 50
             assert float(sub[33437]) == pytest.approx(2.8, abs=0.01)
             assert description(im.info["icc_profile"]) == "sRGB, srgb curve (imgform-rs)"
+
+
+# --- EXR ----------------------------------------------------------------------
+
+# The chromaticities each space must carry: (red, green, blue, white) x, y as
+# the specifications give them; XYZ by OpenEXR's convention (identity matrix).
+EXR_CHROMATICITIES = {
+    "srgb": (0.64, 0.33, 0.30, 0.60, 0.15, 0.06, 0.3127, 0.3290),
+    "prophoto": (0.7347, 0.2653, 0.1596, 0.8404, 0.0366, 0.0001, 0.3457, 0.3585),
+    "aces2065_1": (0.7347, 0.2653, 0.0, 1.0, 0.0001, -0.0770, 0.32168, 0.33767),
+    "xyz": (1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1 / 3, 1 / 3),
+}
+
+
+@pytest.mark.parametrize("color", [*EXR_CHROMATICITIES, "camera"])
+def test_exr_keeps_linear_floats_with_chromaticities_and_shot_details(tmp_path, color):
+    openexr = pytest.importorskip("OpenEXR")
+    img = rgb(np.float32) * 4 - 1  # EXR keeps values outside [0, 1]
+    exif = exif_bytes(SHOT, 0, True)
+    path = ig.write_image(tmp_path / "a.exr", img, color=color, tone="linear", exif=exif)
+    with openexr.File(str(path)) as exr:
+        header, back = dict(exr.header()), exr.channels()["RGB"].pixels.copy()
+    np.testing.assert_array_equal(back, img)
+    if color == "camera":
+        assert "chromaticities" not in header
+    else:
+        np.testing.assert_allclose(header["chromaticities"], EXR_CHROMATICITIES[color], atol=1e-7)
+    assert header["cameraMake"] == "Canon" and header["cameraModel"] == "Canon EOS Kiss X4"
+    assert header["lensModel"] == SHOT.lens and header["owner"] == SHOT.artist
+    assert header["capDate"] == "2026:11:27 10:30:05"
+    assert header["expTime"] == pytest.approx(1 / 125) and header["aperture"] == pytest.approx(5.6)
+    assert header["isoSpeed"] == 400 and header["focalLength"] == 35
+
+
+def test_a_grey_exr_has_one_luminance_channel(tmp_path):
+    openexr = pytest.importorskip("OpenEXR")
+    grey = rgb(np.float32)[..., 0]
+    path = ig.write_image(tmp_path / "g.exr", grey, tone="linear")
+    with openexr.File(str(path)) as exr:
+        channels = {k: c.pixels.copy() for k, c in exr.channels().items()}
+    assert list(channels) == ["Y"]
+    np.testing.assert_array_equal(channels["Y"], grey)
+
+
+@pytest.mark.parametrize(
+    ("image", "kwargs", "exc", "match"),
+    [
+        (rgb(np.float32), {}, ValueError, "EXR files hold linear light.*'srgb' curve"),
+        (rgb(np.float32), {"color": "adobe_rgb"}, ValueError, "'gamma22' curve"),
+        (rgb(np.uint16), {"tone": "linear"}, ValueError, "EXR takes float32"),
+        (
+            rgb(np.float32),
+            {"tone": "linear", "exif": exif_bytes(SHOT, 5, oriented=False)},
+            ValueError,
+            "EXR files have no orientation.*orientation 8",
+        ),
+    ],
+)
+def test_exr_refuses_what_its_readers_would_misread(tmp_path, image, kwargs, exc, match):
+    pytest.importorskip("OpenEXR")
+    with pytest.raises(exc, match=match):
+        ig.write_image(tmp_path / "a.exr", image, **kwargs)
+    assert not (tmp_path / "a.exr").exists()
+
+
+def test_exr_without_openexr_says_how_to_install_it(tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "OpenEXR", None)
+    with pytest.raises(ImportError, match=r"pip install imgform-rs\[exr\]"):
+        ig.write_image(tmp_path / "a.exr", rgb(np.float32), tone="linear")
+
+
+def test_exr_write_errors_are_os_errors(tmp_path):
+    pytest.importorskip("OpenEXR")
+    with pytest.raises(OSError, match="missing"):
+        ig.write_image(tmp_path / "missing" / "a.exr", rgb(np.float32), tone="linear")
+
+
+def test_develop_file_writes_linear_exr_and_checks_options_first(tmp_path):
+    openexr = pytest.importorskip("OpenEXR")
+    path = tmp_path / "a.dng"
+    cfa = (np.arange(40 * 56) % 3000 + 100).astype(np.uint16).reshape(40, 56)
+    write_dng(path, cfa, "RGGB", white_level=4095, black_level=64, orientation=6)
+    opts = dict(bps="float", tone="linear", demosaic="bilinear", color="rec2020")
+    out = ig.develop_file(path, tmp_path / "a.exr", **opts)
+    with openexr.File(str(out)) as exr:
+        back, header = exr.channels()["RGB"].pixels.copy(), dict(exr.header())
+    np.testing.assert_array_equal(back, ig.develop(path, **opts))
+    np.testing.assert_allclose(header["chromaticities"][:2], (0.708, 0.292), atol=1e-7)
+    assert header["cameraMake"] == "imgform-rs"
+    with pytest.raises(ValueError, match='EXR files take bps "float", got bps=16'):
+        ig.develop_file(path, tmp_path / "b.exr", bps=16)
+    with pytest.raises(ValueError, match="linear light"):
+        ig.develop_file(path, tmp_path / "b.exr", bps="float")
+    with pytest.raises(ValueError, match="no orientation"):
+        ig.develop_file(path, tmp_path / "b.exr", orientation="none", **opts)
+    assert not (tmp_path / "b.exr").exists()
+
+
+def test_cli_writes_exr_only_for_linear_float(tmp_path, capsys):
+    openexr = pytest.importorskip("OpenEXR")
+    from imgform_rs.cli import main
+
+    path = tmp_path / "a.dng"
+    cfa = (np.arange(40 * 56) % 3000 + 100).astype(np.uint16).reshape(40, 56)
+    write_dng(path, cfa, "RGGB", white_level=4095)
+    out = tmp_path / "out"
+    assert main(["develop", str(path), "-o", str(out), "--format", "exr"]) == 2
+    assert 'EXR files take bps "float"' in capsys.readouterr().err
+    assert main(["develop", str(path), "-o", str(out), "--format", "exr", "--bps", "float"]) == 2
+    assert "EXR files hold linear light" in capsys.readouterr().err
+    assert not out.exists()
+    argv = ["develop", str(path), "-o", str(out), "--format", "exr", "--bps", "float"]
+    assert main([*argv, "--tone", "linear", "--color", "aces2065_1"]) == 0
+    with openexr.File(str(out / "a.exr")) as exr:
+        white = dict(exr.header())["chromaticities"][6:]
+    np.testing.assert_allclose(white, (0.32168, 0.33767), atol=1e-7)
+
+
+def test_tiff_keeps_the_exif_in_ifd0_for_the_reason_the_module_gives(tmp_path):
+    """_imagefile's docstring: tifffile drops the EXIF sub-IFD's pointer from
+    extratags. If tifffile ever writes it, this fails: move the EXIF there."""
+    path = ig.write_image(tmp_path / "a.tif", rgb(np.uint16), exif=exif_bytes(SHOT, 0, True))
+    with tifffile.TiffFile(path) as tif:
+        tags = tif.pages[0].tags
+        assert "ExifTag" not in tags and tags["Make"].value == "Canon"
+    assert 34665 in tifffile.TIFF.TAG_FILTERED

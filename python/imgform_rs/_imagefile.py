@@ -1,14 +1,29 @@
-"""Developed pictures to files: JPEG, PNG and TIFF with their ICC profile and EXIF.
+"""Developed pictures to files: JPEG, PNG, TIFF and EXR with their colour
+metadata and EXIF.
 
 Encoders are maintained libraries': Pillow through imageio for JPEG and 8-bit
-PNG, tifffile for TIFF, and our small PNG writer only for 16-bit RGB, which
-Pillow cannot hold (see :mod:`imgform_rs._png`). Profiles come from
-:mod:`imgform_rs._icc` (LittleCMS), EXIF from :mod:`imgform_rs._exif`
-(Pillow).
+PNG, tifffile for TIFF, OpenEXR's own Python bindings for EXR (the ``exr``
+extra), and our small PNG writer only for 16-bit RGB, which Pillow cannot
+hold (see :mod:`imgform_rs._png`). Profiles come from :mod:`imgform_rs._icc`
+(LittleCMS), EXIF from :mod:`imgform_rs._exif` (Pillow).
 
-tifffile writes no EXIF sub-IFD, so a TIFF gets the IFD0 part of the EXIF
-(make, model, date, artist, orientation, software) as baseline TIFF tags; the
-exposure settings and lens are in JPEG and PNG files only.
+A TIFF gets the IFD0 part of the EXIF (make, model, date, artist,
+orientation, software) as baseline TIFF tags, not the EXIF sub-IFD with the
+exposure settings and lens, because neither library can write that sub-IFD
+into our TIFFs (checked with tifffile 2026.3 and Pillow 13.0):
+
+- tifffile drops tag 34665 (ExifIFD) from ``extratags`` (it is in
+  ``TIFF.TAG_FILTERED``, with the other tags that point to IFDs: it would
+  have to lay the sub-IFD out itself, and it has no writer for one);
+- Pillow writes the sub-IFD (``exif=``) only with its own, uncompressed TIFF
+  encoder and only for 8-bit images (it has no 16-bit or float RGB mode);
+  any compression goes through libtiff, which refuses the tag ("Bad LONG8 or
+  IFD8 value ... for EXIFIFDOffset", then "Error setting from dictionary").
+
+An EXR holds linear light by definition: it is written only for a linear
+tone, with the colour space's ``chromaticities`` (OpenEXR's standard
+attribute, in place of an ICC profile) and the EXIF as OpenEXR's standard
+camera attributes (``cameraMake``, ``lensModel``, ``expTime``, ...).
 """
 
 from __future__ import annotations
@@ -23,11 +38,19 @@ import numpy.typing as npt
 from ._icc import icc_profile
 from ._png import write_png
 
-FORMATS = {".png": "png", ".tif": "tiff", ".tiff": "tiff", ".jpg": "jpeg", ".jpeg": "jpeg"}
+FORMATS = {
+    ".jpg": "jpeg",
+    ".jpeg": "jpeg",
+    ".png": "png",
+    ".tif": "tiff",
+    ".tiff": "tiff",
+    ".exr": "exr",
+}
 _DTYPES = {
     "png": (np.uint8, np.uint16),
     "tiff": (np.uint8, np.uint16, np.float32),
     "jpeg": (np.uint8,),
+    "exr": (np.float32,),
 }
 # Integer TIFFs: zlib at level 1 with the horizontal predictor, and PNG at
 # level 1 (Pillow also picks each row's filter): on a 4 MP picture level 6
@@ -41,6 +64,32 @@ _PNG_LEVEL = 1
 # (Software, 305, goes through tifffile's own argument).
 _TIFF_TAGS = {271: "s", 272: "s", 274: "H", 306: "s", 315: "s"}
 _SOFTWARE = 305
+# OpenEXR's convention for XYZ data (its Technical Introduction): primaries
+# (1, 0), (0, 1), (0, 0) and white (1/3, 1/3) make the RGB-to-XYZ matrix the
+# identity, so R, G, B are X, Y, Z.
+_EXR_XYZ = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1 / 3, 1 / 3)
+# EXIF tags (IFD0, then the Exif sub-IFD) -> OpenEXR's standard attributes
+# (ImfStandardAttributes.h) of the same meaning and unit.
+_EXR_TEXT = {271: "cameraMake", 272: "cameraModel", 315: "owner"}
+_EXR_SHOT = {
+    33434: "expTime",
+    33437: "aperture",
+    34855: "isoSpeed",
+    37386: "focalLength",
+    36867: "capDate",
+    42035: "lensMake",
+    42036: "lensModel",
+}
+_EXIF_IFD = 0x8769
+
+
+def path_kind(path: str | os.PathLike[str]) -> str:
+    """The format a file name asks for ("png", "tiff", "jpeg", "exr")."""
+    kind = FORMATS.get(Path(path).suffix.lower())
+    if kind is None:
+        *others, last = FORMATS
+        raise ValueError(f"path must end in {', '.join(others)} or {last}, got {Path(path).name!r}")
+    return kind
 
 
 def check_quality(quality: Any) -> int:
@@ -56,7 +105,7 @@ def check_format(kind: str, bps: Any) -> None:
     """ValueError if a file ``kind`` cannot hold :func:`develop`'s ``bps``."""
     dtype = {8: np.uint8, 16: np.uint16, "float": np.float32}.get(bps)
     if dtype is not None and dtype not in _DTYPES[kind]:
-        accepted = {"jpeg": "8", "png": "8 or 16", "tiff": "8, 16 or float"}[kind]
+        accepted = {"jpeg": "8", "png": "8 or 16", "tiff": "8, 16 or float", "exr": '"float"'}[kind]
         raise ValueError(f"{kind.upper()} files take bps {accepted}, got bps={bps!r}")
 
 
@@ -129,6 +178,88 @@ def _tiff(target: Path, img: np.ndarray, icc: bytes | None, exif: bytes | None) 
     )
 
 
+def _openexr() -> Any:
+    try:
+        import OpenEXR
+    except ImportError as exc:
+        raise ImportError("EXR files need OpenEXR: pip install imgform-rs[exr]") from exc
+    return OpenEXR
+
+
+def _chromaticities(color: str) -> tuple[float, ...] | None:
+    """OpenEXR's ``chromaticities`` of an output colour space (red, green,
+    blue and white x, y); None for camera RGB, which has no primaries."""
+    from .colorspace import COLOR_SPACES
+
+    space = COLOR_SPACES.get(color)
+    if space is None:
+        return None
+    if space.primaries is None:
+        return _EXR_XYZ
+    return tuple(float(v) for xy in (*space.primaries, space.white) for v in xy)
+
+
+def _exr_attributes(exif: bytes | None) -> dict[str, Any]:
+    """The EXIF's camera, lens, exposure and date as OpenEXR attributes."""
+    if not exif:
+        return {}
+    from PIL import Image
+
+    ifd0 = Image.Exif()
+    ifd0.load(exif)
+    sub = ifd0.get_ifd(_EXIF_IFD)
+    attributes = {}
+    for ifd, names in ((ifd0, _EXR_TEXT), (sub, _EXR_SHOT)):
+        for tag, name in names.items():
+            value = ifd.get(tag)
+            if isinstance(value, str):
+                attributes[name] = value
+            elif value is not None:  # numbers, rationals as Pillow's IFDRational
+                attributes[name] = float(value)
+    return attributes
+
+
+def _exr(target: Path, img: np.ndarray, color: str, exif: bytes | None) -> None:
+    openexr = _openexr()
+    header: dict[str, Any] = {
+        "compression": openexr.ZIP_COMPRESSION,
+        "type": openexr.scanlineimage,
+        **_exr_attributes(exif),
+    }
+    chromaticities = _chromaticities(color)
+    if chromaticities is not None:
+        header["chromaticities"] = chromaticities
+    channels = {"RGB" if img.ndim == 3 else "Y": np.ascontiguousarray(img)}
+    try:
+        with openexr.File(header, channels) as exr:
+            exr.write(str(target))
+    except RuntimeError as exc:  # OpenEXR's I/O errors (no such folder, disk full)
+        raise OSError(f"{target}: {exc}") from exc
+
+
+def check_exr(color: str, tone: str, exif: bytes | None) -> None:
+    """An EXR holds linear values and has no orientation attribute: refuse
+    what its readers would show wrongly (``tone`` resolved, not "auto"), and
+    fail early without OpenEXR."""
+    if tone != "linear":
+        raise ValueError(
+            f'EXR files hold linear light: develop with tone="linear" (the {color!r} '
+            f"data given are encoded with the {tone!r} curve)"
+        )
+    if exif:
+        from PIL import Image
+
+        tags = Image.Exif()
+        tags.load(exif)
+        turn = tags.get(274, 1)
+        if turn != 1:
+            raise ValueError(
+                f'EXR files have no orientation: develop with orientation="auto" '
+                f"(the EXIF says to turn the pixels: orientation {turn})"
+            )
+    _openexr()
+
+
 def write_image(
     path: str | os.PathLike[str],
     image: npt.NDArray[Any],
@@ -139,23 +270,29 @@ def write_image(
     quality: int = 92,
     overwrite: bool = False,
 ) -> Path:
-    """Write a developed image as JPEG, PNG or TIFF, with its colour profile.
+    """Write a developed image as JPEG, PNG, TIFF or EXR, with its colour profile.
 
     Parameters
     ----------
     path : str or PathLike
-        Ends in ``.jpg`` / ``.jpeg`` (8 bit), ``.png`` (8 or 16 bit) or
-        ``.tif`` / ``.tiff`` (8, 16 bit, zlib-compressed, or float32).
+        Ends in ``.jpg`` / ``.jpeg`` (8 bit), ``.png`` (8 or 16 bit),
+        ``.tif`` / ``.tiff`` (8, 16 bit, zlib-compressed, or float32) or
+        ``.exr`` (linear float32, ZIP-compressed; needs the ``exr`` extra).
     image : ndarray, shape (H, W) or (H, W, 3)
         uint8, uint16 or float32 as the format allows.
     color, tone : str
         The image's colour space and transfer curve, as given to
         :func:`~imgform_rs.develop`: the matching ICC profile, built by
         LittleCMS, is embedded (none for ``"xyz"`` and ``"camera"``, which an
-        RGB profile cannot describe).
+        RGB profile cannot describe). An EXR takes only a linear tone and
+        carries the space's primaries and white as its ``chromaticities``
+        (XYZ by OpenEXR's convention for it; none for ``"camera"``).
     exif : bytes, optional
         EXIF to embed, e.g. :func:`~imgform_rs.raw_exif` of the raw (TIFF
-        files keep its IFD0 tags only: make, model, date, artist, orientation).
+        files keep its IFD0 tags only: make, model, date, artist,
+        orientation; EXR files its camera, lens, exposure and date as
+        OpenEXR's standard attributes, and refuse an orientation other than
+        1, which EXR cannot record).
     quality : int
         JPEG quality, 1 to 100.
     overwrite : bool
@@ -171,7 +308,10 @@ def write_image(
         When ``path`` exists and ``overwrite`` is False.
     ValueError
         For another extension, dtype or shape, an unknown colour space or
-        tone, or a quality outside 1..100.
+        tone, or a quality outside 1..100; for EXR, a tone other than linear
+        or an EXIF orientation other than 1.
+    ImportError
+        For EXR without OpenEXR installed.
 
     Examples
     --------
@@ -186,9 +326,7 @@ def write_image(
     from .develop import COLORS, TONES, _tone_for
 
     target = Path(path)
-    kind = FORMATS.get(target.suffix.lower())
-    if kind is None:
-        raise ValueError(f"path must end in .jpg, .jpeg, .png, .tif or .tiff, got {target.name!r}")
+    kind = path_kind(target)
     if color not in COLORS:
         raise ValueError(f"color must be one of {COLORS}, got {color!r}")
     if tone != "auto" and tone not in TONES:
@@ -198,8 +336,13 @@ def write_image(
         exif = _check_exif(exif)
     img = np.asarray(image)
     _check_image(img, kind)
+    if kind == "exr":
+        check_exr(color, _tone_for(color, tone), exif)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
+    if kind == "exr":
+        _exr(target, img, color, exif)
+        return target
     icc = icc_profile(color, _tone_for(color, tone))
     if kind == "tiff":
         _tiff(target, img, icc, exif)

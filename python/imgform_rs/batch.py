@@ -18,8 +18,9 @@ given). The promises that make a large batch safe to run and to re-run:
   ``retries``, so the tasks of a worker that dies are run again elsewhere.
 
 The report (one entry per file: status ``"ok"``, ``"skipped"`` or
-``"failed"``, reason, seconds, output path) is returned and written as JSON
-next to the outputs, atomically too.
+``"failed"``, reason, seconds, output path, what was made and, for raws
+developed with lens corrections, what lensfun matched and was applied) is
+returned and written as JSON next to the outputs, atomically too.
 
 :func:`demosaic_dask` and :func:`develop_dask` process one mosaic too large
 for one machine's memory as a ``dask.array``, with results identical to the
@@ -57,7 +58,7 @@ RETRIES = 3
 the file: those are reported, and re-running would fail again)."""
 
 _EXPECTED = (ValueError, TypeError, OSError)
-_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg"}
+_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg", "exr": ".exr"}
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,10 @@ class FileResult:
     reason: str
     seconds: float
     detail: str = ""
+    """What was made (develop: the picture's size; align: the shifts found)."""
+    note: str = ""
+    """Anything else found about the file (develop: the lens correction
+    matched and applied, when ``lens_correction`` is not "off")."""
 
 
 @dataclass(frozen=True)
@@ -188,16 +193,16 @@ def write_atomically(target: Path, write: Callable[[Path], Any]) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _develop_file(source: Path, tmp: Path, options: dict) -> str:
+def _develop_file(source: Path, tmp: Path, options: dict) -> tuple[str, str]:
     from .develop import develop_to
 
     develop_options = dict(options)
     quality = develop_options.pop("quality", 92)
-    _, (h, w) = develop_to(source, tmp, quality, True, develop_options)
-    return f"{w}x{h}"
+    _, (h, w), lens = develop_to(source, tmp, quality, True, develop_options)
+    return f"{w}x{h}", lens
 
 
-def _align_file(source: Path, tmp: Path, options: dict) -> str:
+def _align_file(source: Path, tmp: Path, options: dict) -> tuple[str, str]:
     from ._png import for_png, write_png
     from .align import colorize_plate, describe_estimate, read_plate
 
@@ -205,7 +210,7 @@ def _align_file(source: Path, tmp: Path, options: dict) -> str:
     write_png(tmp, for_png(rgb))
     reference = options.get("reference", "g")
     moved = ", ".join(f"{c.upper()} {describe_estimate(found[c])}" for c in "rgb" if c != reference)
-    return f"{moved} onto {reference.upper()}"
+    return f"{moved} onto {reference.upper()}", ""
 
 
 _WORK = {"develop": _develop_file, "align": _align_file}
@@ -216,11 +221,11 @@ def run_file(kind: str, source: str, target: str, options: dict) -> FileResult:
     function of its arguments, so Dask may run it again after a worker dies;
     errors in the file become a "failed" result, not an exception."""
     start = time.perf_counter()
-    detail = ""
+    detail = note = ""
 
     def write(tmp: Path) -> None:
-        nonlocal detail
-        detail = _WORK[kind](Path(source), tmp, options)
+        nonlocal detail, note
+        detail, note = _WORK[kind](Path(source), tmp, options)
 
     try:
         write_atomically(Path(target), write)
@@ -228,7 +233,7 @@ def run_file(kind: str, source: str, target: str, options: dict) -> FileResult:
         # RawError messages already start with the file name.
         reason = str(exc) if str(exc).startswith(source) else f"{source}: {exc}"
         return FileResult(source, target, "failed", reason, time.perf_counter() - start)
-    return FileResult(source, target, "ok", "", time.perf_counter() - start, detail)
+    return FileResult(source, target, "ok", "", time.perf_counter() - start, detail, note)
 
 
 def _write_report(outdir: Path, kind: str, results: list[FileResult]) -> BatchReport:
@@ -333,7 +338,7 @@ def develop_many(
 ) -> BatchReport:
     """Develop raw files on a Dask cluster, one task per file.
 
-    Each ``OUTDIR/<stem>.png`` (or ``.tif``, ``.jpg``), with its colour
+    Each ``OUTDIR/<stem>.png`` (or ``.tif``, ``.jpg``, ``.exr``), with its colour
     profile and the raw's EXIF (:func:`imgform_rs.develop_file`), is written atomically; existing
     outputs are kept unless ``overwrite``; the report is also written to
     ``OUTDIR/imgform-develop-report.json``.
@@ -349,7 +354,7 @@ def develop_many(
         closed afterwards.
     overwrite : bool
         Process files whose output exists (default: skip them).
-    format : {"png", "tiff", "jpeg"}
+    format : {"png", "tiff", "jpeg", "exr"}
     on_result : callable, optional
         ``on_result(result, done, total)`` as each file finishes (a progress bar).
     **develop_kwargs
@@ -386,7 +391,7 @@ def develop_many(
     (['ok'], ['skipped'])
     """
     if format not in _SUFFIX:
-        raise ValueError(f'format must be "png", "tiff" or "jpeg", got {format!r}')
+        raise ValueError(f'format must be "png", "tiff", "jpeg" or "exr", got {format!r}')
     return _run_batch(
         "develop",
         sources,

@@ -59,8 +59,10 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
 
     def report(result, done: int, total: int) -> None:
         if result.status == "ok":
-            took = f"{result.detail} in {result.seconds:.2f} s"
-            print(f"{result.source}: {took} -> {result.output}")
+            line = _file_line(
+                result.source, result.detail, result.seconds, result.output, result.note
+            )
+            print(line)
         elif result.status == "skipped":
             print(f"{result.source}: {result.output} exists, kept (use --overwrite to replace it)")
         else:
@@ -218,7 +220,7 @@ def _develop_options(args: argparse.Namespace) -> dict:
     }
 
 
-_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg"}
+_SUFFIX = {"png": ".png", "tiff": ".tif", "jpeg": ".jpg", "exr": ".exr"}
 
 
 def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
@@ -228,31 +230,32 @@ def _develop_one(path: Path, target: Path, args: argparse.Namespace) -> str:
     from .develop import develop_to
 
     start = time.perf_counter()
-    options, source, lens = _develop_options(args), path, ""
-    if args.lens == "auto":
-        from .lens import match_lens
-        from .raw import load_raw
-
-        source = load_raw(path)
-        match = match_lens(source)
-        if match.profile is not None and source.pixel_aspect != 1:
-            lens = "; lens correction: none (non-square photosites)"
-        else:
-            lens = "; " + match.report()
-        options["lens_correction"] = match
-    _, (h, w) = develop_to(source, target, args.quality, args.overwrite, options)
+    options = _develop_options(args)
+    _, (h, w), lens = develop_to(path, target, args.quality, args.overwrite, options)
     took = time.perf_counter() - start
-    return f"{path}: {w}x{h} in {took:.2f} s -> {target}{lens}"
+    return _file_line(str(path), f"{w}x{h}", took, str(target), lens)
+
+
+def _file_line(source: str, detail: str, seconds: float, target: str, note: str) -> str:
+    """One processed file's line, the same with or without a cluster."""
+    return f"{source}: {detail} in {seconds:.2f} s -> {target}" + (f"; {note}" if note else "")
 
 
 def _develop(args: argparse.Namespace) -> int:
     from concurrent.futures import ThreadPoolExecutor
 
-    from ._imagefile import check_format
+    from ._imagefile import check_exr, check_format
+    from .develop import _tone_for
 
     try:
         check_format(args.format, args.bps)
-    except ValueError as exc:
+        if args.format == "exr":
+            check_exr(args.color, _tone_for(args.color, args.tone), None)
+        if args.lens == "auto":
+            from .lens import lens_database
+
+            lens_database()  # ImportError without lensfunpy, before any file
+    except (ValueError, ImportError) as exc:
         print(f"imgform develop: {exc}", file=sys.stderr)
         return 2
     if args.dry_run:
@@ -453,12 +456,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     dev = sub.add_parser(
         "develop",
-        help="develop raw files (DNG, CR2, NEF, ...) to PNG, TIFF or JPEG",
+        help="develop raw files (DNG, CR2, NEF, ...) to PNG, TIFF, JPEG or EXR",
         description="Decode each raw with LibRaw and develop it (by default: camera white "
-        "balance, brightened as LibRaw does, sRGB) to OUTDIR/<name>.png, .tif or .jpg, with "
-        "the colour space's ICC profile and the raw's EXIF. Files that "
-        "cannot be developed are reported with the reason; the others are still developed, "
-        "and the exit status is 1.",
+        "balance, brightened as LibRaw does, sRGB) to OUTDIR/<name>.png, .tif, .jpg or .exr, "
+        "with the colour space's ICC profile (EXR: chromaticities) and the raw's EXIF. Files "
+        "that cannot be developed are reported with the reason; the others are still "
+        "developed, and the exit status is 1.",
     )
     dev.add_argument("raws", nargs="+", metavar="IN", help="raw files")
     dev.add_argument("-o", "--out", required=True, metavar="OUTDIR", help="output folder")
@@ -495,7 +498,13 @@ def build_parser() -> argparse.ArgumentParser:
         "of the file's camera and lens (needs lensfunpy; each file's line says what was "
         "matched and applied); off (default): no lens corrections",
     )
-    dev.add_argument("--format", default="png", choices=list(_SUFFIX))
+    dev.add_argument(
+        "--format",
+        default="png",
+        choices=list(_SUFFIX),
+        help="png (default), tiff, jpeg, or exr (linear float: --bps float --tone linear; "
+        "needs OpenEXR)",
+    )
     dev.add_argument(
         "--quality", type=_quality, default=92, help="JPEG quality, 1-100 (default: 92)"
     )
@@ -504,7 +513,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_bps,
         default=8,
         metavar="{8,16,float}",
-        help="bits per sample (float: 32-bit float TIFF, for linear output)",
+        help="bits per sample (float: 32-bit float TIFF or EXR, for linear output)",
     )
     dev.add_argument("-j", "--jobs", type=_jobs, default=1, help="files developed at once")
     dev.add_argument(

@@ -53,7 +53,7 @@ import numpy.typing as npt
 
 from . import _native
 from ._exif import exif_bytes
-from ._imagefile import FORMATS, check_format, check_quality, write_image
+from ._imagefile import check_exr, check_format, check_quality, path_kind, write_image
 from .colorspace import COLOR_SPACES, srgb_to
 from .demosaic import DEMOSAIC_METHODS
 from .raw import RawImage, load_raw
@@ -486,8 +486,9 @@ def develop_file(
     ----------
     source : path, bytes, binary file object, rawpy.RawPy or RawImage
     path : str or PathLike
-        ``.jpg`` / ``.jpeg``, ``.png``, ``.tif`` / ``.tiff``; JPEG needs
-        ``bps=8``, float32 (``bps="float"``) needs TIFF.
+        ``.jpg`` / ``.jpeg``, ``.png``, ``.tif`` / ``.tiff``, ``.exr``; JPEG
+        needs ``bps=8``, float32 (``bps="float"``) needs TIFF or EXR, and EXR
+        also ``tone="linear"`` (with ``orientation="auto"``).
     quality : int
         JPEG quality, 1 to 100.
     overwrite : bool
@@ -521,26 +522,53 @@ def develop_file(
 
 def develop_to(
     source: Any, path: str | os.PathLike[str], quality: int, overwrite: bool, options: dict
-) -> tuple[Path, tuple[int, int]]:
-    """:func:`develop_file`, also returning the picture's ``(H, W)`` (for the
-    command line's and the batch's reports)."""
+) -> tuple[Path, tuple[int, int], str]:
+    """:func:`develop_file`, also returning the picture's ``(H, W)`` and the
+    line saying what lens correction was matched and applied ("" when off),
+    for the command line's and the batch's per-file reports."""
     target = Path(path)
-    kind = FORMATS.get(target.suffix.lower())
-    if kind is None:
-        raise ValueError(f"path must end in .jpg, .jpeg, .png, .tif or .tiff, got {target.name!r}")
+    kind = path_kind(target)
     check_format(kind, options.get("bps", 8))
     check_quality(quality)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
     raw = source if isinstance(source, RawImage) else load_raw(source)
-    rgb = develop(raw, **options)
+    exif = raw_exif(raw, options.get("orientation", "auto"))
+    color, tone = options.get("color", "srgb"), options.get("tone", "auto")
+    if kind == "exr":
+        check_exr(color, _tone_for(color, tone), exif)
+    lens, lens_report = _resolve_lens(raw, options.get("lens_correction", "off"))
+    rgb = develop(raw, **{**options, "lens_correction": lens})
     written = write_image(
         target,
         rgb,
-        color=options.get("color", "srgb"),
-        tone=options.get("tone", "auto"),
-        exif=raw_exif(raw, options.get("orientation", "auto")),
+        color=color,
+        tone=tone,
+        exif=exif,
         quality=quality,
         overwrite=overwrite,
     )
-    return written, (rgb.shape[0], rgb.shape[1])
+    return written, (rgb.shape[0], rgb.shape[1]), lens_report
+
+
+def _resolve_lens(raw: RawImage, lens_correction: Any) -> tuple[Any, str]:
+    """``lens_correction`` with ``"auto"`` looked up once for ``raw``, and
+    the report of what that matched and will apply ("" when off)."""
+    if isinstance(lens_correction, str) and lens_correction == "off":
+        return lens_correction, ""
+    if isinstance(lens_correction, str) and lens_correction == "auto":
+        from .lens import match_lens
+
+        match = match_lens(raw)
+        if match.profile is not None and raw.pixel_aspect != 1:
+            # develop leaves such sensors uncorrected under "auto" (see its docs).
+            return "off", "lens correction: none (non-square photosites)"
+        return match, match.report()
+    profile = _lens_profile(raw, lens_correction)  # checks type and photosites
+    if profile is not None:
+        return profile, f"lens correction: {profile.describe()}"
+    from .lens import LensMatch
+
+    if isinstance(lens_correction, LensMatch):  # one that found nothing says why
+        return lens_correction, lens_correction.report()
+    return lens_correction, ""

@@ -5,8 +5,11 @@ image, plus the colour tags LibRaw needs to develop it: one little-endian TIFF
 IFD holding the mosaic as a single uint16 strip, ``PhotometricInterpretation =
 CFA``, ``CFARepeatPatternDim`` / ``CFAPattern`` (0 = R, 1 = G, 2 = B, the same
 indices as our patterns), black and white levels (the black level may be a
-repeating pattern), ``ColorMatrix1``, ``AsShotNeutral`` and the orientation.
-It serves the LibRaw benchmark and the raw pipeline's tests.
+repeating pattern), ``ColorMatrix1``, ``AsShotNeutral`` and the orientation;
+optionally how the shot was taken (lens, focal length, f-number) in an EXIF
+sub-IFD, where cameras put it and LibRaw reads it, so that lens corrections
+can be tested on files whose metadata are known. It serves the LibRaw
+benchmark and the raw pipeline's tests.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ _TYPE_SIZE = {_BYTE: 1, _ASCII: 1, _SHORT: 2, _LONG: 4, _RATIONAL: 8, _SRATIONAL
 _TYPE_CODE = {_BYTE: "B", _ASCII: "B", _SHORT: "H", _LONG: "I"}
 _CFA = 32803  # PhotometricInterpretation of a colour filter array image.
 _D65 = 21  # CalibrationIlluminant code.
+# EXIF tags (CIPA DC-008): the sub-IFD pointer in IFD0 and what goes in it.
+_EXIF_IFD, _F_NUMBER, _FOCAL_LENGTH, _LENS_MODEL = 34665, 33437, 37386, 42036
 
 # XYZ (D65) to linear sRGB: with it as ColorMatrix1 a developer maps the
 # camera's RGB to sRGB unchanged, which suits synthetic mosaics of sRGB images.
@@ -114,8 +119,12 @@ def write_dng(
     as_shot_neutral: Any = (1.0, 1.0, 1.0),
     forward_matrix: Any = None,
     model: str = "imgform-rs synthetic",
+    make: str = "imgform-rs",
     orientation: int = 1,
     pixel_aspect: float = 1.0,
+    lens: str = "",
+    focal_length: float = 0.0,
+    f_number: float = 0.0,
 ) -> None:
     """Write a CFA mosaic as an uncompressed DNG that LibRaw reads back exactly.
 
@@ -142,12 +151,18 @@ def write_dng(
         DNG ``ForwardMatrix1``: white-balanced camera RGB to XYZ (D50), which
         DNG readers prefer to inverting ``ColorMatrix1`` (LibRaw ignores it).
     model : str
-        ``UniqueCameraModel`` (also written as Make / Model).
+        ``UniqueCameraModel`` (also written as Model).
+    make : str
+        ``Make``: with ``model``, the camera lensfun is searched for.
     orientation : int
         EXIF / TIFF ``Orientation``, 1 (as stored) to 8.
     pixel_aspect : float
         Width / height of a photosite, written as ``DefaultScale``
         (``pixel_aspect``, 1): developers stretch the image to square pixels.
+    lens : str
+        EXIF ``LensModel``, e.g. ``"EF-S 18-55mm f/3.5-5.6 IS"``.
+    focal_length, f_number : float
+        EXIF ``FocalLength`` (mm) and ``FNumber``; 0 leaves them out.
 
     Raises
     ------
@@ -156,7 +171,9 @@ def write_dng(
     ValueError
         For a mosaic that is not 2-D or is empty, levels outside 0..65535 or
         black not below white, a black pattern over 64 x 64, an orientation
-        outside 1..8, or a pixel aspect that is not a positive finite number.
+        outside 1..8, a pixel aspect, focal length or f-number that is not a
+        positive finite number (0 for the last two: unknown), or text that is
+        not ASCII.
 
     Examples
     --------
@@ -178,6 +195,12 @@ def write_dng(
         raise ValueError(f"orientation must be an EXIF orientation 1..8, got {orientation!r}")
     if not (np.isfinite(pixel_aspect) and pixel_aspect > 0):
         raise ValueError(f"pixel_aspect must be a positive number, got {pixel_aspect!r}")
+    for name, value in (("focal_length", focal_length), ("f_number", f_number)):
+        if not (np.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} must be a positive number or 0 (unknown), got {value!r}")
+    for name, text in (("make", make), ("model", model), ("lens", lens)):
+        if not (isinstance(text, str) and text.isascii()):
+            raise ValueError(f"{name} must be an ASCII str (a TIFF ASCII tag), got {text!r}")
     tile = pattern_cells(pattern)
     h, w = arr.shape
     pixels = np.ascontiguousarray(arr, dtype="<u2").tobytes()
@@ -189,7 +212,7 @@ def write_dng(
     ifd.add(258, _SHORT, 16)
     ifd.add(259, _SHORT, 1)  # no compression
     ifd.add(262, _SHORT, _CFA)
-    ifd.add(271, _ASCII, "imgform-rs")
+    ifd.add(271, _ASCII, make)
     ifd.add(272, _ASCII, model)
     ifd.add(274, _SHORT, orientation)
     ifd.add(277, _SHORT, 1)
@@ -218,13 +241,34 @@ def write_dng(
             )
         ifd.add(50964, _SRATIONAL, forward.ravel())
 
-    # Header, then the pixels (so the strip offset is known), then the IFD.
+    # Header, then the pixels (so the strip offset is known), then the EXIF
+    # IFD if any (so IFD0 can point to it), then IFD0.
     strip_offset = 8
-    ifd_offset = strip_offset + len(pixels) + (len(pixels) % 2)
+    exif_offset = strip_offset + len(pixels) + (len(pixels) % 2)
+    exif = _shot_ifd(lens, focal_length, f_number)
+    exif_body = b""
+    if exif is not None:
+        exif_body = exif.pack(exif_offset)
+        exif_body += b"\0" * (len(exif_body) % 2)
+        ifd.add(_EXIF_IFD, _LONG, exif_offset)
+    ifd_offset = exif_offset + len(exif_body)
     ifd.add(273, _LONG, strip_offset)
     body = ifd.pack(ifd_offset)
     with open(path, "wb") as f:
         f.write(b"II*\0" + struct.pack("<I", ifd_offset))
         f.write(pixels)
         f.write(b"\0" * (len(pixels) % 2))
+        f.write(exif_body)
         f.write(body)
+
+
+def _shot_ifd(lens: str, focal_length: float, f_number: float) -> _Ifd | None:
+    """The EXIF sub-IFD holding what is known of the shot, or None."""
+    exif = _Ifd()
+    if f_number:
+        exif.add(_F_NUMBER, _RATIONAL, f_number)
+    if focal_length:
+        exif.add(_FOCAL_LENGTH, _RATIONAL, focal_length)
+    if lens:
+        exif.add(_LENS_MODEL, _ASCII, lens)
+    return exif if exif.entries else None

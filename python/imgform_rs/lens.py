@@ -19,7 +19,9 @@ What lensfun corrects and how:
 - the image is mapped onto the calibration sensor through the diagonal (the
   crop factors), the sensor's aspect ratio and the profile's centre offset;
   the image keeps its size (no automatic zoom: lensfun's ``scale=1``), so
-  corrected barrel distortion leaves a border of ``fill`` at the edges.
+  corrected pincushion distortion leaves a border of ``fill`` at the edges,
+  and corrected barrel distortion, which reads inwards, pushes the
+  capture's outermost pixels out of the frame.
 
 Geometry conversions (fisheye to rectilinear) are not done: a fisheye
 profile's distortion is corrected within the fisheye projection, as lensfun
@@ -228,7 +230,7 @@ class LensProfile:
             Which corrections to apply (those the profile has).
         interpolation : {"bilinear", "bicubic"}
         fill : float
-            Value read outside the source (the border barrel correction leaves).
+            Value read outside the source (the border pincushion correction leaves).
 
         Returns
         -------
