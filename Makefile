@@ -60,7 +60,10 @@ bench-peers: $(VENV)/.bench-peers ## install the benchmark-only peers into .venv
 
 .PHONY: bench
 bench: $(BUILT) $(VENV)/.bench-peers ## side-by-side benchmarks against the peers
-	@for b in benchmarks/*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
+	@for b in $(filter-out benchmarks/summary.py,$(wildcard benchmarks/*.py)); do \
+		echo "== $$b"; $(PY) $$b || exit 1; done
+	# The README's short table follows the records just written.
+	$(PY) benchmarks/summary.py --write
 
 .PHONY: filters
 filters: $(BUILT) ## rebuild the leung2011 demosaicer's least-squares filters

@@ -280,3 +280,16 @@ def test_the_docs_read_benchmark_records(tmp_path):
         assert record["benchmark"] == path.stem
         assert record["tables"], f"{path.name} holds no table"
         benchmark_tables.describe_run(record)
+
+
+def test_the_readme_summary_follows_the_records():
+    """README.md's benchmark table is the one benchmarks/summary.py makes from
+    the committed records: a re-run benchmark (or a renamed row) without
+    ``summary.py --write`` fails here instead of leaving stale numbers."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        summary = importlib.import_module("summary")
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    readme = (ROOT / "README.md").read_text()
+    assert summary.readme_with(summary.summary(), readme) == readme
