@@ -18,8 +18,10 @@
    ``phase_cross_correlation`` on the same two channel pairs: the issue's
    goal is <= 0.25x.
 4. The same plate with R and B also rotated and scaled (similarity
-   transforms, known exactly): ``colorize_plate(motion="euclidean")`` and
-   ``align(motion="similarity")`` against OpenCV's ``findTransformECC``
+   transforms, known exactly): ``colorize_plate(motion="euclidean" |
+   "similarity")`` (the whole call: search, ECC for both channels with the
+   reference's pyramid shared, warps, crop, frame) and
+   ``align(motion="similarity")`` per channel against OpenCV's ``findTransformECC``
    (MOTION_EUCLIDEAN) run coarse to fine on a ``pyrDown`` pyramid, started
    from the identity at its coarsest level (the classic recipe), with the
    rotation, scale and worst corner errors of each.
@@ -321,6 +323,10 @@ def motion_section() -> None:
             lambda: ig.colorize_plate(plate, motion="euclidean"),
             2,
         ),
+        "imgform-rs colorize_plate(motion='similarity')": (
+            lambda: ig.colorize_plate(plate, motion="similarity"),
+            2,
+        ),
         "imgform-rs align(motion='similarity') x2": (ours_similarity, 2),
         "OpenCV findTransformECC euclidean pyramid x2": (
             lambda: {c: opencv_pyramid_ecc(ref, ch[c]) for c in "rb"},
@@ -329,8 +335,10 @@ def motion_section() -> None:
     }
     timings = measure_rounds(calls)
     euclid = ig.colorize_plate(plate, motion="euclidean")[1]
+    similar = ig.colorize_plate(plate, motion="similarity")[1]
     results = {
         "imgform-rs colorize_plate(motion='euclidean')": {c: euclid[c].matrix for c in "rb"},
+        "imgform-rs colorize_plate(motion='similarity')": {c: similar[c].matrix for c in "rb"},
         "imgform-rs align(motion='similarity') x2": {
             c: a.matrix for c, a in ours_similarity().items()
         },

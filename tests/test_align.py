@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -410,12 +411,24 @@ def test_cli_reports_a_bad_file_and_processes_the_rest(tmp_path, capsys):
     captured = capsys.readouterr()
     assert status != 0
     assert "broken.jpg" in captured.err and "cannot read plate" in captured.err
-    assert "G (3, -2)" in captured.out and "R (-4, 5)" in captured.out
+    assert "G shift (3, -2), NCC 0.9" in captured.out and "R shift (-4, 5), NCC" in captured.out
+    assert "LOW CONFIDENCE" not in captured.out
     assert (out / "good.png").is_file()
     deep = iio.imread(out / "deep.png")
     assert deep.ndim == 3
     cv2 = pytest.importorskip("cv2")
     assert cv2.imread(str(out / "deep.png"), cv2.IMREAD_UNCHANGED).dtype == np.uint16
+
+
+def test_cli_reports_the_score_and_a_low_confidence_translation(tmp_path, capsys):
+    plate = tmp_path / "plate.png"
+    write_png(plate, synthetic_plate())  # G (3, -2), R (-4, 5) onto B
+    args = ["align", str(plate), "-o", str(tmp_path / "out"), "--reference", "b"]
+    assert main([*args, "--max-shift", "4", "--metric", "ssd"]) == 0
+    out = capsys.readouterr().out
+    # R's dx = 5 is beyond the range: its best shift lies on the edge.
+    low = r"R shift \(-4, 4\), SSD [\d.]+ \(LOW CONFIDENCE: on the edge of the search range\)"
+    assert re.search(low + r", G shift \(3, -2\), SSD \d+\.\d{3} onto B", out), out
 
 
 def test_cli_keeps_existing_outputs_unless_overwrite(tmp_path, capsys):

@@ -159,15 +159,15 @@ def align_images(
 ]: ...
 def refine_warp(
     reference: npt.NDArray[np.generic],
-    moving: npt.NDArray[np.generic],
+    movings: Sequence[npt.NDArray[np.generic]],
     motion: str,
-    init: Sequence[Sequence[float]],
+    inits: Sequence[Sequence[Sequence[float]]],
     crop: float,
     levels: int | None,
     max_iterations: int,
     tolerance: float,
-) -> tuple[
-    tuple[tuple[float, float, float], tuple[float, float, float]], float, list[int], bool
+) -> list[
+    tuple[tuple[tuple[float, float, float], tuple[float, float, float]], float, list[int], bool]
 ]: ...
 
 # --- cfa ---

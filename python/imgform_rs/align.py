@@ -45,6 +45,20 @@ LOW_CORRELATION = 0.3
 DEFAULT_RANGE = 0.2
 
 
+#: :func:`align`'s default most Gauss-Newton steps per ECC pyramid level.
+ECC_MAX_ITERATIONS = 50
+
+#: :func:`align`'s default ECC tolerance: a level stops once a step moves no
+#: window corner by more than this many full-resolution pixels. Steps
+#: shrink several-fold each, so the warp is then within ~0.02 px of where
+#: more steps would take it (on the benchmark's rotated plate 0.05 instead
+#: of 0.01 moves no corner by more than 0.02 px and saves one or two
+#: full-resolution steps), while channels whose content differs, as a
+#: plate's do, limit the accuracy to tenths of a pixel. OpenCV's
+#: ``findTransformECC`` stops on a change of the correlation below 1e-3.
+ECC_TOLERANCE = 0.05
+
+
 @dataclass(frozen=True)
 class Level:
     """What one pyramid level searched: ``scale`` (1 = full resolution),
@@ -214,8 +228,8 @@ def align(
     features: Features = "intensity",
     subpixel: bool = False,
     motion: Motion = "translation",
-    max_iterations: int = 50,
-    tolerance: float = 0.01,
+    max_iterations: int = ECC_MAX_ITERATIONS,
+    tolerance: float = ECC_TOLERANCE,
 ) -> Alignment:
     """Find the shift (or warp) that lands ``moving`` on ``reference``.
 
@@ -320,41 +334,48 @@ def align(
     )
     if motion == "translation":
         return found
-    return _refined(reference, moving, found, str(motion), crop, max_iterations, tolerance)
+    return _refined(reference, [moving], [found], str(motion), crop, max_iterations, tolerance)[0]
 
 
-def _refined(reference, moving, found: Alignment, motion, crop, max_iterations, tolerance):
-    """``found`` (a translation) refined under ``motion`` by ECC."""
-    matrix, ecc, iterations, converged = _native.refine_warp(
+def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance):
+    """Each of ``founds`` (translations of ``movings`` onto ``reference``)
+    refined under ``motion`` by ECC, in one native call that builds the
+    reference's pyramid and sums once for all of them."""
+    results = _native.refine_warp(
         _image(reference, "reference"),
-        _image(moving, "moving"),
+        [_image(m, "moving") for m in movings],
         motion,
-        found.matrix.tolist(),
+        [f.matrix.tolist() for f in founds],
         float(crop),
         None,
         operator.index(max_iterations),
         float(tolerance),
     )
-    m = np.array(matrix)
     h, w = np.shape(reference)
     centre = np.array([(w - 1) / 2, (h - 1) / 2])
-    # The moving point read at the reference's centre lands there.
-    dx, dy = centre - (m[:, :2] @ centre + m[:, 2])
-    # The similarity closest to the linear part (exact for the others):
-    # moving is rotated and scaled by the inverse of it.
-    a = 0.5 * (m[0, 0] + m[1, 1])
-    b = 0.5 * (m[1, 0] - m[0, 1])
-    return replace(
-        found,
-        shift=(float(dy), float(dx)),
-        motion=motion,
-        matrix=m,
-        rotation=-math.atan2(b, a),
-        scale=1.0 / math.hypot(a, b),
-        ecc=float(ecc),
-        iterations=tuple(iterations),
-        converged=bool(converged),
-    )
+    out = []
+    for found, (matrix, ecc, iterations, converged) in zip(founds, results, strict=True):
+        m = np.array(matrix)
+        # The moving point read at the reference's centre lands there.
+        dx, dy = centre - (m[:, :2] @ centre + m[:, 2])
+        # The similarity closest to the linear part (exact for the others):
+        # moving is rotated and scaled by the inverse of it.
+        a = 0.5 * (m[0, 0] + m[1, 1])
+        b = 0.5 * (m[1, 0] - m[0, 1])
+        out.append(
+            replace(
+                found,
+                shift=(float(dy), float(dx)),
+                motion=motion,
+                matrix=m,
+                rotation=-math.atan2(b, a),
+                scale=1.0 / math.hypot(a, b),
+                ecc=float(ecc),
+                iterations=tuple(iterations),
+                converged=bool(converged),
+            )
+        )
+    return out
 
 
 def _roll_fill(image: np.ndarray, dy: int, dx: int, fill: Any) -> np.ndarray:
@@ -574,6 +595,42 @@ def colorize_plate(
     >>> rgb.shape
     (75, 87, 3)
     """
+    rgb, found = _colorize(
+        plate,
+        reference=reference,
+        metric=metric,
+        max_shift=max_shift,
+        crop=crop,
+        pyramid=pyramid,
+        features=features,
+        subpixel=subpixel,
+        frame=frame,
+        motion=motion,
+        white_balance=white_balance,
+        auto_contrast=auto_contrast,
+    )
+    if motion == "translation":
+        return rgb, {c: a.shift for c, a in found.items()}
+    return rgb, found
+
+
+def _colorize(
+    plate: Any,
+    *,
+    reference: Channel = "g",
+    metric: Metric = "ncc",
+    max_shift: int | None = None,
+    crop: float = 0.1,
+    pyramid: int | str = "auto",
+    features: Features = "intensity",
+    subpixel: bool = False,
+    frame: bool = True,
+    motion: Motion = "translation",
+    white_balance: bool = False,
+    auto_contrast: bool = False,
+) -> tuple[np.ndarray, dict[str, Alignment]]:
+    """:func:`colorize_plate` with every channel's :class:`Alignment` (for a
+    translation too: ``imgform align`` reports its score and confidence)."""
     if isinstance(plate, (str, Path)):
         plate = read_plate(plate)
     arr = np.asarray(plate)
@@ -581,33 +638,36 @@ def colorize_plate(
         raise ValueError(f"plate must be a (3 H, W) single-channel scan, got shape {arr.shape}")
     if reference not in ("r", "g", "b"):
         raise ValueError(f'reference must be "r", "g" or "b", got {reference!r}')
+    if motion not in MOTIONS:
+        raise ValueError(f"motion must be one of {', '.join(MOTIONS)}, got {motion!r}")
     h = arr.shape[0] // 3
     chans = {"b": arr[:h], "g": arr[h : 2 * h], "r": arr[2 * h : 3 * h]}
     k = default_max_shift(h, arr.shape[1]) if max_shift is None else max_shift
     ref = chans[reference]
-    found: dict[str, Alignment] = {}
-    for name in "rgb":
-        if name != reference:
-            found[name] = align(
-                ref,
-                chans[name],
-                max_shift=k,
-                metric=metric,
-                crop=crop,
-                pyramid=pyramid,
-                features=features,
-                subpixel=subpixel,
-                motion=motion,
-            )
+    others = [c for c in "rgb" if c != reference]
+    search = {"max_shift": k, "metric": metric, "crop": crop, "pyramid": pyramid}
+    found = {
+        c: align(ref, chans[c], **search, features=features, subpixel=subpixel) for c in others
+    }
+    if motion != "translation":
+        # One refinement for both channels: the reference's pyramid is shared.
+        refined = _refined(
+            ref,
+            [chans[c] for c in others],
+            [found[c] for c in others],
+            motion,
+            crop,
+            ECC_MAX_ITERATIONS,
+            ECC_TOLERANCE,
+        )
+        found = dict(zip(others, refined, strict=True))
+    found[reference] = _identity(metric, motion, subpixel)
+    found = {c: found[c] for c in "rgb"}
     if motion == "translation":
-        zero = (0.0, 0.0) if subpixel else (0, 0)
-        shifts = {c: found[c].shift if c in found else zero for c in "rgb"}
-        common = _common_area(h, arr.shape[1], shifts.values())
-        aligned = [_shifted_crop(chans[c], shifts[c], common) for c in "rgb"]
+        common = _common_area(h, arr.shape[1], [a.shift for a in found.values()])
+        aligned = [_shifted_crop(chans[c], found[c].shift, common) for c in "rgb"]
     else:
-        found[reference] = _identity(metric, motion)
-        shifts = {c: found[c] for c in "rgb"}
-        rows, cols = _warped_area(h, arr.shape[1], [a.matrix for a in shifts.values()])
+        rows, cols = _warped_area(h, arr.shape[1], [a.matrix for a in found.values()])
         aligned = [
             chans[c][rows, cols]
             if c == reference
@@ -620,21 +680,46 @@ def colorize_plate(
     rgb = np.stack(aligned, axis=-1)
     if white_balance or auto_contrast:
         rgb = auto_balance(rgb, contrast=auto_contrast, white_balance=white_balance)
-    return rgb, shifts
+    return rgb, found
 
 
 def describe_estimate(found: tuple | Alignment) -> str:
-    """One channel's entry of :func:`colorize_plate`'s result in words: its
-    shift, or for other motions the rotation, scale, centre shift and ECC
-    (what ``imgform align`` reports per plate)."""
+    """One channel's estimate in words, what ``imgform align`` reports per
+    plate: for a translation its shift and the search's score, for other
+    motions the rotation, scale, centre shift and ECC; then "LOW
+    CONFIDENCE" and why when :attr:`Alignment.low_confidence` is set. A
+    plain shift (an entry of :func:`colorize_plate`'s result for a
+    translation) is printed as it is.
+
+    Examples
+    --------
+    >>> y, x = np.mgrid[:64, :64]
+    >>> ref = (np.sin(x / 5.0) + np.cos(y / 7.0 + x / 11.0)).astype(np.float32)
+    >>> describe_estimate(align(ref, np.roll(ref, (-3, 2), axis=(0, 1)), max_shift=5))
+    'shift (3, -2), NCC 1.000'
+    >>> describe_estimate(align(ref, np.roll(ref, (-3, 2), axis=(0, 1)), max_shift=3))
+    'shift (3, -2), NCC 1.000 (LOW CONFIDENCE: on the edge of the search range)'
+    """
     if not isinstance(found, Alignment):
         return str(found)
     dy, dx = found.shift
-    text = (
-        f"rotation {math.degrees(found.rotation):.3f} deg, scale {found.scale:.5f}, "
-        f"shift ({dy:.2f}, {dx:.2f}), ECC {found.ecc:.3f}"
-    )
-    return text + " (LOW CONFIDENCE)" if found.low_confidence else text
+    if found.motion == "translation":
+        shift = f"({dy:.2f}, {dx:.2f})" if isinstance(dy, float) else f"({dy}, {dx})"
+        text = f"shift {shift}, {found.metric.upper()} {found.score:.3f}"
+    else:
+        text = (
+            f"rotation {math.degrees(found.rotation):.3f} deg, scale {found.scale:.5f}, "
+            f"shift ({dy:.2f}, {dx:.2f}), ECC {found.ecc:.3f}"
+        )
+    if not found.low_confidence:
+        return text
+    if found.at_limit:
+        why = "on the edge of the search range"
+    elif not found.converged:
+        why = "ECC did not converge"
+    else:
+        why = f"correlation below {LOW_CORRELATION}"
+    return f"{text} (LOW CONFIDENCE: {why})"
 
 
 def default_max_shift(height: int, width: int) -> int:
@@ -654,11 +739,14 @@ def _common_area(h: int, w: int, shifts) -> tuple[slice, slice]:
     return slice(top, max(top, h - bottom)), slice(left, max(left, w - right))
 
 
-def _identity(metric: str, motion: str) -> Alignment:
-    """The reference channel's alignment onto itself."""
+def _identity(metric: str, motion: str, subpixel: bool) -> Alignment:
+    """The reference channel's alignment onto itself (an integer shift for a
+    translation without ``subpixel``, like the others'), with the score of
+    identical images."""
+    integer = motion == "translation" and not subpixel
     return Alignment(
-        shift=(0.0, 0.0),
-        score=math.nan,
+        shift=(0, 0) if integer else (0.0, 0.0),
+        score=0.0 if metric == "ssd" else 1.0,
         surface=np.empty((0, 0)),
         surface_origin=(0, 0),
         levels=(),

@@ -204,9 +204,9 @@ def _develop_file(source: Path, tmp: Path, options: dict) -> tuple[str, str]:
 
 def _align_file(source: Path, tmp: Path, options: dict) -> tuple[str, str]:
     from ._png import for_png, write_png
-    from .align import colorize_plate, describe_estimate, read_plate
+    from .align import _colorize, describe_estimate, read_plate
 
-    rgb, found = colorize_plate(read_plate(source), **options)
+    rgb, found = _colorize(read_plate(source), **options)
     write_png(tmp, for_png(rgb))
     reference = options.get("reference", "g")
     moved = ", ".join(f"{c.upper()} {describe_estimate(found[c])}" for c in "rgb" if c != reference)

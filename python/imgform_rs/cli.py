@@ -107,7 +107,7 @@ def _align(args: argparse.Namespace) -> int:
         return _on_cluster(args, align_many, args.plates, "plates", **options)
 
     from ._png import for_png, write_png
-    from .align import colorize_plate, describe_estimate, read_plate
+    from .align import _colorize, describe_estimate, read_plate
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -120,7 +120,7 @@ def _align(args: argparse.Namespace) -> int:
         else:
             start = time.perf_counter()
             try:
-                rgb, found = colorize_plate(
+                rgb, found = _colorize(
                     read_plate(path),
                     reference=args.reference,
                     metric=args.metric,

@@ -136,40 +136,61 @@ fn align_images<'py>(
     dispatch_image!(img, align_of(py, moving, opts))
 }
 
-/// What a refinement returns: (matrix rows, score, iterations per level,
-/// converged).
+/// What a refinement returns per channel: (matrix rows, score, iterations
+/// per level, converged).
 type RefineTuple = ([[f64; 3]; 2], f64, Vec<usize>, bool);
 
 fn refine_of<'py, T: Element + Sample>(
     a: PyReadonlyArrayDyn<'py, T>,
     py: Python<'py>,
-    b: &Bound<'py, PyAny>,
+    movings: &[Bound<'py, PyAny>],
     motion: Motion,
-    init: Matrix,
+    inits: Vec<Matrix>,
     opts: EccOptions,
-) -> PyResult<RefineTuple> {
-    let res = with_views(py, a, b, ("reference", "moving"), |va, vb| {
-        align::refine(va, vb, motion, &init, &opts)
+) -> PyResult<Vec<RefineTuple>> {
+    let bs = movings
+        .iter()
+        .map(|b| partner(b, &a, "moving"))
+        .collect::<PyResult<Vec<_>>>()?;
+    let (h, w, c) = image_dims(a.shape(), "reference")?;
+    let dims = bs
+        .iter()
+        .map(|b| image_dims(b.shape(), "moving"))
+        .collect::<PyResult<Vec<_>>>()?;
+    let sa = contiguous(&a);
+    let sbs: Vec<_> = bs.iter().map(contiguous).collect();
+    let res = detached(py, || {
+        let va = ImageView::contiguous(&sa, w, h, c)?;
+        let vbs = sbs
+            .iter()
+            .zip(&dims)
+            .map(|(s, &(hb, wb, cb))| ImageView::contiguous(s, wb, hb, cb))
+            .collect::<imgform_core::Result<Vec<_>>>()?;
+        align::refine_many(&va, &vbs, motion, &inits, &opts)
     })?;
-    Ok((res.matrix, res.score, res.iterations, res.converged))
+    Ok(res
+        .into_iter()
+        .map(|r| (r.matrix, r.score, r.iterations, r.converged))
+        .collect())
 }
 
-/// Refines `init` (2x3, reference pixel to moving position) under `motion`
-/// by ECC, coarse to fine; `levels=None` is the automatic pyramid.
+/// Refines each `inits[k]` (2x3, reference pixel to moving position) of
+/// `movings[k]` under `motion` by ECC, coarse to fine, with the reference's
+/// pyramid shared; `levels=None` is the automatic pyramid.
 #[pyfunction]
-#[pyo3(signature = (reference, moving, motion, init, crop, levels, max_iterations, tolerance))]
+#[pyo3(signature = (reference, movings, motion, inits, crop, levels, max_iterations, tolerance))]
 #[allow(clippy::too_many_arguments)]
 fn refine_warp(
     py: Python<'_>,
     reference: &Bound<'_, PyAny>,
-    moving: &Bound<'_, PyAny>,
+    movings: Vec<Bound<'_, PyAny>>,
     motion: &str,
-    init: [[f64; 3]; 2],
+    inits: Vec<[[f64; 3]; 2]>,
     crop: f64,
     levels: Option<usize>,
     max_iterations: usize,
     tolerance: f64,
-) -> PyResult<RefineTuple> {
+) -> PyResult<Vec<RefineTuple>> {
     let motion = Motion::parse(motion).map_err(to_pyerr)?;
     let opts = EccOptions {
         crop,
@@ -178,7 +199,7 @@ fn refine_warp(
         tolerance,
     };
     let img = AnyImage::extract(reference, "reference")?;
-    dispatch_image!(img, refine_of(py, moving, motion, init, opts))
+    dispatch_image!(img, refine_of(py, &movings, motion, inits, opts))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

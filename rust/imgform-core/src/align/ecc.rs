@@ -4,16 +4,37 @@
 //!
 //! ECC is the NCC of the reference with the warped moving channel, so like
 //! the translation search it ignores gain and offset between the channels.
-//! Each Gauss-Newton step linearises the warped channel in the warp
-//! parameters and solves a small normal system; every per-pixel quantity
-//! (the bilinear samples of the channel and its gradient, the Jacobian rows,
-//! the Hessian) is summed in one pass over the window, in `f64`, in bands
-//! of rows that are fixed by the image and added in order: the result is
-//! bit-identical for any thread count.
+//! The steps are the paper's inverse-compositional ones: a Gauss-Newton step
+//! linearises the *reference* in the parameters of a small warp applied to
+//! it (about the identity), solves a small normal system for the warp that
+//! best matches it to the moving channel read through the current warp, and
+//! composes the current warp with that small warp's inverse. The Jacobian
+//! rows (the reference's gradient times the warp's derivatives) and their
+//! normal matrix therefore do not change from step to step: they are summed
+//! once per pyramid level, and once for all the channels aligned onto one
+//! reference. A step only reads one bilinear sample of the moving channel
+//! per pixel and adds seven products (the forward-additive form samples the
+//! moving channel's gradient too and re-sums the normal matrix every step).
+//!
+//! Full resolution is read straight from the caller's samples (the moving
+//! channel bilinearly, the reference's gradient by central differences as
+//! the rows are read): no full-resolution copy of a plate is made. The
+//! coarser levels are `f32` box averages.
+//!
+//! Every sum is kept in the basis of the affine warp's six derivatives,
+//! `(gx u, gx v, gx, gy u, gy v, gy)` with `(u, v)` the pixel's position
+//! about the centre: `v` is constant along a row, so a pixel adds only
+//! powers of `u` and each row's total is combined with its `v` once; every
+//! motion's Jacobian is a fixed combination of the six
+//! ([`Motion::affine_basis`]). Sums are in `f64`, over bands of rows fixed by
+//! the image and added in order: the result is bit-identical for any thread
+//! count.
+
+use std::ops::Range;
 
 use rayon::prelude::*;
 
-use super::motion::{from_level, to_level, Centred, Matrix, Motion, MAX_PARAMS};
+use super::motion::{from_level, to_level, Centred, Matrix, Motion, AFFINE, MAX_PARAMS};
 use super::pyramid::{Converted, Plane};
 use super::search::Window;
 use crate::error::Result;
@@ -24,8 +45,10 @@ use crate::invalid;
 /// ~1 ms of work, far above rayon's per-task cost.
 const BAND_ROWS: usize = 32;
 
-/// Entries of the upper triangle of the largest (6 x 6) Hessian.
-const TRIANGLE: usize = MAX_PARAMS * (MAX_PARAMS + 1) / 2;
+/// Powers `(a, b)` of `u^a v^b` of the basis functions `u`, `v`, 1 that
+/// multiply each gradient component: affine derivative `k` is
+/// `g[k / 3] * u^a v^b` with `(a, b) = POWERS[k % 3]`.
+const POWERS: [(usize, usize); 3] = [(1, 0), (0, 1), (0, 0)];
 
 /// The coarsest level ECC starts at keeps at least this many pixels on its
 /// shorter side: enough structure for a rotation to show, while 1/8 of a
@@ -57,7 +80,7 @@ pub struct Refined {
     /// Maps reference pixels to moving positions (see `motion`).
     pub matrix: Matrix,
     /// The ECC (the NCC of the reference and the warped channel) over the
-    /// full-resolution window, at the final warp.
+    /// full-resolution window, at the warp the last step started from.
     pub score: f64,
     /// Steps taken per level, coarsest first.
     pub iterations: Vec<usize>,
@@ -65,172 +88,279 @@ pub struct Refined {
     pub converged: bool,
 }
 
-/// The moving channel of one level with its central-difference gradient,
-/// interleaved so one bilinear fetch reads all three.
-struct Packed {
-    data: Vec<[f32; 3]>,
-    width: usize,
-    height: usize,
-}
-
-impl Packed {
-    fn new(src: &Plane) -> Self {
-        let (w, h) = (src.width, src.height);
-        let at = |x: usize, y: usize| src.data[y * w + x];
-        let mut data = vec![[0.0f32; 3]; w * h];
-        crate::parallel::for_each_row(&mut data, w, |y, row| {
-            let (up, down) = (y.saturating_sub(1), (y + 1).min(h - 1));
-            for (x, o) in row.iter_mut().enumerate() {
-                let (l, r) = (x.saturating_sub(1), (x + 1).min(w - 1));
-                // One-sided at the borders (the step is halved there too).
-                let gx = (at(r, y) - at(l, y)) / (r - l).max(1) as f32;
-                let gy = (at(x, down) - at(x, up)) / (down - up).max(1) as f32;
-                *o = [at(x, y), gx, gy];
-            }
-        });
-        Self {
-            data,
-            width: w,
-            height: h,
-        }
-    }
-
-    /// Bilinear `(value, gx, gy)` at `(x, y)`, `None` when a tap is outside.
-    #[inline(always)]
-    fn sample(&self, x: f64, y: f64) -> Option<[f64; 3]> {
-        if !(x >= 0.0 && y >= 0.0 && x < (self.width - 1) as f64 && y < (self.height - 1) as f64) {
-            return None;
-        }
-        let (ix, iy) = (x as usize, y as usize);
-        let (fx, fy) = ((x - ix as f64) as f32, (y - iy as f64) as f32);
-        let i = iy * self.width + ix;
-        let (a, b) = (self.data[i], self.data[i + 1]);
-        let (c, d) = (self.data[i + self.width], self.data[i + self.width + 1]);
-        let mut out = [0.0; 3];
-        for k in 0..3 {
-            let top = a[k] + fx * (b[k] - a[k]);
-            let bottom = c[k] + fx * (d[k] - c[k]);
-            out[k] = f64::from(top + fy * (bottom - top));
-        }
-        Some(out)
-    }
-}
-
-/// Sums over the valid window pixels of one warp: the moments of the
-/// reference `t` and the warped channel `i`, and the projections of the
-/// Jacobian rows `j` onto 1, `t`, `i` and themselves.
+/// Sums over reference pixels of what depends on the reference alone: its
+/// moments and those of the affine derivatives `J` (the side a step
+/// linearises).
 #[derive(Debug, Clone, Copy, Default)]
-struct Sums {
+struct Template {
     n: f64,
     st: f64,
-    si: f64,
     stt: f64,
-    sii: f64,
-    sti: f64,
-    j1: [f64; MAX_PARAMS],
-    jt: [f64; MAX_PARAMS],
-    ji: [f64; MAX_PARAMS],
-    jj: [f64; TRIANGLE],
+    j1: [f64; AFFINE],
+    jt: [f64; AFFINE],
+    jj: [[f64; AFFINE]; AFFINE],
 }
 
-impl Sums {
-    fn add(&mut self, o: &Self) {
-        self.n += o.n;
-        self.st += o.st;
-        self.si += o.si;
-        self.stt += o.stt;
-        self.sii += o.sii;
-        self.sti += o.sti;
-        for k in 0..MAX_PARAMS {
-            self.j1[k] += o.j1[k];
-            self.jt[k] += o.jt[k];
-            self.ji[k] += o.ji[k];
-        }
-        for k in 0..TRIANGLE {
-            self.jj[k] += o.jj[k];
+/// One row's [`Template`] as sums over powers of `u`: `g[c][p]` is
+/// `sum g_c u^p`, `tg` the same times `t`, `gg[c][d][p]` is `sum g_c g_d
+/// u^p`.
+#[derive(Debug, Clone, Copy, Default)]
+struct TemplateRow {
+    n: f64,
+    st: f64,
+    stt: f64,
+    g: [[f64; 2]; 2],
+    tg: [[f64; 2]; 2],
+    gg: [[[f64; 3]; 2]; 2],
+}
+
+impl TemplateRow {
+    #[inline(always)]
+    fn add(&mut self, t: f64, g: [f64; 2], u: f64) {
+        let pu = [1.0, u, u * u];
+        self.n += 1.0;
+        self.st += t;
+        self.stt += t * t;
+        for c in 0..2 {
+            for (p, &up) in pu[..2].iter().enumerate() {
+                self.g[c][p] += g[c] * up;
+                self.tg[c][p] += t * g[c] * up;
+            }
+            for d in 0..2 {
+                for (p, &up) in pu.iter().enumerate() {
+                    self.gg[c][d][p] += g[c] * g[d] * up;
+                }
+            }
         }
     }
 }
 
-/// One level's images and window.
-struct Level<'a> {
-    reference: &'a Plane,
-    moving: &'a Packed,
+impl Template {
+    /// Adds a row whose centred ordinate is `v`.
+    fn add_row(&mut self, r: &TemplateRow, v: f64) {
+        let pv = [1.0, v, v * v];
+        self.n += r.n;
+        self.st += r.st;
+        self.stt += r.stt;
+        for k in 0..AFFINE {
+            let (c, (a, b)) = (k / 3, POWERS[k % 3]);
+            self.j1[k] += r.g[c][a] * pv[b];
+            self.jt[k] += r.tg[c][a] * pv[b];
+            for l in 0..AFFINE {
+                let (d, (a2, b2)) = (l / 3, POWERS[l % 3]);
+                self.jj[k][l] += r.gg[c][d][a + a2] * pv[b + b2];
+            }
+        }
+    }
+
+    /// `self + sign * o`.
+    fn add_scaled(&mut self, o: &Self, sign: f64) {
+        self.n += sign * o.n;
+        self.st += sign * o.st;
+        self.stt += sign * o.stt;
+        for k in 0..AFFINE {
+            self.j1[k] += sign * o.j1[k];
+            self.jt[k] += sign * o.jt[k];
+            for l in 0..AFFINE {
+                self.jj[k][l] += sign * o.jj[k][l];
+            }
+        }
+    }
+}
+
+/// Sums over the valid pixels of one step of what involves the moving
+/// channel read through the warp, `i`: its moments, its product with the
+/// reference and its projections `sum J_k i`.
+#[derive(Debug, Clone, Copy, Default)]
+struct Warped {
+    si: f64,
+    sii: f64,
+    sti: f64,
+    ji: [f64; AFFINE],
+}
+
+/// One row's [`Warped`]; `gi[c][p]` is `sum i g_c u^p`.
+#[derive(Debug, Clone, Copy, Default)]
+struct WarpedRow {
+    si: f64,
+    sii: f64,
+    sti: f64,
+    gi: [[f64; 2]; 2],
+}
+
+impl WarpedRow {
+    #[inline(always)]
+    fn add(&mut self, t: f64, g: [f64; 2], i: f64, u: f64) {
+        self.si += i;
+        self.sii += i * i;
+        self.sti += t * i;
+        let (ix, iy) = (i * g[0], i * g[1]);
+        self.gi[0][0] += ix;
+        self.gi[0][1] += ix * u;
+        self.gi[1][0] += iy;
+        self.gi[1][1] += iy * u;
+    }
+}
+
+impl Warped {
+    fn add_row(&mut self, r: &WarpedRow, v: f64) {
+        let pv = [1.0, v];
+        self.si += r.si;
+        self.sii += r.sii;
+        self.sti += r.sti;
+        for k in 0..AFFINE {
+            let (c, (a, b)) = (k / 3, POWERS[k % 3]);
+            self.ji[k] += r.gi[c][a] * pv[b];
+        }
+    }
+
+    fn add(&mut self, o: &Self) {
+        self.si += o.si;
+        self.sii += o.sii;
+        self.sti += o.sti;
+        for k in 0..AFFINE {
+            self.ji[k] += o.ji[k];
+        }
+    }
+}
+
+/// Bilinear sample of `img` at `(x, y)`, `None` when a tap is outside.
+#[inline(always)]
+fn sample<S: Sample>(img: &ImageView<'_, S>, x: f64, y: f64) -> Option<f64> {
+    let inside =
+        x >= 0.0 && y >= 0.0 && x < (img.width() - 1) as f64 && y < (img.height() - 1) as f64;
+    if !inside {
+        return None;
+    }
+    let (ix, iy) = (x as usize, y as usize);
+    let (fx, fy) = ((x - ix as f64) as f32, (y - iy as f64) as f32);
+    let (d, s) = (img.data(), img.stride());
+    let i = iy * s + ix;
+    let (a, b) = (d[i].to_f32(), d[i + 1].to_f32());
+    let (c, e) = (d[i + s].to_f32(), d[i + s + 1].to_f32());
+    let top = a + fx * (b - a);
+    let bottom = c + fx * (e - c);
+    Some(f64::from(top + fy * (bottom - top)))
+}
+
+/// Three rows of the reference around one and the spacing of the outer two.
+struct Rows3<'a, S> {
+    up: &'a [S],
+    mid: &'a [S],
+    down: &'a [S],
+    /// `1 / (down - up)`: 1/2 inside, 1 at the first and last rows.
+    inv_dy: f32,
+}
+
+impl<S: Sample> Rows3<'_, S> {
+    /// The sample at `x` and its central-difference gradient (one-sided at
+    /// the image's borders, over the one-pixel step there).
+    #[inline(always)]
+    fn at(&self, x: usize) -> (f64, [f64; 2]) {
+        let last = self.mid.len() - 1;
+        let (l, r) = (x.saturating_sub(1), (x + 1).min(last));
+        let inv_dx = if r - l == 2 { 0.5 } else { 1.0 };
+        let gx = (self.mid[r].to_f32() - self.mid[l].to_f32()) * inv_dx;
+        let gy = (self.down[x].to_f32() - self.up[x].to_f32()) * self.inv_dy;
+        (
+            f64::from(self.mid[x].to_f32()),
+            [f64::from(gx), f64::from(gy)],
+        )
+    }
+}
+
+/// One level's reference and window.
+struct Level<'a, S> {
+    reference: ImageView<'a, S>,
     window: Window,
     centre: (f64, f64),
 }
 
-impl Level<'_> {
-    /// The sums of `warp` over the window, bands in parallel, added in order.
-    fn sums(&self, warp: &Centred) -> Sums {
+impl<'a, S: Sample> Level<'a, S> {
+    fn new(reference: ImageView<'a, S>, crop: f64) -> Self {
+        let (w, h) = (reference.width(), reference.height());
+        Self {
+            reference,
+            window: Window::cropped(w, h, crop),
+            centre: (0.5 * (w as f64 - 1.0), 0.5 * (h as f64 - 1.0)),
+        }
+    }
+
+    fn rows3(&self, y: usize) -> Rows3<'a, S> {
+        let last = self.reference.height() - 1;
+        let (up, down) = (y.saturating_sub(1), (y + 1).min(last));
+        Rows3 {
+            up: self.reference.row(up),
+            mid: self.reference.row(y),
+            down: self.reference.row(down),
+            inv_dy: if down - up == 2 { 0.5 } else { 1.0 },
+        }
+    }
+
+    /// `band` over the window's bands of rows, in parallel, in band order.
+    fn bands<A: Send>(&self, band: impl Fn(Range<usize>) -> A + Sync) -> Vec<A> {
         let w = self.window;
-        let bands: Vec<usize> = (w.y0..w.y1).step_by(BAND_ROWS).collect();
-        let partial: Vec<Sums> = bands
+        let starts: Vec<usize> = (w.y0..w.y1).step_by(BAND_ROWS).collect();
+        starts
             .par_iter()
-            .map(|&y0| self.band(warp, y0..(y0 + BAND_ROWS).min(w.y1)))
-            .collect();
-        let mut total = Sums::default();
-        for s in &partial {
-            total.add(s);
+            .map(|&y0| band(y0..(y0 + BAND_ROWS).min(w.y1)))
+            .collect()
+    }
+
+    /// The [`Template`] of the whole window.
+    fn template(&self) -> Template {
+        let mut total = Template::default();
+        for part in self.bands(|rows| {
+            let mut s = Template::default();
+            for y in rows {
+                let r = self.rows3(y);
+                let mut row = TemplateRow::default();
+                for x in self.window.x0..self.window.x1 {
+                    let (t, g) = r.at(x);
+                    row.add(t, g, x as f64 - self.centre.0);
+                }
+                s.add_row(&row, y as f64 - self.centre.1);
+            }
+            s
+        }) {
+            total.add_scaled(&part, 1.0);
         }
         total
     }
 
-    fn band(&self, warp: &Centred, rows: std::ops::Range<usize>) -> Sums {
-        match warp.motion.params() {
-            2 => self.band_of::<2>(warp, rows),
-            3 => self.band_of::<3>(warp, rows),
-            4 => self.band_of::<4>(warp, rows),
-            _ => self.band_of::<MAX_PARAMS>(warp, rows),
-        }
-    }
-
-    /// [`Self::band`] for a motion of `N` parameters: with `N` known at
-    /// compile time the per-pixel products unroll into straight-line code
-    /// (about twice as fast as loops over a runtime count).
-    fn band_of<const N: usize>(&self, warp: &Centred, rows: std::ops::Range<usize>) -> Sums {
+    /// The [`Warped`] sums of `moving` read through `warp`, and the
+    /// [`Template`] of the window pixels whose sample falls outside it (to
+    /// be taken off the window's).
+    fn warped(&self, moving: &ImageView<'_, S>, warp: &Centred) -> (Warped, Template) {
         let (a, (tx, ty)) = warp.linear_and_shift();
         let (cx, cy) = self.centre;
-        let mut s = Sums::default();
-        let (mut j1, mut jt, mut ji) = ([0.0; N], [0.0; N], [0.0; N]);
-        let mut jj = [[0.0; N]; N];
-        for y in rows {
-            let v = y as f64 - cy;
-            let t_row = &self.reference.row(y)[self.window.x0..self.window.x1];
-            for (x, &t) in (self.window.x0..).zip(t_row) {
-                let u = x as f64 - cx;
-                let px = a[0][0] * u + a[0][1] * v + tx + cx;
-                let py = a[1][0] * u + a[1][1] * v + ty + cy;
-                let Some([i, gx, gy]) = self.moving.sample(px, py) else {
-                    continue;
-                };
-                let t = f64::from(t);
-                let (dx, dy) = warp.derivatives(u, v);
-                let j: [f64; N] = std::array::from_fn(|k| gx * dx[k] + gy * dy[k]);
-                s.n += 1.0;
-                s.st += t;
-                s.si += i;
-                s.stt += t * t;
-                s.sii += i * i;
-                s.sti += t * i;
-                for k in 0..N {
-                    j1[k] += j[k];
-                    jt[k] += j[k] * t;
-                    ji[k] += j[k] * i;
-                    for l in 0..N {
-                        jj[k][l] += j[k] * j[l];
+        let (mut total, mut outside) = (Warped::default(), Template::default());
+        for (w, o) in self.bands(|rows| {
+            let (mut w, mut o) = (Warped::default(), Template::default());
+            for y in rows {
+                let v = y as f64 - cy;
+                let r = self.rows3(y);
+                // Where u = 0 of this row lands; a pixel adds A's first
+                // column times its u.
+                let (ox, oy) = (a[0][1] * v + tx + cx, a[1][1] * v + ty + cy);
+                let (mut row, mut out) = (WarpedRow::default(), TemplateRow::default());
+                for x in self.window.x0..self.window.x1 {
+                    let u = x as f64 - cx;
+                    let (t, g) = r.at(x);
+                    match sample(moving, a[0][0] * u + ox, a[1][0] * u + oy) {
+                        Some(i) => row.add(t, g, i, u),
+                        None => out.add(t, g, u),
                     }
                 }
+                w.add_row(&row, v);
+                o.add_row(&out, v);
             }
+            (w, o)
+        }) {
+            total.add(&w);
+            outside.add_scaled(&o, 1.0);
         }
-        s.j1[..N].copy_from_slice(&j1);
-        s.jt[..N].copy_from_slice(&jt);
-        s.ji[..N].copy_from_slice(&ji);
-        let upper = (0..N).flat_map(|k| (k..N).map(move |l| (k, l)));
-        for ((k, l), out) in upper.zip(&mut s.jj) {
-            *out = jj[k][l];
-        }
-        s
+        (total, outside)
     }
 }
 
@@ -244,43 +374,59 @@ enum Stall {
     Mismatch,
 }
 
-/// The ECC of a warp's sums, and the Gauss-Newton step that increases it.
-fn step(s: &Sums, n: usize) -> (f64, std::result::Result<[f64; MAX_PARAMS], Stall>) {
-    let (mt, mi) = (s.st / s.n, s.si / s.n);
-    let t_norm2 = s.stt - s.n * mt * mt;
-    let i_norm2 = s.sii - s.n * mi * mi;
-    let corr = s.sti - s.n * mt * mi;
+/// The ECC of a step's sums over the valid pixels, and the parameters (of
+/// `motion`, about the identity) of the small warp of the reference that
+/// best matches it to the warped channel.
+fn step(
+    t: &Template,
+    w: &Warped,
+    motion: Motion,
+) -> (f64, std::result::Result<[f64; MAX_PARAMS], Stall>) {
+    let n = motion.params();
+    let basis = motion.affine_basis();
+    let project = |v: &[f64; AFFINE]| -> [f64; MAX_PARAMS] {
+        std::array::from_fn(|k| (0..AFFINE).map(|a| basis[k][a] * v[a]).sum())
+    };
+    let (j1, jt, ji) = (project(&t.j1), project(&t.jt), project(&w.ji));
+    let (mt, mi) = (t.st / t.n, w.si / t.n);
+    let t_norm2 = t.stt - t.n * mt * mt;
+    let i_norm2 = w.sii - t.n * mi * mi;
+    let corr = w.sti - t.n * mt * mi;
     let rho = corr / (t_norm2 * i_norm2).sqrt();
-    // The Hessian of the mean-free warped channel, J^T J - J^T 1 1^T J / n:
-    // mean-free like the channel, so a brightness offset does not bias it.
+    // The normal matrix of the mean-free Jacobian, J^T J - J^T 1 1^T J / n:
+    // mean-free like the channels, so a brightness offset does not bias it.
     let mut h = [[0.0; MAX_PARAMS]; MAX_PARAMS];
-    let pairs = (0..n).flat_map(|k| (k..n).map(move |l| (k, l)));
-    for ((k, l), jj) in pairs.zip(s.jj) {
-        h[k][l] = jj - s.j1[k] * s.j1[l] / s.n;
-        h[l][k] = h[k][l];
-    }
-    let mut ip = [0.0; MAX_PARAMS];
-    let mut tp = [0.0; MAX_PARAMS];
     for k in 0..n {
-        ip[k] = s.ji[k] - mi * s.j1[k];
-        tp[k] = s.jt[k] - mt * s.j1[k];
+        // Row k of B^T (J^T J) B, B the motion's affine basis.
+        let jj_k: [f64; AFFINE] =
+            std::array::from_fn(|b| (0..AFFINE).map(|a| basis[k][a] * t.jj[a][b]).sum());
+        let row = project(&jj_k);
+        for l in 0..n {
+            h[k][l] = row[l] - j1[k] * j1[l] / t.n;
+        }
     }
-    let Some(h_ip) = solve(&h, &ip, n) else {
+    let mut tp = [0.0; MAX_PARAMS];
+    let mut ip = [0.0; MAX_PARAMS];
+    for k in 0..n {
+        tp[k] = jt[k] - mt * j1[k];
+        ip[k] = ji[k] - mi * j1[k];
+    }
+    let Some(h_tp) = solve(&h, &tp, n) else {
         return (rho, Err(Stall::Flat));
     };
-    let dot = |a: &[f64; MAX_PARAMS], b: &[f64; MAX_PARAMS]| -> f64 {
+    let dot_n = |a: &[f64; MAX_PARAMS], b: &[f64; MAX_PARAMS]| -> f64 {
         a[..n].iter().zip(&b[..n]).map(|(x, y)| x * y).sum()
     };
     // ECC's optimal gain between the channels at this linearisation.
-    let lambda_n = i_norm2 - dot(&ip, &h_ip);
-    let lambda_d = corr - dot(&tp, &h_ip);
+    let lambda_n = t_norm2 - dot_n(&tp, &h_tp);
+    let lambda_d = corr - dot_n(&ip, &h_tp);
     if lambda_d.is_nan() || lambda_d <= 0.0 {
         return (rho, Err(Stall::Mismatch));
     }
     let lambda = lambda_n / lambda_d;
     let mut err = [0.0; MAX_PARAMS];
     for k in 0..n {
-        err[k] = lambda * tp[k] - ip[k];
+        err[k] = lambda * ip[k] - tp[k];
     }
     (rho, solve(&h, &err, n).ok_or(Stall::Flat))
 }
@@ -357,12 +503,7 @@ fn displacement(before: &Centred, after: &Centred, half: (f64, f64)) -> f64 {
 /// translation search found) under `motion`, coarse to fine.
 ///
 /// # Errors
-/// [`crate::CoreError::Shape`] for images of different shapes or with more
-/// than one channel; [`crate::CoreError::InvalidArgument`] for NaN samples,
-/// a non-finite `init`, bad options, images too small for the motion (fewer
-/// than `MIN_PIXELS_PER_PARAM` window pixels per parameter at the coarsest
-/// level), a channel without texture (constant, or no gradient along some
-/// parameter), or a warp that leaves too little overlap.
+/// As [`refine_many`].
 pub fn refine<T: Sample>(
     reference: &ImageView<'_, T>,
     moving: &ImageView<'_, T>,
@@ -370,8 +511,74 @@ pub fn refine<T: Sample>(
     init: &Matrix,
     opts: &EccOptions,
 ) -> Result<Refined> {
-    super::same_size(reference, moving, ("reference", "moving"))?;
-    check_options(init, opts)?;
+    let mut all = refine_many(reference, &[*moving], motion, &[*init], opts)?;
+    Ok(all.remove(0))
+}
+
+/// [`refine`] for several moving channels onto one reference (the two
+/// other channels of a plate): the reference's pyramid and its per-level
+/// sums are computed once for all of them. Each result is the one
+/// [`refine`] gives for that channel alone.
+///
+/// # Errors
+/// [`crate::CoreError::Shape`] for images of different shapes or with more
+/// than one channel; [`crate::CoreError::InvalidArgument`] for NaN samples,
+/// as many `inits` as channels not given, a non-finite init, bad options,
+/// images too small for the motion (fewer than `MIN_PIXELS_PER_PARAM`
+/// window pixels per parameter at the coarsest level), a channel without
+/// texture (constant, or no gradient along some parameter), or a warp that
+/// leaves too little overlap.
+pub fn refine_many<T: Sample>(
+    reference: &ImageView<'_, T>,
+    moving: &[ImageView<'_, T>],
+    motion: Motion,
+    inits: &[Matrix],
+    opts: &EccOptions,
+) -> Result<Vec<Refined>> {
+    if moving.len() != inits.len() {
+        return Err(invalid!(
+            "one initial matrix per moving channel is needed, got {} channels and {} matrices",
+            moving.len(),
+            inits.len()
+        ));
+    }
+    for (m, init) in moving.iter().zip(inits) {
+        super::same_size(reference, m, ("reference", "moving"))?;
+        check_options(init, opts)?;
+    }
+    let levels = level_count(reference, motion, opts)?;
+    let refs = pyramid(&Converted::new(reference, "reference")?, levels);
+    let movs = moving
+        .iter()
+        .map(|m| Ok(pyramid(&Converted::new(m, "moving")?, levels)))
+        .collect::<Result<Vec<_>>>()?;
+    let mut found: Vec<Refined> = inits
+        .iter()
+        .map(|m| Refined {
+            matrix: *m,
+            score: f64::NAN,
+            iterations: Vec::with_capacity(levels + 1),
+            converged: false,
+        })
+        .collect();
+    for l in (1..=levels).rev() {
+        let views = movs
+            .iter()
+            .map(|p| p[l - 1].view())
+            .collect::<Result<Vec<_>>>()?;
+        run_level(refs[l - 1].view()?, &views, l, motion, opts, &mut found)?;
+    }
+    run_level(*reference, moving, 0, motion, opts, &mut found)?;
+    Ok(found)
+}
+
+/// The number of halvings: `opts.levels`, or as many as keep the shorter
+/// side at least `MIN_LEVEL_SIDE`; refused when the coarsest window is too
+/// small for the motion.
+fn level_count<T>(reference: &ImageView<'_, T>, motion: Motion, opts: &EccOptions) -> Result<usize>
+where
+    T: Copy,
+{
     let (w, h) = (reference.width(), reference.height());
     let levels = opts.levels.unwrap_or_else(|| {
         let mut n = 0;
@@ -392,94 +599,100 @@ pub fn refine<T: Sample>(
             MIN_PIXELS_PER_PARAM
         ));
     }
-    let mut refs = vec![Plane::from_rows(&Converted::new(reference, "reference")?)];
-    let mut movs = vec![Plane::from_rows(&Converted::new(moving, "moving")?)];
-    for _ in 0..levels {
-        refs.push(Plane::downsample(refs.last().expect("level 0 exists")));
-        movs.push(Plane::downsample(movs.last().expect("level 0 exists")));
-    }
-    let mut matrix = *init;
-    let mut iterations = Vec::with_capacity(levels + 1);
-    let (mut score, mut converged) = (f64::NAN, false);
-    for l in (0..=levels).rev() {
-        let (r, m) = (&refs[l], Packed::new(&movs[l]));
-        let level = Level {
-            reference: r,
-            moving: &m,
-            window: Window::cropped(r.width, r.height, opts.crop),
-            centre: (0.5 * (r.width as f64 - 1.0), 0.5 * (r.height as f64 - 1.0)),
+    Ok(levels)
+}
+
+/// Levels 1..=`levels` of `src` (level 0 is `src` itself, read in place).
+fn pyramid<T: Sample>(src: &Converted<'_, T>, levels: usize) -> Vec<Plane> {
+    let mut out: Vec<Plane> = Vec::with_capacity(levels);
+    for l in 0..levels {
+        let next = match l {
+            0 => Plane::downsample(src),
+            _ => Plane::downsample(&out[l - 1]),
         };
-        let tolerance = opts.tolerance / (1u64 << l) as f64;
-        let (warp, took, rho, done) = iterate(
-            &level,
-            Centred::from_matrix(motion, &to_level(&matrix, l), level.centre),
-            opts.max_iterations,
-            tolerance,
-            l,
-        )?;
-        matrix = from_level(&warp.matrix(level.centre), l);
-        iterations.push(took);
-        (score, converged) = (rho, done);
+        out.push(next);
     }
-    Ok(Refined {
-        matrix,
-        score,
-        iterations,
-        converged,
-    })
+    out
+}
+
+/// Refines every channel's warp at pyramid level `index` (images `2^index`
+/// times smaller than full resolution), from and into `found`.
+fn run_level<S: Sample>(
+    reference: ImageView<'_, S>,
+    moving: &[ImageView<'_, S>],
+    index: usize,
+    motion: Motion,
+    opts: &EccOptions,
+    found: &mut [Refined],
+) -> Result<()> {
+    let level = Level::new(reference, opts.crop);
+    let template = level.template();
+    let tolerance = opts.tolerance / (1u64 << index) as f64;
+    for (m, f) in moving.iter().zip(found) {
+        let start = Centred::from_matrix(motion, &to_level(&f.matrix, index), level.centre);
+        let (warp, took, rho, done) = iterate(&level, &template, m, start, opts, tolerance, index)?;
+        f.matrix = from_level(&warp.matrix(level.centre), index);
+        f.iterations.push(took);
+        (f.score, f.converged) = (rho, done);
+    }
+    Ok(())
 }
 
 /// Gauss-Newton steps on one level until a step moves no corner by more
-/// than `tolerance`: the warp, the steps taken, the final ECC and whether it
-/// converged.
-fn iterate(
-    level: &Level<'_>,
+/// than `tolerance`: the warp, the steps taken, the ECC the last step
+/// started from and whether it converged.
+fn iterate<S: Sample>(
+    level: &Level<'_, S>,
+    template: &Template,
+    moving: &ImageView<'_, S>,
     mut warp: Centred,
-    max_iterations: usize,
+    opts: &EccOptions,
     tolerance: f64,
     index: usize,
 ) -> Result<(Centred, usize, f64, bool)> {
-    let n = warp.motion.params();
+    let motion = warp.motion;
     let win = level.window;
     let half = (
         0.5 * (win.x1 - win.x0) as f64,
         0.5 * (win.y1 - win.y0) as f64,
     );
-    let need = (MIN_PIXELS_PER_PARAM * n) as f64;
-    // The ECC of the last sums: the warp before a step that moved it by at
-    // most `tolerance` once converged.
+    let need = (MIN_PIXELS_PER_PARAM * motion.params()) as f64;
     let mut score = f64::NAN;
-    for it in 0..max_iterations {
-        let s = level.sums(&warp);
-        if s.n < need {
+    for it in 0..opts.max_iterations {
+        let (warped, outside) = level.warped(moving, &warp);
+        let mut valid = *template;
+        valid.add_scaled(&outside, -1.0);
+        if valid.n < need {
             return Err(invalid!(
                 "the warp leaves {} of the window's pixels inside the moving image at pyramid \
                  level {index} ({} needed): the motion is beyond what can be estimated",
-                s.n,
+                valid.n,
                 need
             ));
         }
-        let (rho, delta) = step(&s, n);
+        let (rho, delta) = step(&valid, &warped, motion);
         score = rho;
-        let delta = delta.map_err(|stall| {
-            let why = match stall {
-                Stall::Flat => "a channel is constant or has no texture along some parameter",
-                Stall::Mismatch => "the channels do not match (a step would lower the correlation)",
-            };
-            invalid!(
-                "cannot estimate a {:?} motion at pyramid level {index}: {why} (ECC {rho:.3})",
-                warp.motion
-            )
-        })?;
-        let before = warp;
-        for (p, d) in warp.p.iter_mut().zip(&delta) {
-            *p += d;
-        }
-        if displacement(&before, &warp, half) <= tolerance {
-            return Ok((warp, it + 1, score, true));
-        }
+        let why = match delta {
+            Ok(delta) => match warp.then_inverse_of(&Centred::increment(motion, &delta)) {
+                Some(next) => {
+                    let before = std::mem::replace(&mut warp, next);
+                    if displacement(&before, &warp, half) <= tolerance {
+                        return Ok((warp, it + 1, score, true));
+                    }
+                    continue;
+                }
+                None => "a step would make the warp singular",
+            },
+            Err(Stall::Flat) => "a channel is constant or has no texture along some parameter",
+            Err(Stall::Mismatch) => {
+                "the channels do not match (a step would lower the correlation)"
+            }
+        };
+        return Err(invalid!(
+            "cannot estimate a {motion:?} motion at pyramid level {index}: {why} (ECC {rho:.3})"
+        ));
     }
-    Ok((warp, max_iterations, score, false))
+    Ok((warp, opts.max_iterations, score, false))
 }
 
 fn check_options(init: &Matrix, opts: &EccOptions) -> Result<()> {
@@ -579,6 +792,66 @@ mod tests {
             "{:?}",
             got.matrix
         );
+    }
+
+    #[test]
+    fn pixels_read_outside_the_moving_image_are_left_out_exactly() {
+        // No crop: the reference pixels within ~9 px of two borders read
+        // outside the moving image at the truth, and must be left out of
+        // every sum (the reference's per-level sums minus theirs).
+        let (w, h) = (360, 300);
+        let truth = similarity(0.01, 0.995, 8.5, -6.0);
+        let r = warped(w, h, &IDENTITY);
+        let m = warped(w, h, &invert(&truth).unwrap());
+        let (rv, mv) = (
+            ImageView::contiguous(&r, w, h, 1).unwrap(),
+            ImageView::contiguous(&m, w, h, 1).unwrap(),
+        );
+        let o = EccOptions {
+            crop: 0.0,
+            ..opts()
+        };
+        let start = [[1.0, 0.0, 8.0], [0.0, 1.0, -6.0]];
+        let got = refine(&rv, &mv, Motion::Similarity, &start, &o).unwrap();
+        let err = got
+            .matrix
+            .iter()
+            .flatten()
+            .zip(truth.iter().flatten())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 2e-3, "{:?} vs {truth:?}", got.matrix);
+    }
+
+    #[test]
+    fn channels_refined_together_match_each_alone() {
+        let (w, h) = (240, 200);
+        let r = warped(w, h, &IDENTITY);
+        let rv = ImageView::contiguous(&r, w, h, 1).unwrap();
+        let truths = [
+            similarity(0.015, 1.004, 2.5, -1.5),
+            similarity(-0.01, 0.997, -3.0, 2.0),
+        ];
+        let ms: Vec<Vec<f32>> = truths
+            .iter()
+            .map(|t| warped(w, h, &invert(t).unwrap()))
+            .collect();
+        let views: Vec<_> = ms
+            .iter()
+            .map(|m| ImageView::contiguous(m, w, h, 1).unwrap())
+            .collect();
+        let inits = [IDENTITY, IDENTITY];
+        let both = refine_many(&rv, &views, Motion::Similarity, &inits, &opts()).unwrap();
+        for (v, got) in views.iter().zip(&both) {
+            assert_eq!(
+                got,
+                &refine(&rv, v, Motion::Similarity, &IDENTITY, &opts()).unwrap()
+            );
+        }
+        let e = refine_many(&rv, &views, Motion::Similarity, &inits[..1], &opts())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("one initial matrix per moving channel"), "{e}");
     }
 
     #[test]

@@ -17,7 +17,7 @@ mod motion;
 mod pyramid;
 mod search;
 
-pub use ecc::{refine, EccOptions, Refined};
+pub use ecc::{refine, refine_many, EccOptions, Refined};
 pub use metric::Metric;
 pub use motion::{invert, Matrix, Motion, IDENTITY};
 use pyramid::{Converted, Plane, Rows};

@@ -21,6 +21,11 @@ pub const IDENTITY: Matrix = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
 /// Most parameters a motion has (affine).
 pub const MAX_PARAMS: usize = 6;
 
+/// The affine warp's derivatives at the identity, `(gx u, gx v, gx, gy u,
+/// gy v, gy)` for a gradient `(gx, gy)` at centred position `(u, v)`: every
+/// motion's are combinations of these six ([`Motion::affine_basis`]).
+pub const AFFINE: usize = 6;
+
 /// Which warps are searched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Motion {
@@ -60,6 +65,26 @@ impl Motion {
             Self::Euclidean => 3,
             Self::Similarity => 4,
             Self::Affine => 6,
+        }
+    }
+
+    /// How each parameter moves a point at the identity, in the affine
+    /// parameters `(a00, a01, tx, a10, a11, ty)`: row `k` is the derivative
+    /// of the affine parameters in parameter `k` (rows past `params()` are
+    /// zero). A rotation `theta` moves `(u, v)` by `(-v, u)`, so its row
+    /// is `a01 = -1, a10 = 1`; a similarity's `a` and `b` enter as
+    /// `[[a, -b], [b, a]]`.
+    pub fn affine_basis(self) -> [[f64; AFFINE]; MAX_PARAMS] {
+        const TX: [f64; AFFINE] = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+        const TY: [f64; AFFINE] = [0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+        const TURN: [f64; AFFINE] = [0.0, -1.0, 0.0, 1.0, 0.0, 0.0];
+        const ZOOM: [f64; AFFINE] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+        const NONE: [f64; AFFINE] = [0.0; AFFINE];
+        match self {
+            Self::Translation => [TX, TY, NONE, NONE, NONE, NONE],
+            Self::Euclidean => [TURN, TX, TY, NONE, NONE, NONE],
+            Self::Similarity => [ZOOM, TURN, TX, TY, NONE, NONE],
+            Self::Affine => std::array::from_fn(|k| std::array::from_fn(|a| f64::from(k == a))),
         }
     }
 }
@@ -120,23 +145,41 @@ impl Centred {
         ]
     }
 
-    /// `d x' / d p` and `d y' / d p` at the centred position `(u, v)`.
-    #[inline(always)]
-    pub fn derivatives(&self, u: f64, v: f64) -> ([f64; MAX_PARAMS], [f64; MAX_PARAMS]) {
-        let z = 0.0;
-        match self.motion {
-            Motion::Translation => ([1.0, z, z, z, z, z], [z, 1.0, z, z, z, z]),
-            Motion::Euclidean => {
-                let (s, c) = self.p[0].sin_cos();
-                (
-                    [-s * u - c * v, 1.0, z, z, z, z],
-                    [c * u - s * v, z, 1.0, z, z, z],
-                )
+    /// The warp of `motion` whose parameters are `delta` away from the
+    /// identity's (a Gauss-Newton step).
+    pub fn increment(motion: Motion, delta: &[f64; MAX_PARAMS]) -> Self {
+        let mut p = *delta;
+        match motion {
+            Motion::Translation | Motion::Euclidean => {}
+            Motion::Similarity => p[0] += 1.0,
+            Motion::Affine => {
+                p[0] += 1.0;
+                p[4] += 1.0;
             }
-            Motion::Similarity => ([u, -v, 1.0, z, z, z], [v, u, z, 1.0, z, z]),
-            Motion::Affine => ([u, v, 1.0, z, z, z], [z, z, z, u, v, 1.0]),
         }
+        Self { motion, p }
     }
+
+    /// `self` after the inverse of `step`: `x -> self(step^-1(x))`, the
+    /// inverse-compositional update (both about the same centre); `None`
+    /// when `step` is singular.
+    pub fn then_inverse_of(&self, step: &Centred) -> Option<Self> {
+        let origin = (0.0, 0.0);
+        let m = compose(&self.matrix(origin), &invert(&step.matrix(origin))?);
+        Some(Self::from_matrix(self.motion, &m, origin))
+    }
+}
+
+/// `x -> outer(inner(x))`.
+pub fn compose(outer: &Matrix, inner: &Matrix) -> Matrix {
+    std::array::from_fn(|r| {
+        let o = outer[r];
+        [
+            o[0] * inner[0][0] + o[1] * inner[1][0],
+            o[0] * inner[0][1] + o[1] * inner[1][1],
+            o[0] * inner[0][2] + o[1] * inner[1][2] + o[2],
+        ]
+    })
 }
 
 /// The matrix of a level `2^level` times coarser than the full resolution,
@@ -206,6 +249,63 @@ mod tests {
         let p = Centred::from_matrix(Motion::Euclidean, &r, (40.0, 30.0));
         assert!((p.p[0] - 0.01).abs() < 1e-15);
         assert!(close(&p.matrix((40.0, 30.0)), &r));
+    }
+
+    #[test]
+    fn the_affine_basis_is_each_motions_derivative_at_the_identity() {
+        let eps = 1e-7;
+        for motion in [
+            Motion::Translation,
+            Motion::Euclidean,
+            Motion::Similarity,
+            Motion::Affine,
+        ] {
+            let at = |d: &[f64; MAX_PARAMS]| Centred::increment(motion, d).matrix((0.0, 0.0));
+            let base = at(&[0.0; MAX_PARAMS]);
+            assert!(close(&base, &IDENTITY), "{motion:?}");
+            let basis = motion.affine_basis();
+            for k in 0..MAX_PARAMS {
+                let mut d = [0.0; MAX_PARAMS];
+                d[k] = eps;
+                let m = at(&d);
+                let flat = [m[0][0], m[0][1], m[0][2], m[1][0], m[1][1], m[1][2]];
+                let id = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+                for a in 0..AFFINE {
+                    // Parameters past params() must not move anything.
+                    let want = if k < motion.params() {
+                        basis[k][a]
+                    } else {
+                        0.0
+                    };
+                    assert!(
+                        ((flat[a] - id[a]) / eps - want).abs() < 1e-6,
+                        "{motion:?} {k} {a}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_warp_after_its_own_inverse_is_the_identity() {
+        let w = Centred::from_matrix(
+            Motion::Similarity,
+            &[[1.01, -0.02, 5.0], [0.02, 1.01, -3.0]],
+            (0.0, 0.0),
+        );
+        let id = w.then_inverse_of(&w).unwrap();
+        assert!(close(&id.matrix((0.0, 0.0)), &IDENTITY), "{id:?}");
+        let shift = Centred::increment(Motion::Translation, &[1.0, 2.0, 0.0, 0.0, 0.0, 0.0]);
+        let moved = w.then_inverse_of(&shift).unwrap().matrix((0.0, 0.0));
+        // w(x - (1, 2)): the linear part is w's, the offset moves by -A (1, 2).
+        assert!(
+            (moved[0][2] - (5.0 - 1.01 + 0.04)).abs() < 1e-12,
+            "{moved:?}"
+        );
+        assert!(
+            (moved[1][2] - (-3.0 - 0.02 - 2.02)).abs() < 1e-12,
+            "{moved:?}"
+        );
     }
 
     #[test]

@@ -141,23 +141,18 @@ impl Rows for Plane {
 }
 
 impl Plane {
+    /// The plane as a single-channel view.
+    ///
+    /// # Errors
+    /// [`CoreError::Shape`] for an empty plane.
+    pub fn view(&self) -> Result<ImageView<'_, f32>> {
+        ImageView::contiguous(&self.data, self.width, self.height, 1)
+    }
+
     /// Row `y`.
     #[inline(always)]
     pub fn row(&self, y: usize) -> &[f32] {
         &self.data[y * self.width..(y + 1) * self.width]
-    }
-
-    /// `src` as a plane (same offset), rows converted in parallel.
-    pub fn from_rows(src: &impl Rows) -> Self {
-        let (w, h) = (src.width(), src.height());
-        let mut data = vec![0.0f32; w * h];
-        for_each_row(&mut data, w, |y, row| src.fill_row(y, row));
-        Self {
-            data,
-            width: w,
-            height: h,
-            offset: src.offset(),
-        }
     }
 
     /// The 2x2 box average of `src` (odd last row/column dropped): halves
