@@ -20,7 +20,7 @@
 //! frame of one sensor; the temporal noise comes from `(seed, y, x)`, so a new
 //! seed is a new frame. Either way a frame does not depend on the thread count.
 //!
-//! The read-out runs [`LANES`] pixels at a time ([`Lanes`]), compiled for
+//! The read-out runs eight pixels at a time (`random::Lanes`), compiled for
 //! AVX2 where the CPU has it; every pixel still draws exactly what its own
 //! scalar generator would, so the frame is the same on any CPU.
 
