@@ -263,32 +263,40 @@ impl Lanes {
 
     /// A Poisson variate per lane of mean `lam[i]`
     /// ([`SplitMix64::poisson`]): one PTRS candidate for every lane, kept
-    /// where the mean is >= 10 and the squeeze accepts it (~80 %); other
-    /// lanes are rewound by the two draws and sampled by the scalar code.
+    /// where the mean is >= 10 and the squeeze accepts it (~76 %); other
+    /// lanes are finished by [`Self::poisson_undecided`].
     #[inline(always)]
     pub(crate) fn poisson(&mut self, lam: &[f64; LANES]) -> [f64; LANES] {
         let (u, v) = (self.next_u64(), self.next_u64());
         let mut out = [0.0; LANES];
+        let mut us = [0.0; LANES];
         let mut hit = [false; LANES];
         for i in 0..LANES {
-            let (k, _, squeezed) = Ptrs::new(lam[i]).candidate(unit(u[i]), unit(v[i]));
-            out[i] = k;
+            let (k, u_s, squeezed) = Ptrs::new(lam[i]).candidate(unit(u[i]), unit(v[i]));
+            (out[i], us[i]) = (k, u_s);
             hit[i] = lam[i] >= 10.0 && squeezed;
         }
         for i in 0..LANES {
             if !hit[i] {
-                out[i] = self.poisson_again(i, lam[i]);
+                out[i] = self.poisson_undecided(i, lam[i], (out[i], us[i], unit(v[i])));
             }
         }
         out
     }
 
-    /// Lane `i`'s Poisson variate by the scalar code, from before the two
-    /// draws of the vector step. Kept out of line: a quarter of lanes come
+    /// Lane `i`'s Poisson variate when the vector step left it undecided,
+    /// as the scalar sampler goes on: a mean below 10 is drawn again by
+    /// the search from before the step's two draws; a larger one takes
+    /// PTRS's exact test of the step's candidate `(k, us, v)`, then the
+    /// scalar loop's next draws. Kept out of line: a quarter of lanes come
     /// here, and eight inlined copies of the sampler would crowd the loop.
     #[inline(never)]
-    fn poisson_again(&mut self, i: usize, lam: f64) -> f64 {
-        self.0[i] = self.0[i].wrapping_sub(SplitMix64::GOLDEN.wrapping_mul(2));
+    fn poisson_undecided(&mut self, i: usize, lam: f64, (k, us, v): (f64, f64, f64)) -> f64 {
+        if lam < 10.0 {
+            self.0[i] = self.0[i].wrapping_sub(SplitMix64::GOLDEN.wrapping_mul(2));
+        } else if let Some(k) = Ptrs::new(lam).accept(us, v, k) {
+            return k;
+        }
         self.finish(i, |g| g.poisson(lam))
     }
 }
