@@ -9,6 +9,10 @@
 - Spectral path: a given (H, W, L) float32 radiance captured by our kernel,
   against the time NumPy takes to read the array once (``cube.sum()``), the
   memory bound.
+- Stages: the sensor's read-out alone (``Sensor.capture_rates`` of a frame
+  of mean rates: Poisson and read noise, ADC), so that the two paths' times
+  split into noise and input; and the RGB path with the cos⁴ falloff fused
+  (a camera with a focal length), against the same path without it.
 
 Default 6 MP so four engineers' runs fit the shared machine's memory; pass
 ``--mp 24`` for the issue's 24 MP (the spectral cube is then 3.9 GB).
@@ -22,6 +26,22 @@ import numpy as np
 from _bench import measure_rounds, table
 
 import imgform_rs.spectral as sp
+
+
+def spectral_row(cam: sp.SpectralCamera, cube: np.ndarray, t: float) -> list[str]:
+    """The (H, W, L) path against one read of the cube (freed on return)."""
+    timings = measure_rounds(
+        {
+            "read": (lambda: cube.sum(dtype=np.float32), 3),
+            "ours": (lambda: cam.capture(cube, exposure_time=t), 3),
+        }
+    )
+    return [
+        f"(H, W, L) -> raw, {cube.nbytes / 1e9:.1f} GB",
+        f"{timings['ours'].best:.3f} s",
+        f"{timings['read'].best:.3f} s (one read)",
+        f"{timings['ours'].best / timings['read'].best:.2f}x the read",
+    ]
 
 
 def main() -> None:
@@ -62,22 +82,30 @@ def main() -> None:
             f"{timings['numpy'].best / timings['ours'].best:.1f}x",
         ]
     ]
-    cube = np.einsum("hwk,lk->hwl", rgb, basis)
+    rows.append(spectral_row(cam, np.einsum("hwk,lk->hwl", rgb, basis), t))
+    print(table(["capture", "ours", "peer", "ratio"], rows))
+
+    print("\n## Stages (ns per pixel of wall time, 2 threads)\n")
+    # The RGB path's own mean rates, mosaicked: the same electron counts.
+    rates = ((rgb @ cam.rgb_matrix(light).T.astype(np.float32)) * masks).sum(-1)
+    wide = sp.SpectralCamera(focal_length=28.0)
     timings = measure_rounds(
         {
-            "read": (lambda: cube.sum(dtype=np.float32), 3),
-            "ours": (lambda: cam.capture(cube, exposure_time=t), 3),
+            "noise": (lambda: cam.sensor.capture_rates(rates, exposure_time=t), 5),
+            "rgb": (ours_rgb, 5),
+            "falloff": (
+                lambda: wide.capture_rgb(rgb, illuminant_radiance=light, exposure_time=t),
+                5,
+            ),
         }
     )
-    rows.append(
-        [
-            f"(H, W, L) -> raw, {cube.nbytes / 1e9:.1f} GB",
-            f"{timings['ours'].best:.3f} s",
-            f"{timings['read'].best:.3f} s (one read)",
-            f"{timings['ours'].best / timings['read'].best:.2f}x the read",
-        ]
-    )
-    print(table(["capture", "ours", "peer", "ratio"], rows))
+    per_px = {k: v.best / (h * w) * 1e9 for k, v in timings.items()}
+    stage_rows = [
+        ["read-out alone (Poisson, read noise, ADC)", f"{per_px['noise']:.1f}"],
+        ["RGB -> raw", f"{per_px['rgb']:.1f}"],
+        ["RGB -> raw with the cos⁴ falloff fused", f"{per_px['falloff']:.1f}"],
+    ]
+    print(table(["stage", "ns / pixel"], stage_rows))
 
 
 if __name__ == "__main__":

@@ -369,6 +369,46 @@ def test_cos4_falloff_is_the_fourth_power_of_the_chief_ray_cosine():
         sp.cos4_falloff(0, 2, focal_length=50.0, pixel_pitch=4.0)
 
 
+def test_a_focal_length_applies_the_cos4_falloff_inside_the_capture():
+    """The fused falloff reads the frame that the falloff image gives:
+    the same seeds, means equal to float32 rounding, so the frames match
+    except where that rounding moves a Poisson draw (rare)."""
+    wl = sp.wavelengths()
+    cam = sp.SpectralCamera(wl, focal_length=0.15)
+    flat = sp.SpectralCamera(wl)
+    light = sp.luminance_scale(sp.illuminant("D65", wl), wl, 300.0)
+    rgb = np.random.default_rng(4).random((40, 56, 3), dtype=np.float32)
+    falloff = sp.cos4_falloff(40, 56, focal_length=0.15, pixel_pitch=4.0)
+    assert falloff.min() < 0.35
+    cube = (sp.rgb_to_reflectance(rgb, wl) * light).astype(np.float32)
+    for fused, reference in [
+        (
+            cam.capture(cube, exposure_time=0.01, seed=5),
+            flat.capture(cube * falloff[..., None], exposure_time=0.01, seed=5),
+        ),
+        (
+            cam.capture_rgb(rgb, illuminant_radiance=light, exposure_time=0.01, seed=5),
+            flat.sensor.capture_rates(
+                _mosaic(flat.rgb_matrix(light), rgb) * falloff, exposure_time=0.01, seed=5
+            ),
+        ),
+    ]:
+        assert np.mean(fused != reference) < 0.01
+        undimmed = flat.capture(cube, exposure_time=0.01, seed=5).mean() - 512
+        assert fused.mean() - 512 < 0.8 * undimmed
+    with pytest.raises(ValueError, match="focal_length must be None or"):
+        sp.SpectralCamera(focal_length=0.0)
+
+
+def _mosaic(matrix, rgb):
+    """Mean rates (e-/s) of an RGGB mosaic of ``rgb`` seen through ``matrix``."""
+    rates = np.clip(rgb, 0, None).astype(np.float64) @ matrix.T
+    channel = np.zeros(rgb.shape[:2], np.intp)
+    channel[0::2, 1::2] = channel[1::2, 0::2] = 1
+    channel[1::2, 1::2] = 2
+    return np.take_along_axis(rates, channel[..., None], -1)[..., 0].astype(np.float32)
+
+
 def test_auto_exposure_meters_the_mean_or_a_percentile_and_brackets_in_stops():
     sensor = sp.Sensor(read_noise=0.0, dark_current=0.0, full_well=16_000.0, bit_depth=16)
     rates = np.random.default_rng(3).gamma(2.0, 5_000.0, (200, 300)).astype(np.float32)

@@ -332,10 +332,12 @@ class NativeSensor:
         spectra: npt.NDArray[np.float32],
         response: npt.NDArray[np.float64],
         pattern: str | npt.NDArray[np.int64],
+        falloff: tuple[float, float, float] | None = None,
     ) -> npt.NDArray[np.uint16]: ...
     def capture_rgb(
         self,
         rgb: npt.NDArray[np.float32],
         matrix: npt.NDArray[np.float64],
         pattern: str | npt.NDArray[np.int64],
+        falloff: tuple[float, float, float] | None = None,
     ) -> npt.NDArray[np.uint16]: ...

@@ -629,7 +629,9 @@ def cos4_falloff(
     ``1 / (1 + r² / f²)²``, the same without trigonometry.
 
     Multiply a radiance image ``(H, W, L)`` by ``falloff[..., None]`` or a
-    frame of rates ``(H, W)`` by ``falloff`` before the sensor reads it.
+    frame of rates ``(H, W)`` by ``falloff`` before the sensor reads it; or
+    give :class:`SpectralCamera` a ``focal_length``, and its captures apply
+    the same falloff inside the kernel without building this image.
 
     Parameters
     ----------
@@ -691,6 +693,11 @@ class SpectralCamera:
     f_number, transmittance : float
         The lens: image-plane irradiance is ``π T L / (4 N²)`` on axis (off
         axis, times :func:`cos4_falloff`).
+    focal_length : float, optional
+        mm. When given, :meth:`capture` and :meth:`capture_rgb` dim every
+        pixel by its :func:`cos4_falloff` about the image centre, inside the
+        capture kernel (no falloff image, no extra pass). ``None`` (default):
+        no falloff, as behind a telecentric lens.
     peak_qe : float
         Quantum efficiency at the sensitivities' maximum.
     rule : {"trapezoid", "riemann"}
@@ -706,6 +713,7 @@ class SpectralCamera:
     transmittance: float = 0.9
     peak_qe: float = 0.5
     rule: Rule = "trapezoid"
+    focal_length: float | None = None
 
     def __post_init__(self) -> None:
         grid = check_wavelengths(self.wavelengths)
@@ -727,6 +735,12 @@ class SpectralCamera:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be a finite number > 0, got {v!r}")
+        if self.focal_length is not None and not (
+            np.isfinite(self.focal_length) and self.focal_length > 0
+        ):
+            raise ValueError(
+                f"focal_length must be None or a finite number > 0 (mm), got {self.focal_length!r}"
+            )
         if not (np.isfinite(self.transmittance) and 0 < self.transmittance <= 1):
             raise ValueError(f"transmittance must be in (0, 1], got {self.transmittance!r}")
         object.__setattr__(self, "wavelengths", grid)
@@ -762,7 +776,19 @@ class SpectralCamera:
         """
         self._check_samples(radiance, "radiance")
         native = self.sensor.native(seed=seed, exposure_time=exposure_time)
-        return native.capture_spectral(radiance, self.response(), as_pattern(self.pattern))
+        return native.capture_spectral(
+            radiance, self.response(), as_pattern(self.pattern), self._falloff(radiance)
+        )
+
+    def _falloff(self, image: Any) -> tuple[float, float, float] | None:
+        """The native kernels' cos⁴ falloff of an image: its centre (x, y)
+        and the pixel pitch in focal lengths; ``None`` without a focal length
+        (or for an array the kernel will refuse by its shape)."""
+        shape = np.shape(image)
+        if self.focal_length is None or len(shape) < 2:
+            return None
+        h, w = shape[:2]
+        return ((w - 1) / 2, (h - 1) / 2, self.pixel_pitch * 1e-3 / self.focal_length)
 
     def _check_samples(self, spectra: Any, name: str) -> None:
         """The spectra's last axis matches this camera's grid (a mismatch is
@@ -818,7 +844,7 @@ class SpectralCamera:
             raise TypeError(f"rgb must be a float32 (H, W, 3) image, got dtype {arr.dtype}")
         native = self.sensor.native(seed=seed, exposure_time=exposure_time)
         matrix = np.ascontiguousarray(self.rgb_matrix(illuminant_radiance))
-        return native.capture_rgb(arr, matrix, as_pattern(self.pattern))
+        return native.capture_rgb(arr, matrix, as_pattern(self.pattern), self._falloff(arr))
 
 
 # --- RGB -> spectrum ----------------------------------------------------------------------

@@ -7,6 +7,11 @@
 //! avoid transcendental functions on their common paths: the normal by
 //! Marsaglia and Tsang's ziggurat, the Poisson by Hörmann's PTRS with its
 //! logarithms left to the rare rejection branch.
+//!
+//! [`Lanes`] steps the generators of [`LANES`] neighbouring sites together,
+//! so that the common paths run as vector instructions across pixels; each
+//! lane that misses a fast path finishes with the scalar code, so every site
+//! draws exactly the numbers its own [`SplitMix64`] would.
 
 use std::sync::OnceLock;
 
@@ -34,18 +39,28 @@ impl SplitMix64 {
     /// The generator of column `x` in the row of `row_key`.
     #[inline(always)]
     pub(crate) fn in_row(row_key: u64, x: usize) -> Self {
-        let mut g = Self(Self(row_key).next_u64() ^ (x as u64));
-        g.next_u64();
-        g
+        Self::at(Self::row_base(row_key), x)
+    }
+
+    /// The part of [`Self::in_row`] shared by a whole row: one mix of the
+    /// row key, hoisted out of the loop over columns.
+    #[inline(always)]
+    pub(crate) fn row_base(row_key: u64) -> u64 {
+        Self(row_key).next_u64()
+    }
+
+    /// The generator of column `x` from its row's [`Self::row_base`]: the
+    /// base with `x` mixed in, one step on (the first output is skipped so
+    /// that a site's draws never start with the plain mix of its key).
+    #[inline(always)]
+    pub(crate) fn at(row_base: u64, x: usize) -> Self {
+        Self((row_base ^ x as u64).wrapping_add(Self::GOLDEN))
     }
 
     #[inline(always)]
     pub(crate) fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(Self::GOLDEN);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        mix(self.0)
     }
 
     /// Uniform in [0, 1) with 53 random bits.
@@ -61,20 +76,26 @@ impl SplitMix64 {
     /// draws end after one comparison.
     #[inline(always)]
     pub(crate) fn normal(&mut self) -> f64 {
-        let z = ziggurat();
-        loop {
-            let bits = self.next_u64();
-            let layer = (bits & 0xFF) as usize;
-            let x = unit(bits) * z.x[layer];
-            // Bit 8 becomes the sign bit: a branch here would be mispredicted
-            // on every other draw.
-            let sign = (bits & 0x100) << 55;
-            if x < z.x[layer + 1] {
-                return f64::from_bits(x.to_bits() ^ sign);
-            }
-            if let Some(x) = self.normal_edge(z, layer, x) {
-                return f64::from_bits(x.to_bits() ^ sign);
-            }
+        self.normal_from(ziggurat())
+    }
+
+    #[inline(always)]
+    fn normal_from(&mut self, z: &Ziggurat) -> f64 {
+        let bits = self.next_u64();
+        match z.first_try(bits) {
+            (x, true) => with_sign(x, bits),
+            _ => self.normal_after_miss(z, bits),
+        }
+    }
+
+    /// The rest of [`Self::normal`] after the draw `bits` missed the fast
+    /// path: its edge test, then fresh draws.
+    #[cold]
+    fn normal_after_miss(&mut self, z: &Ziggurat, bits: u64) -> f64 {
+        let (x, _) = z.first_try(bits);
+        match self.normal_edge(z, (bits & 0xFF) as usize, x) {
+            Some(x) => with_sign(x, bits),
+            None => self.normal_from(z),
         }
     }
 
@@ -106,21 +127,14 @@ impl SplitMix64 {
         if lam < 10.0 {
             return self.poisson_by_search(lam);
         }
-        let slam = lam.sqrt();
-        let b = 0.931 + 2.53 * slam;
-        let a = -0.059 + 0.02483 * b;
+        let p = Ptrs::new(lam);
         loop {
-            let u = self.uniform() - 0.5;
-            let v = self.uniform();
-            let us = 0.5 - u.abs();
-            let k = floor((2.0 * a / us + b) * u + lam + 0.43);
-            // The squeeze `v <= 0.9277 - 3.6224 / (b - 2)` (b > 8 here),
-            // multiplied out to spare a division: ~80 % of draws end here,
-            // without a logarithm.
-            if us >= 0.07 && (0.9277 - v) * (b - 2.0) >= 3.6224 {
+            let (u, v) = (self.uniform(), self.uniform());
+            let (k, us, squeezed) = p.candidate(u, v);
+            if squeezed {
                 return k;
             }
-            if let Some(k) = ptrs_accept(lam, a, b, us, v, k) {
+            if let Some(k) = p.accept(us, v, k) {
                 return k;
             }
         }
@@ -144,15 +158,162 @@ impl SplitMix64 {
     }
 }
 
-/// PTRS's exact acceptance test, for the draws its squeeze did not decide.
-#[cold]
-fn ptrs_accept(lam: f64, a: f64, b: f64, us: f64, v: f64, k: f64) -> Option<f64> {
-    if k < 0.0 || (us < 0.013 && v > us) {
-        return None;
+/// The constants of Hörmann's PTRS for one mean `lam` (>= 10).
+struct Ptrs {
+    lam: f64,
+    a: f64,
+    b: f64,
+}
+
+impl Ptrs {
+    #[inline(always)]
+    fn new(lam: f64) -> Self {
+        let b = 0.931 + 2.53 * lam.sqrt();
+        Self {
+            lam,
+            a: -0.059 + 0.02483 * b,
+            b,
+        }
     }
-    let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-    let lhs = (v * inv_alpha / (a / (us * us) + b)).ln();
-    (lhs <= -lam + k * lam.ln() - ln_factorial(k)).then_some(k)
+
+    /// The candidate `k` of the uniforms `u01, v`, with `us` and whether
+    /// the squeeze accepts it.
+    #[inline(always)]
+    fn candidate(&self, u01: f64, v: f64) -> (f64, f64, bool) {
+        let u = u01 - 0.5;
+        let us = 0.5 - u.abs();
+        let k = floor((2.0 * self.a / us + self.b) * u + self.lam + 0.43);
+        // The squeeze `v <= 0.9277 - 3.6224 / (b - 2)` (b > 8 here),
+        // multiplied out to spare a division: ~80 % of draws end here,
+        // without a logarithm.
+        let squeezed = us >= 0.07 && (0.9277 - v) * (self.b - 2.0) >= 3.6224;
+        (k, us, squeezed)
+    }
+
+    /// PTRS's exact acceptance test, for the draws the squeeze did not
+    /// decide.
+    #[cold]
+    fn accept(&self, us: f64, v: f64, k: f64) -> Option<f64> {
+        let (lam, a, b) = (self.lam, self.a, self.b);
+        if k < 0.0 || (us < 0.013 && v > us) {
+            return None;
+        }
+        let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+        let lhs = (v * inv_alpha / (a / (us * us) + b)).ln();
+        (lhs <= -lam + k * lam.ln() - ln_factorial(k)).then_some(k)
+    }
+}
+
+/// Pixels whose generators [`Lanes`] steps together: eight f64 lanes fill
+/// two AVX2 registers, enough to hide the latency of the square root and
+/// division of PTRS behind independent work.
+pub(crate) const LANES: usize = 8;
+
+/// The generators of [`LANES`] consecutive sites of a row, stepped
+/// together. Each variate takes one vector step for all lanes; a lane that
+/// the step does not decide is rewound or continued by the scalar code, so
+/// lane `i` yields exactly what `SplitMix64::at(base, x0 + i)` would.
+pub(crate) struct Lanes([u64; LANES]);
+
+impl Lanes {
+    /// The generators of columns `x0 .. x0 + LANES` of the row with
+    /// [`SplitMix64::row_base`] `row_base`.
+    #[inline(always)]
+    pub(crate) fn at(row_base: u64, x0: usize) -> Self {
+        Self(std::array::from_fn(|i| SplitMix64::at(row_base, x0 + i).0))
+    }
+
+    #[inline(always)]
+    fn next_u64(&mut self) -> [u64; LANES] {
+        let mut out = [0; LANES];
+        for (o, s) in out.iter_mut().zip(self.0.iter_mut()) {
+            *s = s.wrapping_add(SplitMix64::GOLDEN);
+            *o = mix(*s);
+        }
+        out
+    }
+
+    /// Runs the scalar generator of lane `i` from its current state.
+    #[inline(always)]
+    fn finish<R>(&mut self, i: usize, f: impl FnOnce(&mut SplitMix64) -> R) -> R {
+        let mut g = SplitMix64(self.0[i]);
+        let r = f(&mut g);
+        self.0[i] = g.0;
+        r
+    }
+
+    /// A standard normal variate per lane ([`SplitMix64::normal`]).
+    #[inline(always)]
+    pub(crate) fn normal(&mut self, z: &Ziggurat) -> [f64; LANES] {
+        let bits = self.next_u64();
+        let mut out = [0.0; LANES];
+        let mut hit = [false; LANES];
+        for ((o, h), &b) in out.iter_mut().zip(hit.iter_mut()).zip(&bits) {
+            let (x, fast) = z.first_try(b);
+            *o = with_sign(x, b);
+            *h = fast;
+        }
+        for i in 0..LANES {
+            if !hit[i] {
+                out[i] = self.finish(i, |g| g.normal_after_miss(z, bits[i]));
+            }
+        }
+        out
+    }
+
+    /// A Poisson variate per lane of mean `lam[i]`
+    /// ([`SplitMix64::poisson`]): one PTRS candidate for every lane, kept
+    /// where the mean is >= 10 and the squeeze accepts it (~76 %); other
+    /// lanes are finished by [`Self::poisson_undecided`].
+    #[inline(always)]
+    pub(crate) fn poisson(&mut self, lam: &[f64; LANES]) -> [f64; LANES] {
+        let (u, v) = (self.next_u64(), self.next_u64());
+        let mut out = [0.0; LANES];
+        let mut us = [0.0; LANES];
+        let mut hit = [false; LANES];
+        for i in 0..LANES {
+            let (k, u_s, squeezed) = Ptrs::new(lam[i]).candidate(unit(u[i]), unit(v[i]));
+            (out[i], us[i]) = (k, u_s);
+            hit[i] = lam[i] >= 10.0 && squeezed;
+        }
+        for i in 0..LANES {
+            if !hit[i] {
+                out[i] = self.poisson_undecided(i, lam[i], (out[i], us[i], unit(v[i])));
+            }
+        }
+        out
+    }
+
+    /// Lane `i`'s Poisson variate when the vector step left it undecided,
+    /// as the scalar sampler goes on: a mean below 10 is drawn again by
+    /// the search from before the step's two draws; a larger one takes
+    /// PTRS's exact test of the step's candidate `(k, us, v)`, then the
+    /// scalar loop's next draws. Kept out of line: a quarter of lanes come
+    /// here, and eight inlined copies of the sampler would crowd the loop.
+    #[inline(never)]
+    fn poisson_undecided(&mut self, i: usize, lam: f64, (k, us, v): (f64, f64, f64)) -> f64 {
+        if lam < 10.0 {
+            self.0[i] = self.0[i].wrapping_sub(SplitMix64::GOLDEN.wrapping_mul(2));
+        } else if let Some(k) = Ptrs::new(lam).accept(us, v, k) {
+            return k;
+        }
+        self.finish(i, |g| g.poisson(lam))
+    }
+}
+
+/// SplitMix64's output function: a bijective mix of the state.
+#[inline(always)]
+fn mix(mut z: u64) -> u64 {
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// `x` with bit 8 of `bits` as its sign bit: a branch here would be
+/// mispredicted on every other draw.
+#[inline(always)]
+fn with_sign(x: f64, bits: u64) -> f64 {
+    f64::from_bits(x.to_bits() ^ ((bits & 0x100) << 55))
 }
 
 /// `v.floor()` without a call to libm (`floor` is not an instruction of
@@ -171,10 +332,19 @@ fn floor(v: f64) -> f64 {
     }
 }
 
-/// The top 53 bits of `bits` as a uniform number in [0, 1).
+/// The top 53 bits of `bits` as a uniform number in [0, 1):
+/// `(bits >> 11) 2^-53`, computed from the two 32-bit halves, each made a
+/// float by placing it in the mantissa of 2^52 and subtracting 2^52. Every
+/// step is exact, so this is the plain conversion's value; but x86-64 has no
+/// vector instruction converting u64 to f64 before AVX-512, and this form
+/// vectorises with AVX2.
 #[inline(always)]
 fn unit(bits: u64) -> f64 {
-    (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    const TWO_52: f64 = 4_503_599_627_370_496.0;
+    let half = |h: u64| f64::from_bits(TWO_52.to_bits() | h) - TWO_52;
+    let hi = half(bits >> 32);
+    let lo = half(bits & 0xFFFF_F800);
+    (hi * 4_294_967_296.0 + lo) * (1.0 / 18_446_744_073_709_551_616.0)
 }
 
 /// `ln(k!)`: exact table below 10, Stirling's series above (error < 1e-10).
@@ -215,12 +385,24 @@ fn density(x: f64) -> f64 {
 /// The ziggurat's layer edges: layer `i` is the box `[0, x[i]] x [f[i],
 /// f[i + 1]]`, `f = density(x)`, all of area [`LAYER_AREA`]; layer 0 is the
 /// base box (its width stretched to carry the tail's area) and `x[256] = 0`.
-struct Ziggurat {
+pub(crate) struct Ziggurat {
     x: [f64; LAYERS + 1],
     f: [f64; LAYERS + 1],
 }
 
-fn ziggurat() -> &'static Ziggurat {
+impl Ziggurat {
+    /// The abscissa of the draw `bits` in its layer (the low 8 bits), and
+    /// whether it lies inside the layer's rectangle, where it is accepted.
+    #[inline(always)]
+    fn first_try(&self, bits: u64) -> (f64, bool) {
+        let layer = (bits & 0xFF) as usize;
+        let x = unit(bits) * self.x[layer];
+        (x, x < self.x[layer + 1])
+    }
+}
+
+/// The ziggurat's table, built on first use.
+pub(crate) fn ziggurat() -> &'static Ziggurat {
     static TABLE: OnceLock<Ziggurat> = OnceLock::new();
     TABLE.get_or_init(|| {
         let mut x = [0.0; LAYERS + 1];
@@ -317,6 +499,43 @@ mod tests {
                     "mean {lam}, P({k}): {count} of {n}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn lanes_draw_what_each_site_draws_alone() {
+        // Means on both sides of the PTRS switch and of the squeeze, mixed
+        // across lanes; normals with their rare edge and tail cases.
+        let z = ziggurat();
+        let means = [0.0, 0.3, 4.0, 9.99, 10.0, 12.5, 60.0, 3e3, 1e5, -1.0];
+        for row in 0..2000u64 {
+            let base = SplitMix64::row_base(SplitMix64::row_key(9, row as usize));
+            let x0 = (row as usize % 5) * LANES;
+            let lam: [f64; LANES] = std::array::from_fn(|i| means[(i + row as usize) % 10]);
+            let mut lanes = Lanes::at(base, x0);
+            let (p, n) = (lanes.poisson(&lam), lanes.normal(z));
+            let more = lanes.normal(z);
+            for i in 0..LANES {
+                let mut g = SplitMix64::at(base, x0 + i);
+                assert_eq!(p[i], g.poisson(lam[i]), "row {row} lane {i}");
+                assert_eq!(n[i].to_bits(), g.normal().to_bits(), "row {row} lane {i}");
+                assert_eq!(
+                    more[i].to_bits(),
+                    g.normal().to_bits(),
+                    "row {row} lane {i}"
+                );
+                assert_eq!(lanes.0[i], g.0);
+            }
+        }
+    }
+
+    #[test]
+    fn unit_is_the_plain_conversion_of_the_top_53_bits() {
+        let mut g = SplitMix64(17);
+        let edges = [0, u64::MAX, 1 << 11, (1 << 11) - 1, 1 << 63, 0xFFFF_FFFF];
+        for bits in edges.into_iter().chain((0..100_000).map(|_| g.next_u64())) {
+            let plain = (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
+            assert_eq!(unit(bits).to_bits(), plain.to_bits(), "{bits:#x}");
         }
     }
 

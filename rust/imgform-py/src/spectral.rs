@@ -1,6 +1,7 @@
 //! Bindings of `imgform_core::spectral`: grids, integration, the sensor and
 //! photon-transfer statistics.
 
+use imgform_core::spectral::falloff::Falloff;
 use imgform_core::spectral::grid::{self, Quadrature};
 use imgform_core::spectral::integrate::integrate;
 use imgform_core::spectral::ptc::pair_stats;
@@ -52,6 +53,13 @@ fn hwl(shape: &[usize], name: &str, depth: usize, what: &str) -> PyResult<(usize
             "{name} must have shape (H, W, {depth}), {what}, got {shape:?}"
         ))),
     }
+}
+
+/// The cos⁴ falloff of `(cx, cy, pitch_over_focal)`, or none.
+fn falloff_arg(falloff: Option<(f64, f64, f64)>) -> PyResult<Option<Falloff>> {
+    falloff
+        .map(|(cx, cy, ratio)| Falloff::new((cx, cy), ratio).map_err(to_pyerr))
+        .transpose()
 }
 
 /// Quadrature weights (nm) of a wavelength grid.
@@ -204,13 +212,16 @@ impl NativeSensor {
         detached_into(py, &[h, w], |out| self.0.capture_rates(&src, w, h, out))
     }
 
-    /// (H, W, L) float32 spectra and a (3, L) response -> (H, W) uint16 raw.
+    /// (H, W, L) float32 spectra and a (3, L) response -> (H, W) uint16 raw,
+    /// dimmed by the cos⁴ falloff `(cx, cy, pitch_over_focal)` if given.
+    #[pyo3(signature = (spectra, response, pattern, falloff=None))]
     fn capture_spectral<'py>(
         &self,
         py: Python<'py>,
         spectra: &Bound<'py, PyAny>,
         response: &Bound<'py, PyAny>,
         pattern: &Bound<'py, PyAny>,
+        falloff: Option<(f64, f64, f64)>,
     ) -> PyResult<Bound<'py, PyArrayDyn<u16>>> {
         let arr = float32_array(spectra, "spectra", "(H, W, L)")?;
         let l = arr.shape().last().copied().unwrap_or(0);
@@ -222,19 +233,24 @@ impl NativeSensor {
             )));
         }
         let p = pattern_arg(pattern)?;
+        let f = falloff_arg(falloff)?;
         let src = contiguous(&arr);
         detached_into(py, &[h, w], |out| {
-            self.0.capture_spectral(&src, w, h, l, &resp, &p, out)
+            self.0
+                .capture_spectral(&src, w, h, l, &resp, &p, f.as_ref(), out)
         })
     }
 
-    /// (H, W, 3) float32 RGB and a (3, 3) camera matrix -> (H, W) uint16 raw.
+    /// (H, W, 3) float32 RGB and a (3, 3) camera matrix -> (H, W) uint16 raw,
+    /// dimmed by the cos⁴ falloff `(cx, cy, pitch_over_focal)` if given.
+    #[pyo3(signature = (rgb, matrix, pattern, falloff=None))]
     fn capture_rgb<'py>(
         &self,
         py: Python<'py>,
         rgb: &Bound<'py, PyAny>,
         matrix: &Bound<'py, PyAny>,
         pattern: &Bound<'py, PyAny>,
+        falloff: Option<(f64, f64, f64)>,
     ) -> PyResult<Bound<'py, PyArrayDyn<u16>>> {
         let arr = float32_array(rgb, "rgb", "(H, W, 3)")?;
         let (h, w) = hwl(arr.shape(), "rgb", 3, "linear R, G, B")?;
@@ -246,9 +262,10 @@ impl NativeSensor {
         }
         let m: [f64; 9] = m.try_into().expect("checked shape (3, 3)");
         let p = pattern_arg(pattern)?;
+        let f = falloff_arg(falloff)?;
         let src = contiguous(&arr);
         detached_into(py, &[h, w], |out| {
-            self.0.capture_rgb(&src, w, h, &m, &p, out)
+            self.0.capture_rgb(&src, w, h, &m, &p, f.as_ref(), out)
         })
     }
 }

@@ -13,6 +13,8 @@
 //! coordinates and a seed alone, so a capture is the same for any number of
 //! threads.
 
+mod cfa_rates;
+pub mod falloff;
 pub mod grid;
 pub mod integrate;
 pub mod ptc;
@@ -38,6 +40,19 @@ where
         .enumerate()
         .filter_map(|(band, rows)| kernel(band * ROWS_PER_TASK, rows))
         .min()
+}
+
+/// `true` when the CPU has AVX2 and FMA, the features the kernels' wide
+/// variants are compiled for (the detection is cached by `std`).
+fn has_avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 /// `true` for a radiance, reflectance or rate sample a sensor can see:

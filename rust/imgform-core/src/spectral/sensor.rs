@@ -19,13 +19,18 @@
 //! `(pattern_seed, column)`, so the fixed patterns are the same in every
 //! frame of one sensor; the temporal noise comes from `(seed, y, x)`, so a new
 //! seed is a new frame. Either way a frame does not depend on the thread count.
+//!
+//! The read-out runs eight pixels at a time (`random::Lanes`), compiled for
+//! AVX2 where the CPU has it; every pixel still draws exactly what its own
+//! scalar generator would, so the frame is the same on any CPU.
 
+use super::falloff::Falloff;
 use super::integrate::{bad_pixel, check_response};
-use super::{all_valid, bands_first_bad, dot, is_valid_sample};
+use super::{bands_first_bad, cfa_rates, has_avx2_fma, is_valid_sample};
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
 use crate::invalid;
-use crate::random::SplitMix64;
+use crate::random::{ziggurat, Lanes, SplitMix64, Ziggurat, LANES};
 
 /// Mixed into the pattern seed for the column offsets, so that they are not
 /// the row-0 pixel offsets in disguise.
@@ -171,12 +176,19 @@ impl Sensor {
 
     /// Reads a `height x width` frame. `rates(y, row)` fills `row` with
     /// the mean rates (e-/s) of row `y`'s pixels and returns the column of
-    /// its first bad input, if any; the sensor then reads the row.
+    /// its first bad input, if any; the row is dimmed by `falloff`, if
+    /// any, and the sensor reads it.
     ///
     /// Working a row at a time keeps the input's loop (a dot product per
     /// pixel) apart from the noise's, so each stays simple enough to
     /// optimise, while the row of rates stays in cache between the two.
-    fn read_frame<F>(&self, width: usize, height: usize, out: &mut [u16], rates: F) -> Result<()>
+    fn read_frame<F>(
+        &self,
+        (width, height): (usize, usize),
+        falloff: Option<&Falloff>,
+        out: &mut [u16],
+        rates: F,
+    ) -> Result<()>
     where
         F: Fn(usize, &mut [f64]) -> Option<usize> + Sync,
     {
@@ -191,6 +203,9 @@ impl Sensor {
                 let y = y0 + dy;
                 if let Some(x) = rates(y, &mut row_rates) {
                     first_bad = first_bad.or(Some(y * width + x));
+                }
+                if let Some(f) = falloff {
+                    f.apply_row(y, &mut row_rates);
                 }
                 readout.row(self, y, &row_rates, &columns, row);
             }
@@ -215,7 +230,7 @@ impl Sensor {
         out: &mut [u16],
     ) -> Result<()> {
         check_input_len("rates", rates.len(), width * height)?;
-        self.read_frame(width, height, out, |y, row| {
+        self.read_frame((width, height), None, out, |y, row| {
             let src = &rates[y * width..(y + 1) * width];
             for (r, &v) in row.iter_mut().zip(src) {
                 *r = f64::from(v);
@@ -227,7 +242,9 @@ impl Sensor {
     /// A raw capture of a spectral image `(height, width, grid_len)` through
     /// a colour filter array: pixel `(y, x)` integrates its spectrum against
     /// `response[c]`, `c` its filter's channel (0 = R, 1 = G, 2 = B), the
-    /// response in e-/s per unit of the image.
+    /// response in e-/s per unit of the image, dimmed by `falloff` if any.
+    /// The dot products are in f32 (see `cfa_rates` for their error: under
+    /// 1e-6 relative).
     ///
     /// # Errors
     /// A bad parameter or response, mismatched lengths, or a pixel with a
@@ -244,6 +261,7 @@ impl Sensor {
         grid_len: usize,
         response: &[f64],
         pattern: &CfaPattern,
+        falloff: Option<&Falloff>,
         out: &mut [u16],
     ) -> Result<()> {
         check_response(response, 3, grid_len)?;
@@ -254,33 +272,28 @@ impl Sensor {
                 spectra.len()
             )));
         }
+        // f32 keeps the dot product at memory speed; its rounding is far
+        // below the shot noise (see `cfa_rates`).
+        let response: Vec<f32> = response.iter().map(|&v| v as f32).collect();
         let row_len = width * grid_len;
-        self.read_frame(width, height, out, |y, row| {
+        self.read_frame((width, height), falloff, out, |y, row| {
             let src = &spectra[y * row_len..(y + 1) * row_len];
-            let mut first_bad = None;
-            let pixels = src
-                .chunks_exact(grid_len)
-                .zip(pattern.row(y).iter().cycle());
-            for (x, (r, (px, &c))) in row.iter_mut().zip(pixels).enumerate() {
-                let c = usize::from(c);
-                *r = dot(px, &response[c * grid_len..(c + 1) * grid_len]);
-                if !all_valid(px) {
-                    first_bad = first_bad.or(Some(x));
-                }
-            }
-            first_bad
+            cfa_rates::row(src, grid_len, pattern.row(y), &response, row)
         })
     }
 
     /// A raw capture of an RGB image `(height, width, 3)` whose pixels stand
     /// for spectra linear in RGB (a three-function basis): channel `c` of
     /// the camera then sees `matrix[c] · rgb`, with `matrix` row-major 3x3
-    /// in e-/s per unit of RGB. Negative components are out of the basis'
-    /// gamut and count as 0.
+    /// in e-/s per unit of RGB, dimmed by `falloff` if any. Negative
+    /// components are out of the basis' gamut and count as 0.
     ///
     /// # Errors
     /// A bad parameter, a non-finite or negative matrix entry, mismatched
     /// lengths, or a non-finite pixel.
+    // The slice-kernel convention plus the matrix, pattern and falloff (see
+    // `capture_spectral`).
+    #[allow(clippy::too_many_arguments)]
     pub fn capture_rgb(
         &self,
         rgb: &[f32],
@@ -288,11 +301,12 @@ impl Sensor {
         height: usize,
         matrix: &[f64; 9],
         pattern: &CfaPattern,
+        falloff: Option<&Falloff>,
         out: &mut [u16],
     ) -> Result<()> {
         check_response(matrix, 3, 3)?;
         check_input_len("rgb", rgb.len(), 3 * width * height)?;
-        self.read_frame(width, height, out, |y, row| {
+        self.read_frame((width, height), falloff, out, |y, row| {
             let src = &rgb[3 * y * width..3 * (y + 1) * width];
             let mut first_bad = None;
             let pixels = src.chunks_exact(3).zip(pattern.row(y).iter().cycle());
@@ -346,48 +360,146 @@ impl Readout {
         }
     }
 
-    /// Reads row `y` of mean rates `rates` (e-/s) into `out`.
+    /// Reads row `y` of mean rates `rates` (e-/s) into `out`, through the
+    /// widest vector unit the CPU has (the same bits either way).
     fn row(&self, sensor: &Sensor, y: usize, rates: &[f64], columns: &[f64], out: &mut [u16]) {
-        let temporal = SplitMix64::row_key(sensor.seed, y);
-        let fixed = SplitMix64::row_key(sensor.pattern_seed, y);
-        for (x, ((o, &rate), &col)) in out.iter_mut().zip(rates).zip(columns).enumerate() {
-            *o = self.pixel(rate, col, fixed, temporal, x);
+        let keys = RowKeys::new(sensor, y);
+        #[cfg(target_arch = "x86_64")]
+        if has_avx2_fma() {
+            // SAFETY: AVX2 and FMA support was detected just above.
+            unsafe { self.row_avx2(keys, rates, columns, out) };
+            return;
+        }
+        self.row_lanes(keys, rates, columns, out);
+    }
+
+    /// [`Self::row_lanes`] compiled for AVX2 (and FMA, which the arithmetic
+    /// does not use: the same IEEE operations, hence the same bits).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn row_avx2(&self, keys: RowKeys, rates: &[f64], columns: &[f64], out: &mut [u16]) {
+        self.row_lanes(keys, rates, columns, out);
+    }
+
+    /// Reads a row [`LANES`] pixels at a time ([`Self::block`]), the last
+    /// `width % LANES` pixels one at a time ([`Self::pixel`]).
+    #[inline(always)]
+    fn row_lanes(&self, keys: RowKeys, rates: &[f64], columns: &[f64], out: &mut [u16]) {
+        let blocks = rates.len() / LANES * LANES;
+        let lanes = rates[..blocks]
+            .chunks_exact(LANES)
+            .zip(columns.chunks_exact(LANES))
+            .zip(out.chunks_exact_mut(LANES));
+        for (i, ((r, c), o)) in lanes.enumerate() {
+            let (r, c) = (r.try_into().unwrap(), c.try_into().unwrap());
+            o.copy_from_slice(&self.block(&keys, i * LANES, r, c));
+        }
+        for x in blocks..rates.len() {
+            out[x] = self.pixel(&keys, x, rates[x], columns[x]);
         }
     }
 
-    /// Pixel `x`'s reading of a signal of mean `rate` e-/s, its fixed
-    /// pattern drawn from the row key `fixed_row` and its temporal noise
-    /// from `temporal_row` (see [`SplitMix64::row_key`]).
+    /// Pixels `x0 .. x0 + LANES` of a row: [`Self::pixel`]'s arithmetic
+    /// lane by lane, with the generators stepped together.
     #[inline(always)]
-    fn pixel(
+    fn block(
         &self,
-        rate: f64,
-        column_offset: f64,
-        fixed_row: u64,
-        temporal_row: u64,
-        x: usize,
-    ) -> u16 {
+        keys: &RowKeys,
+        x0: usize,
+        rates: &[f64; LANES],
+        columns: &[f64; LANES],
+    ) -> [u16; LANES] {
+        let mut signal = rates.map(|r| r * self.exposure_time);
+        let mut offset = *columns;
+        if self.prnu > 0.0 || self.dsnu > 0.0 {
+            let mut g = Lanes::at(keys.fixed, x0);
+            let gain = g.normal(keys.ziggurat);
+            let dark = g.normal(keys.ziggurat);
+            for i in 0..LANES {
+                signal[i] *= self.gain(gain[i]);
+                offset[i] += self.dsnu * dark[i];
+            }
+        }
+        let mut rng = Lanes::at(keys.temporal, x0);
+        let collected = rng.poisson(&signal.map(|s| self.mean(s)));
+        let mut electrons = [0.0; LANES];
+        for i in 0..LANES {
+            electrons[i] = collected[i].min(self.full_well) + offset[i];
+        }
+        if self.read_noise > 0.0 {
+            let noise = rng.normal(keys.ziggurat);
+            for (e, n) in electrons.iter_mut().zip(noise) {
+                *e += self.read_noise * n;
+            }
+        }
+        electrons.map(|e| self.adc(e))
+    }
+
+    /// Pixel `x`'s reading of a signal of mean `rate` e-/s: the sensor's
+    /// model, one pixel at a time, as [`Self::block`] runs it by lanes.
+    #[inline(always)]
+    fn pixel(&self, keys: &RowKeys, x: usize, rate: f64, column_offset: f64) -> u16 {
         let mut signal = rate * self.exposure_time;
         let mut offset = column_offset;
         if self.prnu > 0.0 || self.dsnu > 0.0 {
-            let mut g = SplitMix64::in_row(fixed_row, x);
-            // A gain below zero needs a draw beyond 1/prnu sigma; such a
-            // pixel is dead (gain 0): it cannot un-collect light.
-            signal *= (1.0 + self.prnu * g.normal()).max(0.0);
+            let mut g = SplitMix64::at(keys.fixed, x);
+            signal *= self.gain(g.normal());
             offset += self.dsnu * g.normal();
         }
-        let mut rng = SplitMix64::in_row(temporal_row, x);
-        let collected = rng.poisson((signal + self.dark_electrons).min(self.saturating_mean));
+        let mut rng = SplitMix64::at(keys.temporal, x);
+        let collected = rng.poisson(self.mean(signal));
         let mut electrons = collected.min(self.full_well) + offset;
         if self.read_noise > 0.0 {
             electrons += self.read_noise * rng.normal();
         }
-        // The ADC has no negative codes. Clipping first, then rounding half
-        // up by truncation gives the code that rounding half away from zero
-        // then clipping would, without a call to libm's `round` (not an
-        // instruction of baseline x86-64).
+        self.adc(electrons)
+    }
+
+    /// The fixed gain `1 + prnu z`. A gain below zero needs a draw beyond
+    /// 1/prnu sigma; such a pixel is dead (gain 0): it cannot un-collect
+    /// light.
+    #[inline(always)]
+    fn gain(&self, z: f64) -> f64 {
+        (1.0 + self.prnu * z).max(0.0)
+    }
+
+    /// The mean charge of a signal, dark charge included, capped at
+    /// [`Self::saturating_mean`].
+    #[inline(always)]
+    fn mean(&self, signal: f64) -> f64 {
+        (signal + self.dark_electrons).min(self.saturating_mean)
+    }
+
+    /// The code of a charge in electrons. The ADC has no negative codes.
+    /// Clipping first, then rounding half up by truncation gives the code
+    /// that rounding half away from zero then clipping would, without a
+    /// call to libm's `round` (not an instruction of baseline x86-64).
+    #[inline(always)]
+    fn adc(&self, electrons: f64) -> u16 {
         let dn = (self.black + electrons * self.dn_per_electron).clamp(0.0, self.white);
         (dn + 0.5) as u16
+    }
+}
+
+/// What a row's pixels share: the bases of its fixed-pattern and temporal
+/// generators ([`SplitMix64::row_base`]) and the ziggurat's table.
+struct RowKeys {
+    fixed: u64,
+    temporal: u64,
+    ziggurat: &'static Ziggurat,
+}
+
+impl RowKeys {
+    fn new(sensor: &Sensor, y: usize) -> Self {
+        let base = |seed| SplitMix64::row_base(SplitMix64::row_key(seed, y));
+        Self {
+            fixed: base(sensor.pattern_seed),
+            temporal: base(sensor.seed),
+            ziggurat: ziggurat(),
+        }
     }
 }
 
@@ -571,12 +683,12 @@ mod tests {
             ..ideal()
         };
         let mut spec = vec![0u16; w * h];
-        s.capture_spectral(&spectra, w, h, l, &response, &pattern, &mut spec)
+        s.capture_spectral(&spectra, w, h, l, &response, &pattern, None, &mut spec)
             .unwrap();
         let rgb: Vec<f32> = (0..w * h).flat_map(|_| [1.0f32, 2.0, 3.0]).collect();
         let eye = [100.0, 0.0, 0.0, 0.0, 100.0, 0.0, 0.0, 0.0, 100.0];
         let mut from_rgb = vec![0u16; w * h];
-        s.capture_rgb(&rgb, w, h, &eye, &pattern, &mut from_rgb)
+        s.capture_rgb(&rgb, w, h, &eye, &pattern, None, &mut from_rgb)
             .unwrap();
         // Same means, same seeds: the same frame.
         assert_eq!(spec, from_rgb);
@@ -588,6 +700,65 @@ mod tests {
         }
     }
 
+    /// Reads a row pixel by pixel, the scalar oracle of the lanes.
+    fn row_by_pixels(s: &Sensor, y: usize, rates: &[f64], columns: &[f64]) -> Vec<u16> {
+        let (readout, keys) = (Readout::new(s), RowKeys::new(s, y));
+        (0..rates.len())
+            .map(|x| readout.pixel(&keys, x, rates[x], columns[x]))
+            .collect()
+    }
+
+    #[test]
+    fn lanes_read_every_pixel_as_the_scalar_model_does() {
+        // Means from 0 to past the full well, on both Poisson branches and
+        // with every defect on; 61 columns leave a 5-pixel scalar tail.
+        let s = Sensor {
+            prnu: 0.02,
+            dsnu: 3.0,
+            read_noise: 2.5,
+            dark_current: 0.7,
+            full_well: 2e4,
+            black_level: 64,
+            ..ideal()
+        };
+        let means = [0.0, 0.3, 2.0, 9.9, 10.0, 11.0, 40.0, 700.0, 1e4, 3e4, 1e7];
+        let w = 61;
+        let rates: Vec<f64> = (0..w).map(|x| means[(x * 7) % means.len()]).collect();
+        let columns: Vec<f64> = (0..w).map(|x| x as f64 * 0.1 - 3.0).collect();
+        for y in 0..40 {
+            let want = row_by_pixels(&s, y, &rates, &columns);
+            let (readout, keys) = (Readout::new(&s), RowKeys::new(&s, y));
+            let mut got = vec![0u16; w];
+            readout.row_lanes(keys, &rates, &columns, &mut got);
+            assert_eq!(got, want, "row {y}");
+            let mut dispatched = vec![0u16; w];
+            readout.row(&s, y, &rates, &columns, &mut dispatched);
+            assert_eq!(dispatched, want, "row {y}");
+        }
+    }
+
+    #[test]
+    fn the_falloff_dims_each_pixel_by_its_cos4() {
+        let (w, h) = (48, 40);
+        let falloff = Falloff::new((20.0, 15.0), 0.03).unwrap();
+        let rgb = vec![1.0f32; 3 * w * h];
+        let eye = [1e4, 0.0, 0.0, 0.0, 1e4, 0.0, 0.0, 0.0, 1e4];
+        let pattern = CfaPattern::from_name("RGGB").unwrap();
+        let mut out = vec![0u16; w * h];
+        ideal()
+            .capture_rgb(&rgb, w, h, &eye, &pattern, Some(&falloff), &mut out)
+            .unwrap();
+        // The corner's cos⁴ is ~0.48: the image must follow it pixel by pixel.
+        for (i, &v) in out.iter().enumerate() {
+            let mean = 1e4 * falloff.at(i / w, i % w);
+            assert!(
+                (f64::from(v) - mean).abs() < 5.0 * mean.sqrt(),
+                "{i}: {v} vs {mean}"
+            );
+        }
+        assert!(falloff.at(0, 47) < 0.5);
+    }
+
     #[test]
     fn bad_input_and_parameters_are_named() {
         let pattern = CfaPattern::from_name("RGGB").unwrap();
@@ -595,7 +766,7 @@ mod tests {
         let mut spectra = vec![1.0f32; 4 * 2];
         spectra[3 * 2 + 1] = f32::NAN;
         let err = ideal()
-            .capture_spectral(&spectra, 2, 2, 2, &[1.0; 6], &pattern, &mut out)
+            .capture_spectral(&spectra, 2, 2, 2, &[1.0; 6], &pattern, None, &mut out)
             .unwrap_err();
         assert!(err.to_string().contains("row 1, column 1"), "{err}");
         let err = Sensor {
