@@ -295,7 +295,9 @@ def stocks(draw) -> film.Stock:
         layers=(layer,),
         base_density=np.full_like(wl, draw(st.floats(0.0, 0.3))),
         balance_kelvin=5500.0,
-        coupler_matrix=np.array([[draw(st.floats(0.0, 0.3))]]),
+        # A coupler c inhibits by c D(x), so the pre-corrected curve exists only
+        # while x - c D(x) rises: c |gamma| < 1 (stronger ones are refused).
+        coupler_matrix=np.array([[draw(st.floats(0.0, min(0.3, 0.9 / abs(gamma))))]]),
         coupler_diffusion_um=draw(st.floats(0.0, 20.0)),
         halation=np.array([draw(st.floats(0.0, 0.2))]),
         halation_um=50.0,
