@@ -166,6 +166,7 @@ def refine_warp(
     levels: int | None,
     max_iterations: int,
     tolerance: float,
+    features: str,
 ) -> list[
     tuple[tuple[tuple[float, float, float], tuple[float, float, float]], float, list[int], bool]
 ]: ...
