@@ -92,7 +92,11 @@ class NativeLensCorrection:
     ) -> NativeLensCorrection: ...
     def positions(self) -> npt.NDArray[np.float64]: ...
     def correct_geometry(
-        self, image: npt.NDArray[Any], interpolation: str = "bilinear", fill: float = 0.0
+        self,
+        image: npt.NDArray[Any],
+        interpolation: str = "bilinear",
+        fill: float = 0.0,
+        vignetting: bool = False,
     ) -> npt.NDArray[Any]: ...
     def devignette(
         self, image: npt.NDArray[Any], black: npt.NDArray[np.float64]
