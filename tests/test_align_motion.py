@@ -132,12 +132,12 @@ def test_euclidean_and_affine_fit_a_rotation():
     assert ig.align(ref, mov, max_shift=20, motion="euclidean").scale == 1.0
 
 
-def test_matches_or_beats_opencv_find_transform_ecc():
+def opencv_euclidean(ref, mov, dy, dx):
+    """OpenCV's ``findTransformECC`` (euclidean, 5-point Gaussian
+    smoothing) from the true shift: the peer gets the translation search
+    for free."""
     cv2 = pytest.importorskip("cv2")
-    seed, angle, _, dy, dx = CASES[0]
-    ref, mov, truth = channel_pair(seed, angle, 1.0, dy, dx)
-    ours = ig.align(ref, mov, max_shift=30, motion="euclidean")
-    init = np.array([[1, 0, -dx], [0, 1, -dy]], np.float32)  # OpenCV gets the shift for free
+    init = np.array([[1, 0, -dx], [0, 1, -dy]], np.float32)
     criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
     _, theirs = cv2.findTransformECC(
         ref.astype(np.float32),
@@ -148,6 +148,14 @@ def test_matches_or_beats_opencv_find_transform_ecc():
         None,
         5,
     )
+    return theirs
+
+
+def test_matches_or_beats_opencv_find_transform_ecc():
+    seed, angle, _, dy, dx = CASES[0]
+    ref, mov, truth = channel_pair(seed, angle, 1.0, dy, dx)
+    ours = ig.align(ref, mov, max_shift=30, motion="euclidean")
+    theirs = opencv_euclidean(ref, mov, dy, dx)
     assert corner_error(ours.matrix, truth) <= max(corner_error(theirs, truth), 0.05)
 
 
@@ -197,20 +205,9 @@ def test_gradient_ecc_beats_opencv_on_channels_of_different_content():
     # closer. Euclidean against euclidean: a similarity's scale is one more
     # freedom for the content to pull on (0.1 % here, on a small window;
     # the corners stay within a quarter pixel).
-    cv2 = pytest.importorskip("cv2")
     angle, dy, dx = 0.6, 7.0, -11.0
     ref, mov, truth = colour_pair(angle, dy, dx)
-    init = np.array([[1, 0, -dx], [0, 1, -dy]], np.float32)
-    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-6)
-    _, theirs = cv2.findTransformECC(
-        ref.astype(np.float32),
-        mov.astype(np.float32),
-        init,
-        cv2.MOTION_EUCLIDEAN,
-        criteria,
-        None,
-        5,
-    )
+    theirs = opencv_euclidean(ref, mov, dy, dx)
     intensity = ig.align(ref, mov, max_shift=30, motion="euclidean")
     gradient = ig.align(ref, mov, max_shift=30, motion="euclidean", features="gradient")
     ours = corner_error(gradient.matrix, truth, ref.shape)

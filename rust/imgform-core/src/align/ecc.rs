@@ -800,6 +800,15 @@ mod tests {
         [[c, -s, tx], [s, c, ty]]
     }
 
+    /// The largest difference between two matrices' entries.
+    fn max_difference(a: &Matrix, b: &Matrix) -> f64 {
+        a.iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    }
+
     #[test]
     fn recovers_a_similarity_from_a_translation_start() {
         let (w, h) = (400, 340);
@@ -813,13 +822,7 @@ mod tests {
         let start = [[1.0, 0.0, 5.0], [0.0, 1.0, -4.0]];
         for motion in [Motion::Similarity, Motion::Affine] {
             let got = refine(&rv, &mv, motion, &start, &opts()).unwrap();
-            let err = got
-                .matrix
-                .iter()
-                .flatten()
-                .zip(truth.iter().flatten())
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let err = max_difference(&got.matrix, &truth);
             assert!(err < 2e-3, "{motion:?}: {:?} vs {truth:?}", got.matrix);
             assert!(got.converged && got.score > 0.999, "{got:?}");
             assert_eq!(got.iterations.len(), 2);
@@ -856,13 +859,7 @@ mod tests {
         };
         let start = [[1.0, 0.0, 8.0], [0.0, 1.0, -6.0]];
         let got = refine(&rv, &mv, Motion::Similarity, &start, &o).unwrap();
-        let err = got
-            .matrix
-            .iter()
-            .flatten()
-            .zip(truth.iter().flatten())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = max_difference(&got.matrix, &truth);
         assert!(err < 2e-3, "{:?} vs {truth:?}", got.matrix);
     }
 
@@ -943,13 +940,7 @@ mod tests {
             ..opts()
         };
         let got = refine(&rv, &mv, Motion::Similarity, &start, &o).unwrap();
-        let err = got
-            .matrix
-            .iter()
-            .flatten()
-            .zip(truth.iter().flatten())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = max_difference(&got.matrix, &truth);
         // Within 0.02 px of the truth (magnitudes have kinks where the
         // gradient vanishes, so a little less sharp than intensities).
         assert!(err < 0.03, "{:?} vs {truth:?}", got.matrix);
