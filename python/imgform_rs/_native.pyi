@@ -281,12 +281,23 @@ def film_develop(
     curves: list[tuple[float, float, list[float]]],
     matrix: list[float],
     diffusion: float,
+    halation: tuple[list[float], float] | None = None,
 ) -> npt.NDArray[np.float32]: ...
 def film_transmit(
     density: npt.NDArray[np.float32],
     base: list[float],
     dyes: list[float],
     response: list[float],
+) -> npt.NDArray[np.float32]: ...
+def film_print(
+    density: npt.NDArray[np.float32],
+    base: list[float],
+    dyes: list[float],
+    light: list[float],
+    curves: list[tuple[float, float, list[float]]],
+    matrix: list[float],
+    diffusion: float,
+    gain: float,
 ) -> npt.NDArray[np.float32]: ...
 def film_halation(
     exposure: npt.NDArray[np.float32], strength: list[float], sigma: float
