@@ -98,7 +98,7 @@ fn convolve_row(padded: &[f32], pad: usize, channels: usize, taps: &[f32], row: 
 }
 
 wide!(
-    /// [`column`], 8 lanes wide where the CPU has them.
+    /// [`column()`], 8 lanes wide where the CPU has them.
     fn column_wide = column(rows: &[(&[f32], &[f32])], taps: &[f32], out: &mut [f32])
 );
 
