@@ -21,9 +21,10 @@
    exactly, so that OpenCV's euclidean model is exact too; OpenCV has no
    similarity model): ``colorize_plate(motion="euclidean" | "similarity")``
    (the whole call: search, ECC for both channels with the reference's
-   pyramid shared, warps, crop, frame) on intensities and on gradient
-   magnitudes (``features="gradient"``), and ``align(motion="similarity",
-   features="gradient")`` per channel, against OpenCV's ``findTransformECC``
+   pyramid shared, warps, crop, frame) with the defaults (``features="auto"``:
+   gradient magnitudes for these motions) and on intensities
+   (``features="intensity"``), and ``align(motion="similarity")`` per
+   channel, against OpenCV's ``findTransformECC``
    (MOTION_EUCLIDEAN) run coarse to fine on a ``pyrDown`` pyramid, started
    from the identity at its coarsest level (the classic recipe), with the
    rotation, scale and corner errors of each. The channels are the
@@ -321,28 +322,25 @@ def motion_section() -> None:
     ref = ch["g"]
 
     def ours_similarity():
-        return {
-            c: ig.align(ref, ch[c], max_shift=MAX_SHIFT, motion="similarity", features="gradient")
-            for c in "rb"
-        }
+        return {c: ig.align(ref, ch[c], max_shift=MAX_SHIFT, motion="similarity") for c in "rb"}
 
     def colorize(motion, features):
         return lambda: ig.colorize_plate(plate, motion=motion, features=features)
 
     plates = {
         f"imgform-rs colorize_plate(motion='{motion}'{extra})": colorize(motion, features)
-        for features, extra in [("intensity", ""), ("gradient", ", features='gradient'")]
+        for features, extra in [("auto", ""), ("intensity", ", features='intensity'")]
         for motion in ("euclidean", "similarity")
     }
     calls = {name: (fn, 2) for name, fn in plates.items()}
-    calls["imgform-rs align(motion='similarity', features='gradient') x2"] = (ours_similarity, 2)
+    calls["imgform-rs align(motion='similarity') x2"] = (ours_similarity, 2)
     calls["OpenCV findTransformECC euclidean pyramid x2"] = (
         lambda: {c: opencv_pyramid_ecc(ref, ch[c]) for c in "rb"},
         1,
     )
     timings = measure_rounds(calls)
     results = {name: {c: a.matrix for c, a in fn()[1].items()} for name, fn in plates.items()}
-    results["imgform-rs align(motion='similarity', features='gradient') x2"] = {
+    results["imgform-rs align(motion='similarity') x2"] = {
         c: a.matrix for c, a in ours_similarity().items()
     }
     results["OpenCV findTransformECC euclidean pyramid x2"] = {

@@ -171,7 +171,7 @@ def test_gradient_features_follow_an_anti_correlated_plate():
     assert rot_err < 0.02 and scale_err < 5e-4 and px_err < 0.25, (rot_err, scale_err, px_err)
     assert found.converged and not found.low_confidence
     try:
-        wrong = ig.align(ref, negative, max_shift=30, motion="similarity")
+        wrong = ig.align(ref, negative, max_shift=30, motion="similarity", features="intensity")
     except ValueError as exc:
         assert "do not match" in str(exc)
     else:
@@ -208,13 +208,41 @@ def test_gradient_ecc_beats_opencv_on_channels_of_different_content():
     angle, dy, dx = 0.6, 7.0, -11.0
     ref, mov, truth = colour_pair(angle, dy, dx)
     theirs = opencv_euclidean(ref, mov, dy, dx)
-    intensity = ig.align(ref, mov, max_shift=30, motion="euclidean")
-    gradient = ig.align(ref, mov, max_shift=30, motion="euclidean", features="gradient")
+    intensity = ig.align(ref, mov, max_shift=30, motion="euclidean", features="intensity")
+    gradient = ig.align(ref, mov, max_shift=30, motion="euclidean")
     ours = corner_error(gradient.matrix, truth, ref.shape)
     assert ours < corner_error(theirs, truth, ref.shape), (gradient.matrix, theirs)
     assert ours < corner_error(intensity.matrix, truth, ref.shape)
     similar = ig.align(ref, mov, max_shift=30, motion="similarity", features="gradient")
     assert corner_error(similar.matrix, truth, ref.shape) < 0.25
+
+
+def test_auto_features_are_gradients_for_warps_and_intensities_for_shifts():
+    # The default: a warp is refined on gradient magnitudes (the accurate
+    # choice where the channels' content differs, and the one that follows
+    # an inverted channel), a translation searched on intensities.
+    seed, angle, scale, dy, dx = CASES[1]
+    ref, mov, _ = channel_pair(seed, angle, scale, dy, dx)
+    for motion in ("euclidean", "similarity"):
+        auto = ig.align(ref, mov, max_shift=30, motion=motion)
+        gradient = ig.align(ref, mov, max_shift=30, motion=motion, features="gradient")
+        intensity = ig.align(ref, mov, max_shift=30, motion=motion, features="intensity")
+        np.testing.assert_array_equal(auto.matrix, gradient.matrix)
+        assert not np.array_equal(auto.matrix, intensity.matrix)
+    auto = ig.align(ref, mov, max_shift=30)
+    intensity = ig.align(ref, mov, max_shift=30, features="intensity")
+    gradient = ig.align(ref, mov, max_shift=30, features="gradient")
+    assert auto.score == intensity.score != gradient.score
+    assert ig.align(ref, 65535 - mov, max_shift=30, motion="similarity").converged
+    _, found = ig.colorize_plate(np.vstack([mov, ref, mov]), motion="euclidean", frame=False)
+    _, grad = ig.colorize_plate(
+        np.vstack([mov, ref, mov]), motion="euclidean", features="gradient", frame=False
+    )
+    np.testing.assert_array_equal(found["r"].matrix, grad["r"].matrix)
+    with pytest.raises(ValueError, match="features must be one of auto, intensity, gradient"):
+        ig.align(ref, mov, features="edges")
+    with pytest.raises(ValueError, match="features must be one of"):
+        ig.colorize_plate(np.vstack([mov, ref, mov]), features="sobel")
 
 
 def test_translation_motion_is_the_exact_search_with_a_matrix():

@@ -415,7 +415,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15)",
     )
-    align.add_argument("--features", default="intensity", choices=["intensity", "gradient"])
+    align.add_argument(
+        "--features",
+        default="auto",
+        choices=["auto", "intensity", "gradient"],
+        help="what is correlated (default auto: gradient magnitudes for every motion but a "
+        "translation, intensities for a translation)",
+    )
     align.add_argument(
         "--motion",
         default="translation",
