@@ -77,7 +77,7 @@ def test_a_small_rotation_is_recovered_by_ecc(seed):
     warps colorize_plate finds move no frame corner more than 0.25 px from
     the true ones (measured: 0.05-0.15; both sides resample bilinearly).
     On green, which the red and blue frames of a photograph-like scene
-    resemble (ECC compares intensities, whatever ``features`` says)."""
+    resemble; ECC refines on the gradient magnitudes the search used."""
     rng = np.random.default_rng(seed)
     turns = {c: float(rng.uniform(-0.01, 0.01)) for c in "rgb"}
     moves = {c: (int(rng.integers(-3, 4)), int(rng.integers(-3, 4))) for c in "rgb"}
