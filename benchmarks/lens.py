@@ -10,8 +10,9 @@ TCA poly3, vignetting pa).
   off and with the profile; the ratio is what the corrections add.
 - correction alone, a (4000, 6000, 3) float32 linear image (lensfunpy's
   vignetting takes no uint16 image with three channels):
-  ours ``LensProfile.correct`` (vignetting, then distortion + TCA in one
-  bilinear resampling per channel, positions computed on the fly); lensfunpy
+  ours ``LensProfile.correct`` (distortion, TCA and vignetting in one pass:
+  each channel sampled bilinearly at its own position, times the vignetting
+  gain there, positions stepped along a coarse grid); lensfunpy
   ``Modifier.apply_subpixel_geometry_distortion`` (the maps) +
   ``apply_color_modification`` (vignetting, in place) + ``cv2.remap``
   (bilinear, one call per channel with its own map, as TCA needs).

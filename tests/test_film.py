@@ -263,6 +263,15 @@ def test_the_native_functions_refuse_bad_arguments_without_crashing():
         _native.film_transmit(np.ones((2, 2, 2), np.float32), [0.0, 0.0], [1.0, 1.0], [1.0, 1.0])
     with pytest.raises(ValueError, match="response"):
         _native.film_transmit(np.ones((2, 2, 1), np.float32), [0.0, 0.0], [1.0, 1.0], [1.0])
+    one = np.ones((2, 2, 1), np.float32)
+    with pytest.raises(ValueError, match=r"print light must be finite and >= 0; layer 0"):
+        _native.film_print(one, [0.0], [1.0], [-1.0], curves, [0.0], 0.0, 1.0)
+    with pytest.raises(ValueError, match=r"print light must be \(paper layers"):
+        _native.film_print(one, [0.0], [1.0], [1.0, 1.0], curves, [0.0], 0.0, 1.0)
+    with pytest.raises(ValueError, match="halation of 2 layers for an emulsion of 1"):
+        _native.film_develop(one, 1.0, curves, [0.0], 0.0, ([0.1, 0.1], 2.0))
+    with pytest.raises(ValueError, match="halation strengths"):
+        _native.film_develop(one, 1.0, curves, [0.0], 0.0, ([1.5], 2.0))
 
 
 # --- properties ---------------------------------------------------------------------------

@@ -92,7 +92,11 @@ class NativeLensCorrection:
     ) -> NativeLensCorrection: ...
     def positions(self) -> npt.NDArray[np.float64]: ...
     def correct_geometry(
-        self, image: npt.NDArray[Any], interpolation: str = "bilinear", fill: float = 0.0
+        self,
+        image: npt.NDArray[Any],
+        interpolation: str = "bilinear",
+        fill: float = 0.0,
+        vignetting: bool = False,
     ) -> npt.NDArray[Any]: ...
     def devignette(
         self, image: npt.NDArray[Any], black: npt.NDArray[np.float64]
@@ -166,6 +170,7 @@ def refine_warp(
     levels: int | None,
     max_iterations: int,
     tolerance: float,
+    features: str,
 ) -> list[
     tuple[tuple[tuple[float, float, float], tuple[float, float, float]], float, list[int], bool]
 ]: ...
@@ -276,12 +281,23 @@ def film_develop(
     curves: list[tuple[float, float, list[float]]],
     matrix: list[float],
     diffusion: float,
+    halation: tuple[list[float], float] | None = None,
 ) -> npt.NDArray[np.float32]: ...
 def film_transmit(
     density: npt.NDArray[np.float32],
     base: list[float],
     dyes: list[float],
     response: list[float],
+) -> npt.NDArray[np.float32]: ...
+def film_print(
+    density: npt.NDArray[np.float32],
+    base: list[float],
+    dyes: list[float],
+    light: list[float],
+    curves: list[tuple[float, float, list[float]]],
+    matrix: list[float],
+    diffusion: float,
+    gain: float,
 ) -> npt.NDArray[np.float32]: ...
 def film_halation(
     exposure: npt.NDArray[np.float32], strength: list[float], sigma: float

@@ -107,8 +107,9 @@ class Alignment:
         The factor ``moving`` is magnified by to land on ``reference``.
     ecc : float
         The ECC refinement's correlation (the NCC of ``reference`` and the
-        registered ``moving`` over the cropped window) at the final warp;
-        NaN for ``motion="translation"`` (see ``score``).
+        registered ``moving`` over the cropped window, of their gradient
+        magnitudes with ``features="gradient"``) at the final warp; NaN for
+        ``motion="translation"`` (see ``score``).
     iterations : tuple of int
         Gauss-Newton steps per ECC pyramid level, coarsest first.
     converged : bool
@@ -261,7 +262,12 @@ def align(
         around twice the coarser shift.
     features : {"intensity", "gradient"}
         ``"gradient"`` compares Sobel gradient magnitudes, for channels whose
-        brightness differs (the "Emir" plate).
+        brightness differs (the "Emir" plate), in the shift search and in the
+        ECC refinement. Edges sit at the same place in every channel whatever
+        their brightness, so for motions other than a translation it is also
+        the more accurate choice when the channels record different content,
+        as a plate's do (see the three-colour guide), and the one that
+        follows anti-correlated channels.
     subpixel : bool
         Refine the peak with a parabola through its neighbours on each axis
         (float shift, at most 0.5 px from the integer one).
@@ -275,7 +281,7 @@ def align(
         level keeps >= 160 pixels per side; the per-pixel sums run in Rust
         over row bands and do not depend on the thread count. ECC ignores
         gain and offset between the channels, whatever ``metric`` the shift
-        search used.
+        search used, and correlates the ``features`` the search compared.
     max_iterations : int
         Most Gauss-Newton steps per pyramid level.
     tolerance : float
@@ -334,13 +340,15 @@ def align(
     )
     if motion == "translation":
         return found
-    return _refined(reference, [moving], [found], str(motion), crop, max_iterations, tolerance)[0]
+    return _refined(
+        reference, [moving], [found], str(motion), crop, max_iterations, tolerance, features
+    )[0]
 
 
-def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance):
+def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance, features):
     """Each of ``founds`` (translations of ``movings`` onto ``reference``)
-    refined under ``motion`` by ECC, in one native call that builds the
-    reference's pyramid and sums once for all of them."""
+    refined under ``motion`` by ECC on ``features``, in one native call that
+    builds the reference's pyramid and sums once for all of them."""
     results = _native.refine_warp(
         _image(reference, "reference"),
         [_image(m, "moving") for m in movings],
@@ -350,6 +358,7 @@ def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance
         None,
         operator.index(max_iterations),
         float(tolerance),
+        str(features),
     )
     h, w = np.shape(reference)
     centre = np.array([(w - 1) / 2, (h - 1) / 2])
@@ -659,6 +668,7 @@ def _colorize(
             crop,
             ECC_MAX_ITERATIONS,
             ECC_TOLERANCE,
+            features,
         )
         found = dict(zip(others, refined, strict=True))
     found[reference] = _identity(metric, motion, subpixel)

@@ -810,10 +810,14 @@ def develop(
         raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
     matrix = st.coupler_matrix if couplers else np.zeros_like(st.coupler_matrix)
     pixel_um = frame_width_mm * 1000.0 / arr.shape[1]
-    if halation and st.halation.any():
-        arr = _native.film_halation(arr, st.halation.tolist(), st.halation_um / pixel_um)
+    spread = (st.halation.tolist(), st.halation_um / pixel_um)
     dens = _native.film_develop(
-        arr, 1.0, _kernel_curves(st), matrix.ravel().tolist(), st.coupler_diffusion_um / pixel_um
+        arr,
+        1.0,
+        _kernel_curves(st),
+        matrix.ravel().tolist(),
+        st.coupler_diffusion_um / pixel_um,
+        spread if halation and st.halation.any() else None,
     )
     if grain and st.rms_granularity.any():
         per_grain = pixel_granularity(st, pixel_um) ** 2
@@ -956,8 +960,27 @@ def print(
     fil = balance_print(neg, pap) if filtration is None else filtration
     f = np.array([fil.yellow, fil.magenta, fil.cyan])
     light = _print_light(neg, pap) * 10.0 ** -(f @ dichroic_filters(neg.wavelengths))
-    exposure = _transmit(density, neg, fil.exposure * 2.0**exposure_ev * light)
-    return develop(exposure, pap, couplers=couplers, frame_width_mm=frame_width_mm)
+    light = fil.exposure * 2.0**exposure_ev * light
+    if pap.halation.any():
+        exposure = _transmit(density, neg, light)
+        return develop(exposure, pap, couplers=couplers, frame_width_mm=frame_width_mm)
+    # One pass per row: the paper's exposures are developed as they are made.
+    arr = _image(density, "density", len(neg.layers))
+    if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
+        raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
+    base, dyes = _dyes(neg)
+    matrix = pap.coupler_matrix if couplers else np.zeros_like(pap.coupler_matrix)
+    pixel_um = frame_width_mm * 1000.0 / arr.shape[1]
+    return _native.film_print(
+        arr,
+        base.tolist(),
+        dyes.ravel().tolist(),
+        light.ravel().tolist(),
+        _kernel_curves(pap),
+        matrix.ravel().tolist(),
+        pap.coupler_diffusion_um / pixel_um,
+        1.0,
+    )
 
 
 def scan(density: Any, stock: str | Path | Stock, *, illuminant: str = "D65") -> Float32Array:

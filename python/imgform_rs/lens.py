@@ -248,12 +248,14 @@ class LensProfile:
         """
         h, w = np.shape(image)[:2]
         native = self.native(w, h)
-        out = image
-        if vignetting and self.vignetting is not None:
-            out = native.devignette(out, np.zeros((1, 1)))
+        devignette = vignetting and self.vignetting is not None
         if geometry and self.corrects_geometry:
-            out = native.correct_geometry(out, interpolation, float(fill))
-        return out
+            # One pass: each sample is read at its position and multiplied
+            # by the vignetting gain there.
+            return native.correct_geometry(image, interpolation, float(fill), devignette)
+        if devignette:
+            return native.devignette(image, np.zeros((1, 1)))
+        return image
 
     def describe(self) -> str:
         """One line: the entries, the setting and the models applied."""

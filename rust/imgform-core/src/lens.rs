@@ -22,13 +22,16 @@
 //! with [`crate::remap`]'s sampler, each at its own position. Vignetting divides linear values by the
 //! calibrated falloff `1 + k1 r² + k2 r⁴ + k3 r⁶` (the `pa` model) at the
 //! pixel's own position, so it belongs before any tone curve and before the
-//! geometry is resampled (it describes the uncorrected image).
+//! geometry is resampled (it describes the uncorrected image). On linear
+//! RGB, [`LensCorrection::correct_geometry`] applies it in the resampling
+//! pass, each sample times the gain at its own source position.
 //!
 //! # Precision
 //! Everything is evaluated in `f64`. The positions are exact on a grid of
 //! nodes at most 16 px apart and bilinearly interpolated in between, the
 //! step refined until the interpolation is within 0.002 px of the exact
-//! positions at every cell centre (`GRID_TOLERANCE`). lensfun works in `f32`,
+//! positions at every cell centre (`GRID_TOLERANCE`; vignetting gains
+//! interpolated on the same grid to 1e-5, `GAIN_TOLERANCE`). lensfun works in `f32`,
 //! accumulates pixel steps, and its SSE paths approximate square roots with
 //! `rcp(rsqrt(x))` (12 bits): against its scalar path positions agree to a
 //! few thousandths of a pixel, against its SSE path (whole-row calls on
@@ -38,7 +41,10 @@ use crate::error::{positive, CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
 use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
-use crate::remap::{check_fill, resample_channels, to_fixed, ChannelRows, Interpolation, Resample};
+use crate::remap::{
+    check_fill, resample_channels, to_fixed, ChannelRows, Interpolation, Resample, FRAC_BITS,
+    MAX_SIDE,
+};
 
 /// Radial distortion models of lensfun, as the ratio `r_d / r_u` of the
 /// distorted to the undistorted radius (normalised coordinates).
@@ -329,7 +335,7 @@ impl LensCorrection {
                 out.len()
             )));
         }
-        let grid = PositionGrid::new(self);
+        let grid = PositionGrid::new(self, false);
         for_each_band(out, row_len, ROWS_PER_TASK, |v0, band| {
             let mut line = Vec::new();
             for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
@@ -344,8 +350,19 @@ impl LensCorrection {
     /// Resamples an RGB image into its distortion- and TCA-corrected form in
     /// one pass: each channel of `out` (contiguous, the source's shape) is
     /// read from `src` at its own position (see
-    /// [`LensCorrection::positions`]). Taps outside the source read `fill`,
-    /// as in [`crate::remap`].
+    /// [`LensCorrection::positions`]; the sampler's 1/256 px fixed point is
+    /// stepped along each grid cell, so a position can differ from theirs
+    /// by one such step where it lies within 2^-16 of a rounding tie).
+    /// Taps outside the source read `fill`, as in [`crate::remap`].
+    ///
+    /// With `vignetting` (and a vignetting model), each sample is also
+    /// multiplied by the gain at its own source position, so that one pass
+    /// does what [`LensCorrection::devignette`] followed by this method
+    /// does in two. Both approximate the same continuous image: they differ
+    /// by the gain's change across one pixel times the local contrast (0 on
+    /// flat areas, a few 1e-4 of full scale at the corners of a 24 MP frame
+    /// of a strongly vignetting lens), and integers are rounded once instead
+    /// of twice. Samples that read only `fill` stay `fill`.
     ///
     /// # Errors
     /// An image that is not `height x width x 3`, a `fill` the sample type
@@ -355,11 +372,13 @@ impl LensCorrection {
         src: &ImageView<T>,
         interpolation: Interpolation,
         fill: f64,
+        vignetting: bool,
         out: &mut [T],
     ) -> Result<()> {
         self.check_image(src, 3)?;
         let fill = check_fill::<T>(fill)?;
-        resample_channels(src, &PositionGrid::new(self), interpolation, fill, out)
+        let grid = PositionGrid::new(self, vignetting);
+        resample_channels(src, &grid, interpolation, fill, out)
     }
 
     /// Removes vignetting: `out = black + (src - black) * gain`, where
@@ -402,13 +421,14 @@ impl LensCorrection {
                 let v = v0 + i;
                 gains.row(v, &mut gain);
                 let blacks = &black_tile[(v % tile_rows) * black_width..][..black_width];
-                for (u, ((px, s), &g)) in row
+                // Cycled, not indexed `u % black_width`: an integer division
+                // per pixel cost more than the rest of the loop.
+                for (((px, s), &g), &black) in row
                     .chunks_exact_mut(channels)
                     .zip(src.row(v).chunks_exact(channels))
                     .zip(&gain)
-                    .enumerate()
+                    .zip(blacks.iter().cycle())
                 {
-                    let black = blacks[u % black_width];
                     for (o, &value) in px.iter_mut().zip(s) {
                         *o = T::from_f32((black + (f64::from(value.to_f32()) - black) * g) as f32);
                     }
@@ -459,6 +479,11 @@ impl LensCorrection {
 /// and far below the 0.01 px to which lensfun's own positions are reproduced.
 pub const GRID_TOLERANCE: f64 = 0.002;
 
+/// The largest error of an interpolated vignetting gain (relative, or
+/// absolute below 1) that the grid accepts at its cells' centres: a tenth
+/// of the 1e-4 to which the gains match lensfun's.
+pub const GAIN_TOLERANCE: f64 = 1e-5;
+
 /// The coarsest grid step tried, in pixels. Lens models are smooth low-order
 /// polynomials of the radius, so on camera-sized images bilinear
 /// interpolation over 16 px cells is already within [`GRID_TOLERANCE`];
@@ -478,6 +503,10 @@ struct PositionGrid {
     rows: Axis,
     /// `(x, y)` of R, G and B per node, rows of `columns.nodes.len()`.
     nodes: Vec<[f64; 6]>,
+    /// The vignetting gains at those positions, per node (empty when the
+    /// pass does not devignette): as smooth as the positions, so the same
+    /// grid interpolates them far below the 1e-4 they are matched to.
+    gains: Vec<[f64; 3]>,
 }
 
 /// The nodes along one side and, per pixel, the cell it falls in and its
@@ -496,35 +525,47 @@ impl Axis {
         if nodes.len() < 2 || nodes[nodes.len() - 1] != n - 1 {
             nodes.push(n - 1);
         }
-        let mut cell = Vec::with_capacity(n);
-        let mut weight = Vec::with_capacity(n);
-        for (i, pair) in nodes.windows(2).enumerate() {
-            let (a, b) = (pair[0], pair[1]);
-            // The last cell takes its far node too.
-            let end = if i + 2 == nodes.len() { b + 1 } else { b };
-            for p in a..end.min(n) {
-                cell.push(i);
-                weight.push(if b > a {
+        let mut axis = Self {
+            nodes,
+            cell: Vec::with_capacity(n),
+            weight: Vec::with_capacity(n),
+        };
+        for i in 0..axis.nodes.len() - 1 {
+            let (a, b) = (axis.nodes[i], axis.nodes[i + 1]);
+            for p in axis.span(i, n) {
+                axis.cell.push(i);
+                axis.weight.push(if b > a {
                     (p - a) as f64 / (b - a) as f64
                 } else {
                     0.0
                 });
             }
         }
-        Self {
-            nodes,
-            cell,
-            weight,
-        }
+        axis
+    }
+
+    /// The pixels of cell `i` on a side of `n`: from its node up to the
+    /// next, which only the last cell includes.
+    fn span(&self, i: usize, n: usize) -> std::ops::Range<usize> {
+        let (a, b) = (self.nodes[i], self.nodes[i + 1]);
+        let end = if i + 2 == self.nodes.len() { b + 1 } else { b };
+        a..end.min(n)
     }
 }
 
 impl PositionGrid {
-    fn new(lens: &LensCorrection) -> Self {
+    /// The grid of `lens`'s positions and, with `gains` (and a vignetting
+    /// model), of its vignetting gains there, refined until both are within
+    /// tolerance ([`GRID_TOLERANCE`], [`GAIN_TOLERANCE`]).
+    fn new(lens: &LensCorrection, gains: bool) -> Self {
         let mut step = COARSEST_STEP;
         loop {
-            let grid = Self::with_step(lens, step);
-            if step == 1 || grid.worst_error(lens) <= GRID_TOLERANCE {
+            let mut grid = Self::with_step(lens, step);
+            if gains {
+                grid.add_gains(lens);
+            }
+            let (position, gain) = grid.worst_errors(lens);
+            if step == 1 || (position <= GRID_TOLERANCE && gain <= GAIN_TOLERANCE) {
                 return grid;
             }
             step /= 2;
@@ -545,55 +586,86 @@ impl PositionGrid {
             columns,
             rows,
             nodes,
+            gains: Vec::new(),
         }
     }
 
-    /// The largest coordinate error at the cells' centres; infinite when a
-    /// position there is not finite (such a grid is refined to step 1).
-    fn worst_error(&self, lens: &LensCorrection) -> f64 {
+    /// Evaluates the vignetting gains at the nodes' source positions
+    /// (nothing without a vignetting model: the pass then has no gains).
+    fn add_gains(&mut self, lens: &LensCorrection) {
+        if lens.vignetting.is_none() {
+            return;
+        }
+        let n = self.columns.nodes.len();
+        self.gains = vec![[0.0; 3]; self.nodes.len()];
+        for_each_row(&mut self.gains, n, |j, line| {
+            for (g, p) in line.iter_mut().zip(&self.nodes[j * n..]) {
+                *g = std::array::from_fn(|c| lens.gain(p[2 * c], p[2 * c + 1]));
+            }
+        });
+    }
+
+    /// The largest coordinate error (px) and relative gain error (0 without
+    /// gains) at the cells' centres; infinite when a value there is not
+    /// finite (such a grid is refined to step 1).
+    fn worst_errors(&self, lens: &LensCorrection) -> (f64, f64) {
         let centres = |nodes: &[usize]| -> Vec<usize> {
             nodes.windows(2).map(|c| (c[0] + c[1]) / 2).collect()
         };
         let (us, vs) = (centres(&self.columns.nodes), centres(&self.rows.nodes));
-        let mut worst = 0.0f64;
+        let worse = |worst: f64, e: f64| {
+            if e.is_nan() {
+                f64::INFINITY
+            } else {
+                worst.max(e)
+            }
+        };
+        let (mut position, mut gain) = (0.0f64, 0.0f64);
         for &v in &vs {
             for &u in &us {
                 let exact = lens.sources(u as f64, v as f64);
-                for (a, b) in self.at(u, v).iter().zip(exact) {
-                    let e = (a - b).abs();
-                    worst = if e.is_nan() {
-                        f64::INFINITY
-                    } else {
-                        worst.max(e)
-                    };
+                for (a, b) in self.at(&self.nodes, u, v).iter().zip(exact) {
+                    position = worse(position, (a - b).abs());
+                }
+                if !self.gains.is_empty() {
+                    for (c, g) in self.at(&self.gains, u, v).iter().enumerate() {
+                        let want = lens.gain(exact[2 * c], exact[2 * c + 1]);
+                        gain = worse(gain, (g - want).abs() / want.abs().max(1.0));
+                    }
                 }
             }
         }
-        worst
+        (position, gain)
     }
 
-    /// The interpolated positions of pixel `(u, v)`: the same operations in
-    /// the same order as [`PositionGrid::row`], so the same bits.
-    fn at(&self, u: usize, v: usize) -> [f64; 6] {
+    /// The interpolated values (positions or gains) of pixel `(u, v)`: the
+    /// same operations in the same order as [`PositionGrid::row`], so the
+    /// same bits.
+    fn at<const N: usize>(&self, nodes: &[[f64; N]], u: usize, v: usize) -> [f64; N] {
         let n = self.columns.nodes.len();
         let (j, ty) = (self.rows.cell[v], self.rows.weight[v]);
         let (i, tx) = (self.columns.cell[u], self.columns.weight[u]);
-        let node = |j: usize, i: usize| &self.nodes[j * n + i];
+        let node = |j: usize, i: usize| &nodes[j * n + i];
         let left = lerp(node(j, i), node(j + 1, i), ty);
         let right = lerp(node(j, i + 1), node(j + 1, i + 1), ty);
         lerp(&left, &right, tx)
+    }
+
+    /// The grid rows of `nodes` (positions or gains) around image row `v`
+    /// interpolated to it, into `line` (one value per grid column).
+    fn vertical<const N: usize>(&self, nodes: &[[f64; N]], v: usize, line: &mut Vec<[f64; N]>) {
+        let n = self.columns.nodes.len();
+        let (j, t) = (self.rows.cell[v], self.rows.weight[v]);
+        let (above, below) = (&nodes[j * n..][..n], &nodes[(j + 1) * n..][..n]);
+        line.clear();
+        line.extend(above.iter().zip(below).map(|(a, b)| lerp(a, b, t)));
     }
 
     /// Calls `f(u, positions)` for every pixel of row `v`, interpolating the
     /// grid rows around it into `line` first.
     #[inline(always)]
     fn row(&self, v: usize, line: &mut Vec<[f64; 6]>, mut f: impl FnMut(usize, [f64; 6])) {
-        let n = self.columns.nodes.len();
-        let j = self.rows.cell[v];
-        let t = self.rows.weight[v];
-        let (above, below) = (&self.nodes[j * n..][..n], &self.nodes[(j + 1) * n..][..n]);
-        line.clear();
-        line.extend(above.iter().zip(below).map(|(a, b)| lerp(a, b, t)));
+        self.vertical(&self.nodes, v, line);
         for (u, (&i, &t)) in self
             .columns
             .cell
@@ -608,19 +680,76 @@ impl PositionGrid {
 
 /// `a + (b - a) t` per coordinate.
 #[inline(always)]
-fn lerp(a: &[f64; 6], b: &[f64; 6], t: f64) -> [f64; 6] {
+fn lerp<const N: usize>(a: &[f64; N], b: &[f64; N], t: f64) -> [f64; N] {
     std::array::from_fn(|k| a[k] + (b[k] - a[k]) * t)
 }
 
-impl ChannelRows for PositionGrid {
-    type Scratch = Vec<[f64; 6]>;
+/// Grid rows interpolated to one image row, reused from row to row.
+#[derive(Default)]
+pub(crate) struct GridLines {
+    positions: Vec<[f64; 6]>,
+    gains: Vec<[f64; 3]>,
+}
 
-    fn fill_row(&self, y: usize, line: &mut Vec<[f64; 6]>, xy: &mut [i32]) {
-        self.row(y, line, |u, p| {
-            for (q, c) in xy[6 * u..6 * u + 6].iter_mut().zip(p) {
-                *q = to_fixed(c);
+/// Fractional bits beyond the sampler's of the positions stepped along a
+/// cell: a 16 px cell accumulates at most 8 roundings of 2^-17, so a
+/// position differs from the rounded exact interpolation only when that
+/// lies within ~2^-13 of the sampler's (1/256 px) rounding tie.
+const STEP_BITS: u32 = 16;
+
+impl ChannelRows for PositionGrid {
+    type Scratch = GridLines;
+
+    /// The grid rows around `y` are interpolated once; along each cell the
+    /// fixed-point positions then advance by a constant integer step, which
+    /// replaces six multiplications, conversions and clamps per pixel by
+    /// six additions. Cells whose nodes are not finite or out of the fixed
+    /// point's range take the exact per-pixel form, clamps and NaN included.
+    fn fill_row(&self, y: usize, lines: &mut GridLines, xy: &mut [i32], gains: &mut [f32]) {
+        self.vertical(&self.nodes, y, &mut lines.positions);
+        let line = &lines.positions;
+        let width = self.columns.cell.len();
+        let scale = f64::from(1u32 << (FRAC_BITS + STEP_BITS));
+        for i in 0..line.len() - 1 {
+            let span = self.columns.span(i, width);
+            let (a, b) = (&line[i], &line[i + 1]);
+            let out = &mut xy[6 * span.start..6 * span.end];
+            let in_range = |p: &[f64; 6]| p.iter().all(|v| v.abs() < MAX_SIDE as f64);
+            if !(in_range(a) && in_range(b)) {
+                for (q, &w) in out.chunks_exact_mut(6).zip(&self.columns.weight[span]) {
+                    for (q, v) in q.iter_mut().zip(lerp(a, b, w)) {
+                        *q = to_fixed(v);
+                    }
+                }
+                continue;
             }
-        });
+            let length = (self.columns.nodes[i + 1] - self.columns.nodes[i]).max(1) as f64;
+            let mut at: [i64; 6] = std::array::from_fn(|k| (a[k] * scale).round() as i64);
+            let step: [i64; 6] =
+                std::array::from_fn(|k| ((b[k] - a[k]) / length * scale).round() as i64);
+            for q in out.chunks_exact_mut(6) {
+                for k in 0..6 {
+                    q[k] = ((at[k] + (1 << (STEP_BITS - 1))) >> STEP_BITS) as i32;
+                    at[k] += step[k];
+                }
+            }
+        }
+        if !gains.is_empty() {
+            self.vertical(&self.gains, y, &mut lines.gains);
+            let line = &lines.gains;
+            for (g, (&i, &w)) in gains
+                .chunks_exact_mut(3)
+                .zip(self.columns.cell.iter().zip(&self.columns.weight))
+            {
+                for (g, v) in g.iter_mut().zip(lerp(&line[i], &line[i + 1], w)) {
+                    *g = v as f32;
+                }
+            }
+        }
+    }
+
+    fn has_gains(&self) -> bool {
+        !self.gains.is_empty()
     }
 }
 
@@ -738,34 +867,182 @@ mod tests {
         // Bilinear error grows with the step squared and shrinks with the
         // image size: k1 = -0.02 on 6000 x 4000 px is within tolerance at 8 px.
         let c = strong(6000, 4000, RadialDistortion::Poly3 { k1: -0.02 });
-        let grid = PositionGrid::new(&c);
+        let grid = PositionGrid::new(&c, false);
         assert!(grid.columns.nodes[1] >= 8, "step {}", grid.columns.nodes[1]);
         assert_eq!(*grid.columns.nodes.last().unwrap(), 5999);
         assert_eq!(*grid.rows.nodes.last().unwrap(), 3999);
     }
 
-    /// Channel `channel`'s positions of a grid, read pixel by pixel through
-    /// the remap sampler's per-pixel path.
-    struct OneChannel<'a>(&'a [f64], usize, usize);
+    /// Channel `channel`'s fixed-point positions (rows of `6 * width`), read
+    /// pixel by pixel through the remap sampler's per-pixel path.
+    struct OneChannel<'a>(&'a [i32], usize, usize);
 
     impl crate::remap::Coords for OneChannel<'_> {
         fn at(&self, x: usize, y: usize) -> (i32, i32) {
             let p = &self.0[6 * (y * self.2 + x) + 2 * self.1..];
-            (to_fixed(p[0]), to_fixed(p[1]))
+            (p[0], p[1])
+        }
+    }
+
+    /// The fixed-point positions the pass samples at, row by row, and its
+    /// gains (empty without `gains`).
+    fn pass_rows(c: &LensCorrection, gains: bool) -> (Vec<i32>, Vec<f32>) {
+        let grid = PositionGrid::new(c, gains);
+        let (w, h) = (c.width, c.height);
+        let mut xy = vec![0; 6 * w * h];
+        let mut g = vec![0.0; if grid.has_gains() { 3 * w * h } else { 0 }];
+        let mut lines = GridLines::default();
+        for v in 0..h {
+            let gv = if g.is_empty() {
+                &mut []
+            } else {
+                &mut g[3 * w * v..3 * w * (v + 1)]
+            };
+            grid.fill_row(v, &mut lines, &mut xy[6 * w * v..6 * w * (v + 1)], gv);
+        }
+        (xy, g)
+    }
+
+    #[test]
+    fn stepped_positions_are_the_rounded_interpolated_ones_within_one_step() {
+        let models = [
+            RadialDistortion::Poly3 { k1: -0.08 },
+            RadialDistortion::PtLens {
+                a: 0.02,
+                b: -0.06,
+                c: 0.03,
+            },
+        ];
+        for (w, h) in [(37, 23), (1, 9), (9, 1), (1, 1), (400, 267)] {
+            for d in models {
+                let c = strong(w, h, d);
+                let mut pos = vec![0.0; w * h * 6];
+                c.positions(&mut pos).unwrap();
+                let (xy, _) = pass_rows(&c, false);
+                let off = pos
+                    .iter()
+                    .zip(&xy)
+                    .filter(|&(&p, &q)| {
+                        let e = (to_fixed(p) - q).abs();
+                        assert!(e <= 1, "{w}x{h} {d:?}: {p} -> {q}");
+                        e == 1
+                    })
+                    .count();
+                // A step off only within ~2^-13 of a rounding tie: rare.
+                assert!(off * 500 <= pos.len(), "{w}x{h}: {off} of {}", pos.len());
+            }
+        }
+    }
+
+    #[test]
+    fn positions_out_of_the_fixed_point_range_take_the_exact_form() {
+        // A huge pincushion sends the corners millions of pixels away:
+        // clamped as `to_fixed` clamps, never wrapped around.
+        let c = strong(31, 21, RadialDistortion::Poly5 { k1: 1e6, k2: 1e9 });
+        let mut pos = vec![0.0; 31 * 21 * 6];
+        c.positions(&mut pos).unwrap();
+        let (xy, _) = pass_rows(&c, false);
+        assert_eq!(xy[0], to_fixed(pos[0]));
+        assert!(xy[0] < 0 && xy[1] < 0);
+        let img = vec![0.5f32; 31 * 21 * 3];
+        let view = ImageView::contiguous(&img, 31, 21, 3).unwrap();
+        let mut out = vec![0.0f32; img.len()];
+        c.correct_geometry(&view, Interpolation::Bilinear, -1.0, false, &mut out)
+            .unwrap();
+        assert_eq!(&out[..3], &[-1.0; 3]);
+    }
+
+    #[test]
+    fn the_fused_gain_is_the_vignetting_gain_at_each_channels_source() {
+        let (w, h) = (601, 401);
+        let mut c = strong(w, h, RadialDistortion::Poly3 { k1: -0.05 });
+        c.vignetting = Some(Vignetting {
+            k: [-0.3, 0.1, -0.05],
+        });
+        let img = vec![0.5f32; w * h * 3];
+        let view = ImageView::contiguous(&img, w, h, 3).unwrap();
+        let mut out = vec![0.0f32; img.len()];
+        c.correct_geometry(&view, Interpolation::Bilinear, 0.0, true, &mut out)
+            .unwrap();
+        // Devignetting first: the same on a flat image but for the gain's
+        // curvature over a pixel.
+        let mut devignetted = vec![0.0f32; img.len()];
+        c.devignette(&view, &[0.0], 1, &mut devignetted).unwrap();
+        let dv = ImageView::contiguous(&devignetted, w, h, 3).unwrap();
+        let mut two_pass = vec![0.0f32; img.len()];
+        c.correct_geometry(&dv, Interpolation::Bilinear, 0.0, false, &mut two_pass)
+            .unwrap();
+        let inside = |x: f64, y: f64| {
+            (0.0..=(w - 1) as f64).contains(&x) && (0.0..=(h - 1) as f64).contains(&y)
+        };
+        let (mut worst, mut checked) = (0.0f64, 0);
+        for v in 0..h {
+            for u in 0..w {
+                let p = c.sources(u as f64, v as f64);
+                for ch in 0..3 {
+                    // Taps outside read the fill (0), not the flat image.
+                    if !inside(p[2 * ch], p[2 * ch + 1]) {
+                        continue;
+                    }
+                    let want = 0.5 * c.gain(p[2 * ch], p[2 * ch + 1]);
+                    let i = 3 * (v * w + u) + ch;
+                    worst = worst.max((f64::from(out[i]) / want - 1.0).abs());
+                    let (a, b) = (out[i], two_pass[i]);
+                    assert!((a - b).abs() <= 1e-4 * b, "{a} vs {b}");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > w * h * 3 * 9 / 10);
+        // The gain grid's interpolation, far below lensfun's 1e-4.
+        assert!(worst < 2e-5, "{worst}");
+    }
+
+    #[test]
+    fn fused_gains_round_integers_once_and_leave_fill_alone() {
+        // Pincushion: the corners read outside the source, i.e. `fill`.
+        let (w, h) = (61, 41);
+        let mut c = strong(w, h, RadialDistortion::Poly3 { k1: 0.3 });
+        c.vignetting = Some(Vignetting {
+            k: [-0.3, 0.1, -0.05],
+        });
+        let flat: Vec<f32> = (0..w * h * 3).map(|i| (i * 53 % 251) as f32).collect();
+        let img: Vec<u16> = flat.iter().map(|&v| v as u16).collect();
+        let mut float = vec![0.0f32; img.len()];
+        let fv = ImageView::contiguous(&flat, w, h, 3).unwrap();
+        c.correct_geometry(&fv, Interpolation::Bilinear, 7.0, true, &mut float)
+            .unwrap();
+        let mut ints = vec![0u16; img.len()];
+        let iv = ImageView::contiguous(&img, w, h, 3).unwrap();
+        c.correct_geometry(&iv, Interpolation::Bilinear, 7.0, true, &mut ints)
+            .unwrap();
+        assert_eq!(&ints[..3], &[7, 7, 7]);
+        assert_eq!(&float[..3], &[7.0, 7.0, 7.0]);
+        for (&i, &f) in ints.iter().zip(&float) {
+            // The integer path weighs in exact 256ths, the float one in f32.
+            assert!(
+                (f64::from(i) - f64::from(f)).abs() <= 0.5 + 1e-3,
+                "{i} vs {f}"
+            );
         }
     }
 
     #[test]
     fn one_pass_over_three_channels_equals_the_per_channel_passes() {
-        let (w, h) = (61, 41);
+        for (w, h) in [(61, 41), (1, 9), (9, 1)] {
+            one_pass_equals_per_channel(w, h);
+        }
+    }
+
+    fn one_pass_equals_per_channel(w: usize, h: usize) {
         let c = strong(w, h, RadialDistortion::Poly3 { k1: -0.05 });
         let img: Vec<u8> = (0..w * h * 3).map(|i| (i * 53 % 251) as u8).collect();
         let view = ImageView::contiguous(&img, w, h, 3).unwrap();
-        let mut pos = vec![0.0; w * h * 6];
-        c.positions(&mut pos).unwrap();
+        let (pos, _) = pass_rows(&c, false);
         for interp in [Interpolation::Bilinear, Interpolation::Bicubic] {
             let mut fused = vec![0u8; img.len()];
-            c.correct_geometry(&view, interp, 7.0, &mut fused).unwrap();
+            c.correct_geometry(&view, interp, 7.0, false, &mut fused)
+                .unwrap();
             let mut separate = vec![0u8; img.len()];
             for ch in 0..3 {
                 crate::remap::resample(
@@ -868,8 +1145,14 @@ mod tests {
                 .build()
                 .unwrap();
             let mut out = vec![0u16; img.len()];
-            pool.install(|| c.correct_geometry(&view, Interpolation::Bicubic, 0.0, &mut out))
-                .unwrap();
+            pool.install(|| {
+                c.correct_geometry(&view, Interpolation::Bicubic, 0.0, false, &mut out)?;
+                let mut fused = vec![0u16; img.len()];
+                c.correct_geometry(&view, Interpolation::Bilinear, 9.0, true, &mut fused)?;
+                out.extend(fused);
+                Ok::<_, CoreError>(())
+            })
+            .unwrap();
             out
         };
         assert_eq!(run(1), run(3));
@@ -907,7 +1190,7 @@ mod tests {
         let view = ImageView::contiguous(&img, 10, 10, 3).unwrap();
         let mut out = vec![0u8; img.len()];
         assert!(c
-            .correct_geometry(&view, Interpolation::Bilinear, 0.0, &mut out)
+            .correct_geometry(&view, Interpolation::Bilinear, 0.0, true, &mut out)
             .is_err());
     }
 }

@@ -115,6 +115,9 @@ pub trait Arith<T>:
     fn load(t: T) -> Self;
     /// Rounds half up and converts back (see [`Sample::from_f32`] for floats).
     fn store(self) -> T;
+    /// [`Arith::store`] of the sample times `gain`, rounded once (the
+    /// vignetting gain a lens correction applies while it resamples).
+    fn store_scaled(self, gain: f32) -> T;
 }
 
 impl<T: Sample> Arith<T> for f32 {
@@ -128,6 +131,10 @@ impl<T: Sample> Arith<T> for f32 {
     #[inline(always)]
     fn store(self) -> T {
         T::from_f32(self)
+    }
+    #[inline(always)]
+    fn store_scaled(self, gain: f32) -> T {
+        T::from_f32(self * gain)
     }
 }
 
@@ -148,6 +155,11 @@ macro_rules! fixed_point_bilinear {
             #[inline(always)]
             fn store(self) -> $t {
                 ((self + (1 << (2 * FRAC_BITS - 1))) >> (2 * FRAC_BITS)) as $t
+            }
+            #[inline(always)]
+            fn store_scaled(self, gain: f32) -> $t {
+                // The weights' 2^16 goes into the gain: a power of two, exact.
+                <$t>::from_f32(self as f32 * (gain / (1u32 << (2 * FRAC_BITS)) as f32))
             }
         }
     )*};
@@ -681,6 +693,21 @@ impl<'a, T: Resample, V: Arith<T>, const TAPS: usize, const NC: usize> Taps<'a, 
     /// (fixed point) into `px` (`N` long).
     #[inline(always)]
     fn sample<const N: usize>(&self, sx: i32, sy: i32, c0: usize, px: &mut [T]) {
+        match self.value::<N>(sx, sy, c0) {
+            Some(value) => {
+                for (p, v) in px.iter_mut().zip(value) {
+                    *p = v.store();
+                }
+            }
+            None => px.fill(self.fill),
+        }
+    }
+
+    /// Channels `c0..c0 + N` of the source at `(sx, sy)` (fixed point) in
+    /// the arithmetic `V`, before rounding; `None` where no tap touches the
+    /// image (the output is `fill` there).
+    #[inline(always)]
+    fn value<const N: usize>(&self, sx: i32, sy: i32, c0: usize) -> Option<[V; N]> {
         let nc = if NC > 0 { NC } else { self.src.channels() };
         let (w, h) = (self.w, self.h);
         let taps = TAPS as i32;
@@ -689,9 +716,7 @@ impl<'a, T: Resample, V: Arith<T>, const TAPS: usize, const NC: usize> Taps<'a, 
         // The arithmetic shift is floor; NOWHERE lands far outside.
         let (ix, iy) = ((sx >> FRAC_BITS) - lead, (sy >> FRAC_BITS) - lead);
         if ix <= -taps || iy <= -taps || ix >= w || iy >= h {
-            // No tap touches the image.
-            px.fill(self.fill);
-            return;
+            return None;
         }
         let wx = &self.table[(sx & FRAC_MASK) as usize];
         let wy = &self.table[(sy & FRAC_MASK) as usize];
@@ -717,9 +742,7 @@ impl<'a, T: Resample, V: Arith<T>, const TAPS: usize, const NC: usize> Taps<'a, 
                 })
             })
         };
-        for (p, v) in px.iter_mut().zip(value) {
-            *p = v.store();
-        }
+        Some(value)
     }
 }
 
@@ -733,8 +756,13 @@ pub(crate) trait ChannelRows: Sync {
     type Scratch: Default;
 
     /// Writes the positions of output row `y` into `xy`: per pixel, the
-    /// fixed-point `(x, y)` of R, G and B in turn (`6 * width` values).
-    fn fill_row(&self, y: usize, scratch: &mut Self::Scratch, xy: &mut [i32]);
+    /// fixed-point `(x, y)` of R, G and B in turn (`6 * width` values), and,
+    /// when `gains` is not empty, a gain per sample into it (`3 * width`
+    /// values) that the sampled values are multiplied by.
+    fn fill_row(&self, y: usize, scratch: &mut Self::Scratch, xy: &mut [i32], gains: &mut [f32]);
+
+    /// Whether [`ChannelRows::fill_row`] has gains to give.
+    fn has_gains(&self) -> bool;
 }
 
 /// Resamples an RGB image whose channels are read from different places
@@ -797,18 +825,39 @@ fn channel_rows<T: Resample, V: Arith<T>, const TAPS: usize, S: ChannelRows>(
     out: &mut [T],
 ) {
     let row_len = 3 * taps.src.width();
+    let gained = coords.has_gains();
     for_each_band(out, row_len, ROWS_PER_TASK, |y0, band| {
         let mut scratch = S::Scratch::default();
         let mut xy = vec![0i32; 2 * row_len];
+        let mut gains = vec![0f32; if gained { row_len } else { 0 }];
         for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
-            coords.fill_row(y0 + i, &mut scratch, &mut xy);
-            for (px, p) in row.chunks_exact_mut(3).zip(xy.chunks_exact(6)) {
-                for c in 0..3 {
-                    taps.sample::<1>(p[2 * c], p[2 * c + 1], c, &mut px[c..=c]);
-                }
+            coords.fill_row(y0 + i, &mut scratch, &mut xy, &mut gains);
+            if gained {
+                channel_row(taps, row, &xy, |v, s| v.store_scaled(gains[s]));
+            } else {
+                channel_row(taps, row, &xy, |v, _| v.store());
             }
         }
     });
+}
+
+/// One output row of [`channel_rows`]: sample `s` of the row is channel
+/// `s % 3` read at its own position and rounded by `store(value, s)`.
+#[inline(always)]
+fn channel_row<T: Resample, V: Arith<T>, const TAPS: usize>(
+    taps: &Taps<T, V, TAPS, 3>,
+    row: &mut [T],
+    xy: &[i32],
+    store: impl Fn(V, usize) -> T,
+) {
+    for (u, (px, p)) in row.chunks_exact_mut(3).zip(xy.chunks_exact(6)).enumerate() {
+        for (c, (o, q)) in px.iter_mut().zip(p.chunks_exact(2)).enumerate() {
+            *o = match taps.value::<1>(q[0], q[1], c) {
+                Some([v]) => store(v, 3 * u + c),
+                None => taps.fill,
+            };
+        }
+    }
 }
 
 /// `Σ_j wy[j] Σ_i wx[i] tap(i, j)` for `N` channels at once: the separable

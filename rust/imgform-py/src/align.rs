@@ -178,7 +178,7 @@ fn refine_of<'py, T: Element + Sample>(
 /// `movings[k]` under `motion` by ECC, coarse to fine, with the reference's
 /// pyramid shared; `levels=None` is the automatic pyramid.
 #[pyfunction]
-#[pyo3(signature = (reference, movings, motion, inits, crop, levels, max_iterations, tolerance))]
+#[pyo3(signature = (reference, movings, motion, inits, crop, levels, max_iterations, tolerance, features))]
 #[allow(clippy::too_many_arguments)]
 fn refine_warp(
     py: Python<'_>,
@@ -190,6 +190,7 @@ fn refine_warp(
     levels: Option<usize>,
     max_iterations: usize,
     tolerance: f64,
+    features: &str,
 ) -> PyResult<Vec<RefineTuple>> {
     let motion = Motion::parse(motion).map_err(to_pyerr)?;
     let opts = EccOptions {
@@ -197,6 +198,7 @@ fn refine_warp(
         levels,
         max_iterations,
         tolerance,
+        features: Features::parse(features).map_err(to_pyerr)?,
     };
     let img = AnyImage::extract(reference, "reference")?;
     dispatch_image!(img, refine_of(py, &movings, motion, inits, opts))

@@ -4,7 +4,8 @@
 use imgform_core::film::curve::Curve;
 use imgform_core::film::develop::Emulsion;
 use imgform_core::film::grain::add_grain;
-use imgform_core::film::halation::halation;
+use imgform_core::film::halation::{halation, Halation};
+use imgform_core::film::print::print;
 use imgform_core::film::transmit::Dyes;
 use numpy::{PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -37,8 +38,10 @@ fn planes<'py>(
 ///
 /// `curves` holds one `(start, step, densities)` per layer; `matrix` the
 /// n x n DIR couplers (receiver-major), `diffusion` their Gaussian sigma in
-/// pixels.
+/// pixels; `halation` the per-layer strengths and spread (pixels) applied
+/// first, inside the same kernel.
 #[pyfunction]
+#[pyo3(signature = (exposure, gain, curves, matrix, diffusion, halation=None))]
 fn film_develop<'py>(
     py: Python<'py>,
     exposure: &Bound<'py, PyAny>,
@@ -46,19 +49,30 @@ fn film_develop<'py>(
     curves: Vec<(f64, f64, Vec<f64>)>,
     matrix: Vec<f64>,
     diffusion: f64,
+    halation: Option<(Vec<f64>, f64)>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let emulsion = emulsion(&curves, &matrix, diffusion)?;
+    let halation = halation
+        .map(|(strength, sigma)| Halation::new(&strength, sigma))
+        .transpose()
+        .map_err(to_pyerr)?;
+    let n = emulsion.layers();
+    let (arr, h, w) = planes(exposure, "exposure", n)?;
+    let src = contiguous(&arr);
+    detached_into(py, &[h, w, n], |out| {
+        emulsion.develop(&src, (w, h), gain, halation.as_ref(), out)
+    })
+}
+
+/// The emulsion of `curves` (one `(start, step, densities)` per layer),
+/// DIR `matrix` and `diffusion`.
+fn emulsion(curves: &[(f64, f64, Vec<f64>)], matrix: &[f64], diffusion: f64) -> PyResult<Emulsion> {
     let curves = curves
         .iter()
         .map(|(start, step, d)| Curve::new(*start, *step, d))
         .collect::<imgform_core::Result<Vec<_>>>()
         .map_err(to_pyerr)?;
-    let n = curves.len();
-    let emulsion = Emulsion::new(curves, &matrix, diffusion).map_err(to_pyerr)?;
-    let (arr, h, w) = planes(exposure, "exposure", n)?;
-    let src = contiguous(&arr);
-    detached_into(py, &[h, w, n], |out| {
-        emulsion.develop(&src, w, h, gain, out)
-    })
+    Emulsion::new(curves, matrix, diffusion).map_err(to_pyerr)
 }
 
 /// (H, W, n) float32 densities, a base (L,), dyes (n x L) and responses
@@ -84,6 +98,32 @@ fn film_transmit<'py>(
     let src = contiguous(&arr);
     detached_into(py, &[h, w, m], |out| {
         model.transmit(&src, w, h, &response, out)
+    })
+}
+
+/// (H, W, n) float32 negative densities, the negative's base (L,) and dyes
+/// (n x L), the print light (m x L) and the paper's emulsion (as for
+/// `film_develop`) -> (H, W, m) float32 paper densities, in one pass when
+/// the paper has no couplers.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn film_print<'py>(
+    py: Python<'py>,
+    density: &Bound<'py, PyAny>,
+    base: Vec<f64>,
+    dyes: Vec<f64>,
+    light: Vec<f64>,
+    curves: Vec<(f64, f64, Vec<f64>)>,
+    matrix: Vec<f64>,
+    diffusion: f64,
+    gain: f64,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let negative = Dyes::new(&base, &dyes).map_err(to_pyerr)?;
+    let paper = emulsion(&curves, &matrix, diffusion)?;
+    let (arr, h, w) = planes(density, "density", negative.layers())?;
+    let src = contiguous(&arr);
+    detached_into(py, &[h, w, paper.layers()], |out| {
+        print(&negative, &src, (w, h), &light, &paper, gain, out)
     })
 }
 
@@ -123,6 +163,7 @@ fn film_grain<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(film_develop, m)?)?;
     m.add_function(wrap_pyfunction!(film_transmit, m)?)?;
+    m.add_function(wrap_pyfunction!(film_print, m)?)?;
     m.add_function(wrap_pyfunction!(film_halation, m)?)?;
     m.add_function(wrap_pyfunction!(film_grain, m)?)?;
     Ok(())

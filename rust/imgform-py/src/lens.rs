@@ -59,18 +59,23 @@ impl NativeLensCorrection {
         detached_into(py, &[c.height, c.width, 3, 2], |out| c.positions(out))
     }
 
-    /// The distortion- and TCA-corrected RGB image.
-    #[pyo3(signature = (image, interpolation="bilinear", fill=0.0))]
+    /// The distortion- and TCA-corrected RGB image; with `vignetting`, also
+    /// devignetted in the same pass (linear values).
+    #[pyo3(signature = (image, interpolation="bilinear", fill=0.0, vignetting=false))]
     fn correct_geometry<'py>(
         &self,
         py: Python<'py>,
         image: &Bound<'py, PyAny>,
         interpolation: &str,
         fill: f64,
+        vignetting: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let interpolation = Interpolation::from_name(interpolation).map_err(to_pyerr)?;
         let img = AnyImage::extract(image, "image")?;
-        dispatch_image!(img, geometry_typed(py, &self.0, interpolation, fill))
+        dispatch_image!(
+            img,
+            geometry_typed(py, &self.0, interpolation, fill, vignetting)
+        )
     }
 
     /// The image with vignetting removed above the repeated black tile
@@ -99,12 +104,13 @@ fn geometry_typed<'py, T: Resample + Element>(
     lens: &LensCorrection,
     interpolation: Interpolation,
     fill: f64,
+    vignetting: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     resample_into(
         py,
         arr,
         |s| s.to_vec(),
-        |view, out| lens.correct_geometry(view, interpolation, fill, out),
+        |view, out| lens.correct_geometry(view, interpolation, fill, vignetting, out),
     )
 }
 

@@ -13,6 +13,10 @@ use crate::invalid;
 pub struct Curve {
     start: f64,
     step: f64,
+    /// `1 / step` and `-start / step` in f32: [`Curve::eval`] is one
+    /// multiply-add where a division in f64 would not vectorise.
+    scale: f32,
+    shift: f32,
     density: Vec<f32>,
 }
 
@@ -52,11 +56,21 @@ impl Curve {
                 density[i + 1]
             ));
         }
-        Ok(Self {
+        Ok(Self::sampled(
             start,
             step,
-            density: density.iter().map(|&d| d as f32).collect(),
-        })
+            density.iter().map(|&d| d as f32).collect(),
+        ))
+    }
+
+    fn sampled(start: f64, step: f64, density: Vec<f32>) -> Self {
+        Self {
+            start,
+            step,
+            scale: (1.0 / step) as f32,
+            shift: (-start / step) as f32,
+            density,
+        }
     }
 
     /// The density at log exposure `x`; NaN and -inf (zero exposure) give
@@ -64,7 +78,10 @@ impl Curve {
     #[inline(always)]
     pub fn eval(&self, x: f32) -> f32 {
         let last = self.density.len() - 1;
-        let t = ((f64::from(x) - self.start) / self.step) as f32;
+        // The sample index in f32: for curves of < 2^12 samples its rounding
+        // moves `x` by < 3e-4 of a step, a density error below 3e-4 of one
+        // step's rise (~1e-6 on the shipped curves).
+        let t = x * self.scale + self.shift;
         // `max` maps NaN to 0 too; then the index is in 0..last.
         let t = t.max(0.0).min(last as f32);
         let i = (t as usize).min(last - 1);
@@ -129,11 +146,7 @@ impl Curve {
             .collect();
         // Not re-checked as strictly monotone: two corrected samples may
         // round to one f32 where the stated curve is nearly flat.
-        Ok(Self {
-            start: first,
-            step,
-            density,
-        })
+        Ok(Self::sampled(first, step, density))
     }
 }
 

@@ -8,8 +8,9 @@
 //! columns, with mirrored edges so that a uniform field stays exactly
 //! uniform (the neutral wedge relies on this).
 
+use super::fastmath::wide;
 use crate::image::mirror;
-use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
+use crate::parallel::{for_each_band, ROWS_PER_TASK};
 
 /// Taps of a normalised Gaussian of standard deviation `sigma` (pixels),
 /// out to 3 sigma (0.3 % of the weight beyond), centre first.
@@ -32,40 +33,119 @@ pub fn blur(
     taps: &[f32],
     out: &mut [f32],
 ) {
-    let row_len = width * channels;
     let mut across = vec![0.0f32; src.len()];
-    let r = taps.len() as isize - 1;
-    for_each_band(&mut across, row_len, ROWS_PER_TASK, |y0, rows| {
+    blur_rows(src, width, channels, taps, &mut across);
+    blur_columns_then(
+        &across,
+        width,
+        height,
+        channels,
+        taps,
+        out,
+        width * channels,
+        |_, b, o| o.copy_from_slice(b),
+    );
+}
+
+/// The row pass of [`blur`]: each row of `src` `(H, width, channels)`
+/// convolved with `taps` into `out`, mirrored at the ends.
+pub fn blur_rows(src: &[f32], width: usize, channels: usize, taps: &[f32], out: &mut [f32]) {
+    let row_len = width * channels;
+    let pad = (taps.len() - 1) * channels;
+    for_each_band(out, row_len, ROWS_PER_TASK, |y0, rows| {
         // One padded copy of the source row per row, reused within the band.
-        let pad = (r as usize) * channels;
         let mut padded = vec![0.0f32; row_len + 2 * pad];
         for (i, row) in rows.chunks_mut(row_len).enumerate() {
             let line = &src[(y0 + i) * row_len..][..row_len];
             for (x, p) in padded.chunks_mut(channels).enumerate() {
-                let sx = mirror(x as isize - r, width);
+                let sx = mirror(x as isize - (taps.len() as isize - 1), width);
                 p.copy_from_slice(&line[sx * channels..][..channels]);
             }
-            for (k, o) in row.iter_mut().enumerate() {
-                let c = k + pad;
-                let mut acc = taps[0] * padded[c];
-                for (t, w) in taps.iter().enumerate().skip(1) {
-                    let d = t * channels;
-                    acc += w * (padded[c - d] + padded[c + d]);
-                }
-                *o = acc;
-            }
+            convolve_row_wide(&padded, pad, channels, taps, row);
         }
     });
-    for_each_row(out, row_len, |y, row| {
-        let at = |dy: isize| &across[mirror(y as isize + dy, height) * row_len..][..row_len];
-        for (o, a) in row.iter_mut().zip(at(0)) {
-            *o = taps[0] * a;
+}
+
+wide!(
+    /// [`convolve_row`], 8 lanes wide where the CPU has them.
+    fn convolve_row_wide = convolve_row(
+        padded: &[f32],
+        pad: usize,
+        channels: usize,
+        taps: &[f32],
+        row: &mut [f32],
+    )
+);
+
+/// `row[k] = Σ_t taps[|t|] padded[pad + k + t channels]`, one tap over the
+/// whole row at a time so that the loop runs along the row (packed
+/// instructions) rather than along the taps; every output sums its taps in
+/// the same order whatever the row or thread.
+#[inline(always)]
+fn convolve_row(padded: &[f32], pad: usize, channels: usize, taps: &[f32], row: &mut [f32]) {
+    let n = row.len();
+    for (o, a) in row.iter_mut().zip(&padded[pad..pad + n]) {
+        *o = taps[0] * a;
+    }
+    for (t, w) in taps.iter().enumerate().skip(1) {
+        let d = t * channels;
+        let left = &padded[pad - d..pad - d + n];
+        let right = &padded[pad + d..pad + d + n];
+        for ((o, a), b) in row.iter_mut().zip(left).zip(right) {
+            *o += w * (a + b);
         }
-        for (t, w) in taps.iter().enumerate().skip(1) {
-            let (up, down) = (at(-(t as isize)), at(t as isize));
-            for ((o, a), b) in row.iter_mut().zip(up).zip(down) {
-                *o += w * (a + b);
-            }
+    }
+}
+
+wide!(
+    /// [`column()`], 8 lanes wide where the CPU has them.
+    fn column_wide = column(rows: &[(&[f32], &[f32])], taps: &[f32], out: &mut [f32])
+);
+
+/// One row of the column pass: `out = Σ_t taps[t] (up_t + down_t)` over the
+/// rows `t` above and below (`rows[0]` holds the centre row twice; the
+/// centre tap counts it once), tap by tap along the row.
+#[inline(always)]
+fn column(rows: &[(&[f32], &[f32])], taps: &[f32], out: &mut [f32]) {
+    for (o, a) in out.iter_mut().zip(rows[0].0) {
+        *o = taps[0] * a;
+    }
+    for ((up, down), w) in rows.iter().zip(taps).skip(1) {
+        for ((o, a), b) in out.iter_mut().zip(*up).zip(*down) {
+            *o += w * (a + b);
+        }
+    }
+}
+
+/// The column pass of [`blur`] over the row pass's output `across`, handing
+/// each blurred row to `finish(y, blurred, out_row)` (out rows of
+/// `out_row_len` elements): the per-pixel stage that reads the blur runs
+/// while the row is in cache, and no blurred image is stored.
+#[allow(clippy::too_many_arguments)]
+pub fn blur_columns_then<T, F>(
+    across: &[f32],
+    width: usize,
+    height: usize,
+    channels: usize,
+    taps: &[f32],
+    out: &mut [T],
+    out_row_len: usize,
+    finish: F,
+) where
+    T: Send,
+    F: Fn(usize, &[f32], &mut [T]) + Sync,
+{
+    let row_len = width * channels;
+    for_each_band(out, out_row_len, ROWS_PER_TASK, |y0, rows| {
+        let mut blurred = vec![0.0f32; row_len];
+        let mut lines: Vec<(&[f32], &[f32])> = Vec::with_capacity(taps.len());
+        for (i, row) in rows.chunks_mut(out_row_len).enumerate() {
+            let y = y0 + i;
+            let at = |dy: isize| &across[mirror(y as isize + dy, height) * row_len..][..row_len];
+            lines.clear();
+            lines.extend((0..taps.len() as isize).map(|t| (at(-t), at(t))));
+            column_wide(&lines, taps, &mut blurred);
+            finish(y, &blurred, row);
         }
     });
 }
@@ -81,6 +161,26 @@ mod tests {
         let sum: f32 = t[0] + 2.0 * t[1..].iter().sum::<f32>();
         assert!((sum - 1.0).abs() < 1e-6);
         assert!(t.windows(2).all(|p| p[1] < p[0]));
+    }
+
+    #[test]
+    fn the_wide_row_convolution_gives_the_plain_bits() {
+        let taps = gaussian_taps(3.3);
+        let (channels, n) = (3, 3 * 45);
+        let pad = (taps.len() - 1) * channels;
+        let padded: Vec<f32> = (0..n + 2 * pad)
+            .map(|i| ((i * 7919) % 1000) as f32 / 77.0)
+            .collect();
+        let (mut plain, mut wide_row) = (vec![0.0; n], vec![0.0; n]);
+        convolve_row(&padded, pad, channels, &taps, &mut plain);
+        convolve_row_wide(&padded, pad, channels, &taps, &mut wide_row);
+        assert_eq!(plain, wide_row);
+        // Sample 4 (channel 1 of pixel 1), summed tap by tap as documented.
+        let mut want = taps[0] * padded[pad + 4];
+        for (t, w) in taps.iter().enumerate().skip(1) {
+            want += w * (padded[pad + 4 - 3 * t] + padded[pad + 4 + 3 * t]);
+        }
+        assert_eq!(plain[4], want);
     }
 
     #[test]

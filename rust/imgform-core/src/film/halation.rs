@@ -12,10 +12,84 @@
 //! sum to 1 and its mirrored edges fold what would leave the frame back in.
 
 use super::check_lengths;
-use super::diffuse::{blur, gaussian_taps};
-use crate::error::Result;
+use super::diffuse::{blur_columns_then, blur_rows, gaussian_taps};
+use crate::error::{positive, Result};
 use crate::invalid;
-use crate::parallel::for_each_row;
+
+/// Halation of per-layer strengths and one spread, validated once.
+#[derive(Debug, Clone)]
+pub struct Halation {
+    strength: Vec<f32>,
+    taps: Vec<f32>,
+}
+
+impl Halation {
+    /// Strengths `strength` (one per layer, in `[0, 1]`) and spread `sigma`
+    /// (pixels).
+    ///
+    /// # Errors
+    /// [`crate::CoreError::InvalidArgument`] for a strength outside
+    /// `[0, 1]` or a spread that is not > 0.
+    pub fn new(strength: &[f64], sigma: f64) -> Result<Self> {
+        if let Some(i) = strength.iter().position(|a| !(0.0..=1.0).contains(a)) {
+            return Err(invalid!(
+                "halation strengths are fractions in [0, 1], layer {i} has {}",
+                strength[i]
+            ));
+        }
+        let sigma = positive("the halation spread (pixels)", sigma)?;
+        Ok(Self {
+            strength: strength.iter().map(|&a| a as f32).collect(),
+            taps: gaussian_taps(sigma),
+        })
+    }
+
+    /// Number of layers.
+    pub fn layers(&self) -> usize {
+        self.strength.len()
+    }
+
+    /// Applies the halation to exposures `(height, width, layers)` (sizes
+    /// checked by the caller) into `out`, handing each row of `out` to
+    /// `finish(y, row)` once it holds the halated exposures: development
+    /// takes their logarithms there while the row is in cache.
+    pub(crate) fn apply_then<F>(
+        &self,
+        exposure: &[f32],
+        (width, height): (usize, usize),
+        out: &mut [f32],
+        finish: F,
+    ) where
+        F: Fn(usize, &mut [f32]) + Sync,
+    {
+        let n = self.layers();
+        let mut across = vec![0.0f32; exposure.len()];
+        blur_rows(exposure, width, n, &self.taps, &mut across);
+        let a = &self.strength;
+        blur_columns_then(
+            &across,
+            width,
+            height,
+            n,
+            &self.taps,
+            out,
+            width * n,
+            |y, blurred, row| {
+                let src = &exposure[y * width * n..][..width * n];
+                for ((p, b), o) in src
+                    .chunks_exact(n)
+                    .zip(blurred.chunks_exact(n))
+                    .zip(row.chunks_exact_mut(n))
+                {
+                    for (((v, h), g), a) in o.iter_mut().zip(p).zip(b).zip(a) {
+                        *v = (1.0 - a) * h + a * g;
+                    }
+                }
+                finish(y, row);
+            },
+        );
+    }
+}
 
 /// Applies halation of strengths `strength` (one per layer, in `[0, 1]`) and
 /// spread `sigma` (pixels) to exposures `(height, width, layers)`.
@@ -31,25 +105,13 @@ pub fn halation(
     sigma: f64,
     out: &mut [f32],
 ) -> Result<()> {
-    let n = strength.len();
-    check_lengths(width, height, (exposure, n), (out, n))?;
-    if let Some(i) = strength.iter().position(|a| !(0.0..=1.0).contains(a)) {
-        return Err(invalid!(
-            "halation strengths are fractions in [0, 1], layer {i} has {}",
-            strength[i]
-        ));
-    }
-    crate::error::positive("the halation spread (pixels)", sigma)?;
-    blur(exposure, width, height, n, &gaussian_taps(sigma), out);
-    let a: Vec<f32> = strength.iter().map(|&a| a as f32).collect();
-    for_each_row(out, width * n, |y, row| {
-        let src = &exposure[y * width * n..][..width * n];
-        for (p, o) in src.chunks_exact(n).zip(row.chunks_exact_mut(n)) {
-            for ((v, h), a) in o.iter_mut().zip(p).zip(&a) {
-                *v = (1.0 - a) * h + a * *v;
-            }
-        }
-    });
+    check_lengths(
+        width,
+        height,
+        (exposure, strength.len()),
+        (out, strength.len()),
+    )?;
+    Halation::new(strength, sigma)?.apply_then(exposure, (width, height), out, |_, _| ());
     Ok(())
 }
 

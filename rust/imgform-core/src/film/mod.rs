@@ -18,8 +18,10 @@
 pub mod curve;
 pub mod develop;
 pub mod diffuse;
+pub mod fastmath;
 pub mod grain;
 pub mod halation;
+pub mod print;
 pub mod transmit;
 
 use rayon::prelude::*;

@@ -1,0 +1,134 @@
+//! `2^x` and `log2 x` in f32 that vectorise, and the CPU check that picks
+//! the AVX2 + FMA builds of the film's row kernels.
+//!
+//! A call to `exp2f` or `log10f` is opaque to the vectoriser, and the film
+//! takes 41 exponentials per printed pixel and a logarithm per layer and
+//! development. These polynomials are plain arithmetic on `f32` and bit
+//! operations, so a row loop over them compiles to packed instructions; no
+//! `mul_add` is written, so the compiler never contracts to FMA and the AVX2
+//! build gives the bits of the baseline build.
+
+/// `2^x` for `x` in about `[-126, 126]` (clamped there), to ~2e-7 relative.
+///
+/// The rounding by adding and subtracting 1.5 x 2^23 and the polynomial
+/// vectorise: `2^x = 2^n e^(r ln 2)` with `n` the nearest integer and
+/// `|r| <= 1/2`, the exponential's Taylor series to the 6th power (remainder
+/// < 0.347^7 / 7! = 1.2e-7), `2^n` built from its IEEE-754 exponent bits.
+#[inline(always)]
+pub fn exp2(x: f32) -> f32 {
+    const ROUND: f32 = 12_582_912.0;
+    let x = x.clamp(-126.0, 126.0);
+    let rounded = x + ROUND;
+    let n = rounded - ROUND;
+    let y = (x - n) * std::f32::consts::LN_2;
+    let p = 1.0
+        + y * (1.0
+            + y * (0.5
+                + y * (1.0 / 6.0 + y * (1.0 / 24.0 + y * (1.0 / 120.0 + y * (1.0 / 720.0))))));
+    // `n` as an integer is the difference of the mantissa bits of
+    // `x + ROUND` and `ROUND` (an `as i32` conversion would saturate, which
+    // costs a compare and blend per lane).
+    let biased = rounded
+        .to_bits()
+        .wrapping_sub(ROUND.to_bits())
+        .wrapping_add(127);
+    p * f32::from_bits(biased << 23)
+}
+
+/// `log2 x` for finite `x >= 0`, to ~1e-7 absolute; 0 gives about -127
+/// (below every curve's toe, as `-inf` is), subnormals about -127 too.
+///
+/// `x = m 2^e` with the mantissa `m` moved into `[sqrt(1/2), sqrt(2))`; then
+/// `ln m = 2 atanh(s)`, `s = (m - 1) / (m + 1)`, `|s| <= 0.1716`, whose odd
+/// series to `s^9` leaves `2 s^11 / 11 < 7e-10`.
+#[inline(always)]
+pub fn log2(x: f32) -> f32 {
+    let bits = x.to_bits();
+    // The exponent, and the mantissa as a number in [1, 2).
+    let e = ((bits >> 23) & 0xff) as i32 - 127;
+    let m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    let big = m > std::f32::consts::SQRT_2;
+    let (m, e) = if big { (0.5 * m, e + 1) } else { (m, e) };
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series =
+        s * (2.0 + s2 * (2.0 / 3.0 + s2 * (2.0 / 5.0 + s2 * (2.0 / 7.0 + s2 * (2.0 / 9.0)))));
+    e as f32 + series * std::f32::consts::LOG2_E
+}
+
+/// `true` when the CPU has AVX2 and FMA, the features the film's wide row
+/// kernels are compiled for (`std` caches the detection).
+pub fn has_avx2_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Defines `fn $name(args)` that runs the `#[inline(always)]` function
+/// `$plain(args)` compiled for AVX2 and FMA when the CPU has them, and as it
+/// is otherwise: the film's row loops are plain loops over slices, and this
+/// is where they get 8-lane instructions. (A closure handed to a
+/// feature-enabled function is not inlined into it, so the plain function
+/// must be named.) No FMA is written in the loops, so none is contracted:
+/// both builds give the same bits, which the tests check.
+macro_rules! wide {
+    ($(#[$doc:meta])* fn $name:ident = $plain:ident($($arg:ident: $ty:ty),* $(,)?)) => {
+        $(#[$doc])*
+        #[inline]
+        fn $name($($arg: $ty),*) {
+            /// # Safety
+            /// The CPU must support AVX2 and FMA.
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn with_avx2_fma($($arg: $ty),*) {
+                $plain($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            if $crate::film::fastmath::has_avx2_fma() {
+                // SAFETY: AVX2 and FMA support was detected just above.
+                return unsafe { with_avx2_fma($($arg),*) };
+            }
+            $plain($($arg),*)
+        }
+    };
+}
+pub(crate) use wide;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn exp2_is_accurate_over_the_film_range() {
+        for k in -4000..=400 {
+            let x = k as f32 * 0.01;
+            let want = 2f64.powf(f64::from(x));
+            let got = f64::from(exp2(x));
+            assert!((got / want - 1.0).abs() < 3e-7, "{x}: {got} vs {want}");
+        }
+        assert!(exp2(-500.0) > 0.0 && exp2(-500.0) < 1e-37);
+    }
+
+    #[test]
+    fn log2_is_accurate_from_tiny_to_huge_exposures() {
+        let mut x = 1e-30f32;
+        while x < 1e30 {
+            let want = f64::from(x).log2();
+            let got = f64::from(log2(x));
+            assert!(
+                (got - want).abs() < 2.5e-7 * want.abs().max(1.0),
+                "{x}: {got} vs {want}"
+            );
+            x *= 1.0137;
+        }
+        for x in [1.0f32, 2.0, 0.5, 1024.0] {
+            assert_eq!(log2(x), x.log2());
+        }
+        assert!(log2(0.0) <= -126.0 && log2(1e-42) <= -126.0);
+    }
+}
