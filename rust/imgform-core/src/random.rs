@@ -9,11 +9,9 @@
 //! logarithms left to the rare rejection branch.
 //!
 //! [`Lanes`] steps the generators of [`LANES`] neighbouring sites together,
-//! so that the common paths run as vector instructions across pixels, PTRS's
-//! logarithmic test included (by a polynomial logarithm whose outcome is
-//! kept only where its error cannot change it); each lane that misses a
-//! fast path finishes with the scalar code, so every site draws exactly the
-//! numbers its own [`SplitMix64`] would.
+//! so that the common paths run as vector instructions across pixels; each
+//! lane that misses a fast path finishes with the scalar code, so every site
+//! draws exactly the numbers its own [`SplitMix64`] would.
 
 use std::sync::OnceLock;
 
@@ -161,7 +159,6 @@ impl SplitMix64 {
 }
 
 /// The constants of Hörmann's PTRS for one mean `lam` (>= 10).
-#[derive(Clone, Copy)]
 struct Ptrs {
     lam: f64,
     a: f64,
@@ -197,70 +194,25 @@ impl Ptrs {
     /// decide.
     #[cold]
     fn accept(&self, us: f64, v: f64, k: f64) -> Option<f64> {
-        if Self::rejected_early(us, v, k) {
+        let (lam, a, b) = (self.lam, self.a, self.b);
+        if k < 0.0 || (us < 0.013 && v > us) {
             return None;
         }
-        let lhs = self.acceptance_bound(us, v).ln();
-        (lhs <= -self.lam + k * self.lam.ln() - ln_factorial(k)).then_some(k)
-    }
-
-    /// The candidates PTRS rejects without a logarithm.
-    #[inline(always)]
-    fn rejected_early(us: f64, v: f64, k: f64) -> bool {
-        k < 0.0 || (us < 0.013 && v > us)
-    }
-
-    /// The argument of the logarithm in PTRS's acceptance test, computed
-    /// in one order for [`Self::accept`] and [`Self::verdict`] alike.
-    #[inline(always)]
-    fn acceptance_bound(&self, us: f64, v: f64) -> f64 {
-        let inv_alpha = 1.1239 + 1.1328 / (self.b - 3.4);
-        v * inv_alpha / (self.a / (us * us) + self.b)
-    }
-
-    /// [`Self::accept`]'s outcome by [`fast_ln`], where its error cannot
-    /// change it: `(accepted, decided)`. `ln_lam` is `fast_ln(lam)`.
-    ///
-    /// The two sides of the test are compared with a margin
-    /// [`LN_BRACKET`] times the size of their terms, a thousand times
-    /// what `fast_ln`'s error and the rounding of either computation can
-    /// move them; a candidate inside the margin (about one in 10^6, and
-    /// any argument `fast_ln` does not take) is `decided == false` and
-    /// goes to the exact test, so the outcome is always the exact test's.
-    /// Branch-free, so that a loop over lanes vectorises.
-    #[inline(always)]
-    fn verdict(&self, ln_lam: f64, us: f64, v: f64, k: f64) -> (bool, bool) {
-        let x = self.acceptance_bound(us, v);
-        let lhs = fast_ln(x);
-        let ln_k = fast_ln(k.max(1.0));
-        let lnf = stirling(k, ln_k, LN_TAU + ln_k);
-        let rhs = -self.lam + k * ln_lam - lnf;
-        let size = lhs.abs() + self.lam + k.abs() * ln_lam.abs() + lnf.abs() + 10.0;
-        let margin = LN_BRACKET * size;
-        // Stirling's series holds from 10 up; x must be a normal number
-        // (`fast_ln`'s domain; !(x >= ..) also catches a NaN).
-        let in_domain = (k >= 10.0) & (x >= f64::MIN_POSITIVE) & (x <= f64::MAX);
-        let early = Self::rejected_early(us, v, k);
-        let accepted = !early & (lhs <= rhs - margin);
-        let decided = early | (in_domain & (accepted | (lhs > rhs + margin)));
-        (accepted, decided)
+        let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
+        let lhs = (v * inv_alpha / (a / (us * us) + b)).ln();
+        (lhs <= -lam + k * lam.ln() - ln_factorial(k)).then_some(k)
     }
 }
 
-/// The relative margin of [`Ptrs::verdict`]'s bracket.
-const LN_BRACKET: f64 = 1e-12;
-/// `ln(2 pi)`, for Stirling's series from `ln k`.
-const LN_TAU: f64 = 1.837_877_066_409_345_3;
-
 /// Pixels whose generators [`Lanes`] steps together: eight f64 lanes fill
 /// two AVX2 registers, enough to hide the latency of the square root and
-/// divisions of PTRS behind independent work.
+/// division of PTRS behind independent work.
 pub(crate) const LANES: usize = 8;
 
 /// The generators of [`LANES`] consecutive sites of a row, stepped
-/// together. Each variate takes vector steps for all lanes; a lane that
-/// they do not decide is continued by the scalar code, so lane `i` yields
-/// exactly what `SplitMix64::at(base, x0 + i)` would.
+/// together. Each variate takes one vector step for all lanes; a lane that
+/// the step does not decide is rewound or continued by the scalar code, so
+/// lane `i` yields exactly what `SplitMix64::at(base, x0 + i)` would.
 pub(crate) struct Lanes([u64; LANES]);
 
 impl Lanes {
@@ -273,7 +225,12 @@ impl Lanes {
 
     #[inline(always)]
     fn next_u64(&mut self) -> [u64; LANES] {
-        self.step_u64(&[SplitMix64::GOLDEN; LANES])
+        let mut out = [0; LANES];
+        for (o, s) in out.iter_mut().zip(self.0.iter_mut()) {
+            *s = s.wrapping_add(SplitMix64::GOLDEN);
+            *o = mix(*s);
+        }
+        out
     }
 
     /// Runs the scalar generator of lane `i` from its current state.
@@ -305,74 +262,42 @@ impl Lanes {
     }
 
     /// A Poisson variate per lane of mean `lam[i]`
-    /// ([`SplitMix64::poisson`]): means below 10 by the scalar search;
-    /// above, PTRS for all lanes at once, each round drawing a candidate
-    /// for the lanes still without a variate (the others' generators stand
-    /// still), deciding it by the squeeze or else by [`Ptrs::verdict`],
-    /// until every lane has one. Only a candidate the verdict's bracket
-    /// leaves open (~1e-6 of them) takes the scalar exact test, so lanes
-    /// rejected by PTRS (~10 %) redraw in the vector loop too.
+    /// ([`SplitMix64::poisson`]): one PTRS candidate for every lane, kept
+    /// where the mean is >= 10 and the squeeze accepts it (~76 %); other
+    /// lanes are finished by [`Self::poisson_undecided`].
     #[inline(always)]
     pub(crate) fn poisson(&mut self, lam: &[f64; LANES]) -> [f64; LANES] {
+        let (u, v) = (self.next_u64(), self.next_u64());
         let mut out = [0.0; LANES];
-        let mut todo = lam.map(|l| l >= 10.0);
-        if todo.contains(&false) {
-            self.poisson_small(lam, &mut out);
-        }
-        let ptrs = lam.map(Ptrs::new);
-        let ln_lam = lam.map(fast_ln);
-        while todo.contains(&true) {
-            let step = todo.map(|t| if t { SplitMix64::GOLDEN } else { 0 });
-            let (u, v) = (self.step_u64(&step), self.step_u64(&step));
-            let mut k = [0.0; LANES];
-            let mut us = [0.0; LANES];
-            let mut done = [false; LANES];
-            for i in 0..LANES {
-                (k[i], us[i], done[i]) = ptrs[i].candidate(unit(u[i]), unit(v[i]));
-            }
-            let mut open = [false; LANES];
-            if todo.iter().zip(&done).any(|(&t, &d)| t & !d) {
-                for i in 0..LANES {
-                    let (accepted, decided) = ptrs[i].verdict(ln_lam[i], us[i], unit(v[i]), k[i]);
-                    open[i] = !done[i] & !decided;
-                    done[i] |= accepted;
-                }
-            }
-            for i in 0..LANES {
-                if todo[i] & open[i] {
-                    done[i] = ptrs[i].accept(us[i], unit(v[i]), k[i]).is_some();
-                }
-                if todo[i] & done[i] {
-                    (out[i], todo[i]) = (k[i], false);
-                }
-            }
-        }
-        out
-    }
-
-    /// The lanes of [`Self::poisson`] whose mean is below 10, each by its
-    /// scalar generator. Out of line: the sensor's bright pixels never
-    /// come here.
-    #[inline(never)]
-    fn poisson_small(&mut self, lam: &[f64; LANES], out: &mut [f64; LANES]) {
+        let mut us = [0.0; LANES];
+        let mut hit = [false; LANES];
         for i in 0..LANES {
-            if !(lam[i] >= 10.0) {
-                out[i] = self.finish(i, |g| g.poisson(lam[i]));
+            let (k, u_s, squeezed) = Ptrs::new(lam[i]).candidate(unit(u[i]), unit(v[i]));
+            (out[i], us[i]) = (k, u_s);
+            hit[i] = lam[i] >= 10.0 && squeezed;
+        }
+        for i in 0..LANES {
+            if !hit[i] {
+                out[i] = self.poisson_undecided(i, lam[i], (out[i], us[i], unit(v[i])));
             }
         }
+        out
     }
 
-    /// The next output of every lane whose generator moves by `step[i]`
-    /// (the golden gamma, or 0 for a lane that stands still; its output is
-    /// then unused).
-    #[inline(always)]
-    fn step_u64(&mut self, step: &[u64; LANES]) -> [u64; LANES] {
-        let mut out = [0; LANES];
-        for ((o, s), &d) in out.iter_mut().zip(self.0.iter_mut()).zip(step) {
-            *s = s.wrapping_add(d);
-            *o = mix(*s);
+    /// Lane `i`'s Poisson variate when the vector step left it undecided,
+    /// as the scalar sampler goes on: a mean below 10 is drawn again by
+    /// the search from before the step's two draws; a larger one takes
+    /// PTRS's exact test of the step's candidate `(k, us, v)`, then the
+    /// scalar loop's next draws. Kept out of line: a quarter of lanes come
+    /// here, and eight inlined copies of the sampler would crowd the loop.
+    #[inline(never)]
+    fn poisson_undecided(&mut self, i: usize, lam: f64, (k, us, v): (f64, f64, f64)) -> f64 {
+        if lam < 10.0 {
+            self.0[i] = self.0[i].wrapping_sub(SplitMix64::GOLDEN.wrapping_mul(2));
+        } else if let Some(k) = Ptrs::new(lam).accept(us, v, k) {
+            return k;
         }
-        out
+        self.finish(i, |g| g.poisson(lam))
     }
 }
 
@@ -392,10 +317,8 @@ fn with_sign(x: f64, bits: u64) -> f64 {
 }
 
 /// `v.floor()` without a call to libm (`floor` is not an instruction of
-/// baseline x86-64) nor a float-to-integer conversion (AVX2 has none for
-/// 64 bits): adding and subtracting 2^52 with `v`'s sign rounds `v` to an
-/// integer, corrected down where it rounded up. From 2^52 up every float
-/// is an integer already.
+/// baseline x86-64): truncation, corrected below zero. From 2^52 up every
+/// float is an integer already.
 #[inline(always)]
 fn floor(v: f64) -> f64 {
     const TWO_52: f64 = 4_503_599_627_370_496.0;
@@ -444,43 +367,10 @@ fn ln_factorial(k: f64) -> f64 {
     if k < 10.0 {
         return TABLE[k as usize];
     }
-    stirling(k, k.ln(), (std::f64::consts::TAU * k).ln())
-}
-
-/// Stirling's series for `ln(k!)` from `ln k` and `ln(2 pi k)`, which
-/// the exact and the bracketed tests compute their own ways.
-#[inline(always)]
-fn stirling(k: f64, ln_k: f64, ln_tau_k: f64) -> f64 {
     let k2 = k * k;
-    k * ln_k - k + 0.5 * ln_tau_k + 1.0 / (12.0 * k) - 1.0 / (360.0 * k2 * k)
+    k * k.ln() - k + 0.5 * (std::f64::consts::TAU * k).ln() + 1.0 / (12.0 * k)
+        - 1.0 / (360.0 * k2 * k)
         + 1.0 / (1260.0 * k2 * k2 * k)
-}
-
-/// The natural logarithm of a positive normal number `x` to within
-/// 1e-15 relative, in plain arithmetic and bit operations (no call, no
-/// table), so that a loop over lanes vectorises; any other `x` gives an
-/// unspecified number. `x = 2^n m` with `m` in `[sqrt(1/2), sqrt(2))`,
-/// and `ln m = 2 atanh(s)`, `s = (m - 1) / (m + 1)`, `|s| < 0.172`, by
-/// its odd series to `s^17` (the next term is below 1e-16 of the sum).
-#[inline(always)]
-fn fast_ln(x: f64) -> f64 {
-    const SQRT_HALF_BITS: u64 = 0x3FE6_A09E_667F_3BCD;
-    const ONE_BITS: u64 = 0x3FF0_0000_0000_0000;
-    const TWO_52: f64 = 4_503_599_627_370_496.0;
-    let bits = x.to_bits();
-    // The biased exponent of x / sqrt(1/2): logical shifts only (AVX2
-    // has no 64-bit arithmetic shift).
-    let biased = bits.wrapping_add(ONE_BITS - SQRT_HALF_BITS) >> 52;
-    let m = f64::from_bits(bits.wrapping_sub(biased << 52).wrapping_add(ONE_BITS));
-    // biased < 2^11 placed in the mantissa of 2^52: an exact conversion.
-    let n = f64::from_bits(TWO_52.to_bits() | biased) - (TWO_52 + 1023.0);
-    let s = (m - 1.0) / (m + 1.0);
-    let z = s * s;
-    let mut series = 1.0 / 17.0;
-    for odd in [15.0, 13.0, 11.0, 9.0, 7.0, 5.0, 3.0, 1.0] {
-        series = series * z + 1.0 / odd;
-    }
-    n * std::f64::consts::LN_2 + 2.0 * s * series
 }
 
 /// Layers of the ziggurat.
@@ -615,107 +505,71 @@ mod tests {
         }
     }
 
+    /// A Poisson variate then two normals per lane, the sensor's draws.
+    #[inline(always)]
+    fn lane_draws(lanes: &mut Lanes, lam: &[f64; LANES], z: &Ziggurat) -> [[f64; LANES]; 3] {
+        [lanes.poisson(lam), lanes.normal(z), lanes.normal(z)]
+    }
+
+    /// [`lane_draws`] compiled as the sensor's AVX2 read-out is.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn lane_draws_avx2(
+        lanes: &mut Lanes,
+        lam: &[f64; LANES],
+        z: &Ziggurat,
+    ) -> [[f64; LANES]; 3] {
+        lane_draws(lanes, lam, z)
+    }
+
     #[test]
     fn lanes_draw_what_each_site_draws_alone() {
         // Means on both sides of the PTRS switch and of the squeeze, mixed
-        // across lanes; normals with their rare edge and tail cases.
+        // across lanes (10 and 12.5 send many candidates below k = 10 to
+        // the exact test), then means log-uniform from 0.1 to 1e6; normals with their rare edge and
+        // tail cases. The baseline and the AVX2 builds of the lanes must
+        // both give each site's own draws.
         let z = ziggurat();
         let means = [0.0, 0.3, 4.0, 9.99, 10.0, 12.5, 60.0, 3e3, 1e5, -1.0];
-        for row in 0..2000u64 {
-            let base = SplitMix64::row_base(SplitMix64::row_key(9, row as usize));
-            let x0 = (row as usize % 5) * LANES;
-            let lam: [f64; LANES] = std::array::from_fn(|i| means[(i + row as usize) % 10]);
+        let mut g = SplitMix64(31);
+        for row in 0..6000usize {
+            let base = SplitMix64::row_base(SplitMix64::row_key(9, row));
+            let x0 = (row % 5) * LANES;
+            let lam: [f64; LANES] = if row < 2000 {
+                std::array::from_fn(|i| means[(i + row) % 10])
+            } else {
+                std::array::from_fn(|_| 10f64.powf(7.0 * g.uniform() - 1.0))
+            };
             let mut lanes = Lanes::at(base, x0);
-            let (p, n) = (lanes.poisson(&lam), lanes.normal(z));
-            let more = lanes.normal(z);
+            let got = lane_draws(&mut lanes, &lam, z);
+            #[cfg(target_arch = "x86_64")]
+            if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+                let mut wide = Lanes::at(base, x0);
+                // SAFETY: AVX2 and FMA support was detected above.
+                let wide_got = unsafe { lane_draws_avx2(&mut wide, &lam, z) };
+                assert_eq!(
+                    wide_got.map(|d| d.map(f64::to_bits)),
+                    got.map(|d| d.map(f64::to_bits))
+                );
+                assert_eq!(wide.0, lanes.0, "row {row}");
+            }
             for i in 0..LANES {
                 let mut g = SplitMix64::at(base, x0 + i);
-                assert_eq!(p[i], g.poisson(lam[i]), "row {row} lane {i}");
-                assert_eq!(n[i].to_bits(), g.normal().to_bits(), "row {row} lane {i}");
-                assert_eq!(
-                    more[i].to_bits(),
-                    g.normal().to_bits(),
-                    "row {row} lane {i}"
-                );
+                let want = [g.poisson(lam[i]), g.normal(), g.normal()];
+                for (d, w) in got.iter().zip(want) {
+                    assert_eq!(
+                        d[i].to_bits(),
+                        w.to_bits(),
+                        "row {row} lane {i} mean {}",
+                        lam[i]
+                    );
+                }
                 assert_eq!(lanes.0[i], g.0);
             }
         }
-    }
-
-    #[test]
-    fn fast_ln_is_within_1e_15_of_the_library_log() {
-        let mut g = SplitMix64(23);
-        let edges = [
-            1.0,
-            f64::MIN_POSITIVE,
-            f64::MAX,
-            std::f64::consts::FRAC_1_SQRT_2,
-            std::f64::consts::SQRT_2,
-            1.0 + f64::EPSILON,
-            1.0 - f64::EPSILON / 2.0,
-            10.0,
-            1e5,
-        ];
-        // Log-uniform over the normal range, and uniform near 1 where the
-        // logarithm is small.
-        let wide: Vec<f64> = (0..200_000)
-            .map(|_| (g.uniform() * 1400.0 - 700.0).exp())
-            .collect();
-        let near_one: Vec<f64> = (0..200_000).map(|_| 0.5 + 1.5 * g.uniform()).collect();
-        for x in edges.into_iter().chain(wide).chain(near_one) {
-            let (got, want) = (fast_ln(x), x.ln());
-            assert!(
-                (got - want).abs() <= 1e-15 * want.abs(),
-                "ln {x:e}: {got:e} vs {want:e}"
-            );
-        }
-    }
-
-    #[test]
-    fn the_bracketed_verdict_agrees_with_the_exact_test() {
-        // Every candidate the verdict decides, decided as the exact test
-        // does: random draws (nearly all decided), and draws whose v puts
-        // the test's two sides within 1e-6 .. 1e-10 of each other, some
-        // of which the verdict must still decide.
-        let mut g = SplitMix64(5);
-        let (mut decided, mut total, mut close_decided) = (0usize, 0usize, 0usize);
-        let check = |p: &Ptrs, ln_lam: f64, (us, v, k): (f64, f64, f64)| {
-            let (accepted, is_decided) = p.verdict(ln_lam, us, v, k);
-            if is_decided {
-                assert_eq!(
-                    accepted,
-                    p.accept(us, v, k).is_some(),
-                    "{} {k} {us} {v}",
-                    p.lam
-                );
-            }
-            is_decided
-        };
-        for lam in [10.0, 10.5, 17.0, 60.0, 700.0, 3e3, 1e5, 4e5] {
-            let p = Ptrs::new(lam);
-            let ln_lam = fast_ln(lam);
-            for _ in 0..100_000 {
-                let (k, us, _) = p.candidate(g.uniform(), g.uniform());
-                total += 1;
-                decided += usize::from(check(&p, ln_lam, (us, g.uniform(), k)));
-                if k < 10.0 || us < 0.013 {
-                    continue;
-                }
-                let rhs = -lam + k * lam.ln() - ln_factorial(k);
-                let v_edge = rhs.exp() / p.acceptance_bound(us, 1.0);
-                for nudge in [1e-6, -1e-6, 1e-8, -1e-8, 1e-10, -1e-10] {
-                    let v = v_edge * (1.0 + nudge);
-                    if v < 1.0 {
-                        close_decided += usize::from(check(&p, ln_lam, (us, v, k)));
-                    }
-                }
-            }
-        }
-        assert!(
-            decided as f64 > 0.9999 * total as f64,
-            "{decided} of {total}"
-        );
-        assert!(close_decided > 1000, "{close_decided}");
     }
 
     #[test]
@@ -741,6 +595,13 @@ mod tests {
             1e15 + 0.5,
             -1e17,
             1e300,
+            // Around 2^52, where adding 2^52 would round by 2, and the
+            // float just below 1/2, which the addition rounds up.
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            4_503_599_627_370_496.0,
+            0.499_999_999_999_999_94,
+            -0.499_999_999_999_999_94,
         ] {
             assert_eq!(floor(v), v.floor(), "{v}");
         }

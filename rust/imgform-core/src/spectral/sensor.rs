@@ -737,51 +737,6 @@ mod tests {
         }
     }
 
-    /// Single-thread read-out time per pixel at the benchmark's means (a
-    /// uniform RGB image through its camera matrix at 10 ms: ~30 to 4000
-    /// e-) with its read noise, scalar per-pixel model vs the dispatched
-    /// lanes. A measurement, not a check: `cargo test --release -p
-    /// imgform-core --lib readout_time -- --ignored --nocapture`.
-    #[test]
-    #[ignore = "a timing, run by hand"]
-    fn readout_time_per_pixel() {
-        let s = Sensor {
-            read_noise: 2.5,
-            dark_current: 0.5,
-            full_well: 2e4,
-            electrons_per_dn: 1.25,
-            black_level: 512,
-            bit_depth: 14,
-            ..ideal()
-        };
-        let (w, h) = (3000, 400);
-        let mut g = SplitMix64::for_site(7, 0, 0);
-        let rates: Vec<f64> = (0..w * h).map(|_| 30.0 + 4000.0 * g.uniform()).collect();
-        let columns = vec![0.0; w];
-        let readout = Readout::new(&s);
-        let time = |f: &mut dyn FnMut(usize, &[f64], &mut [u16])| {
-            let mut out = vec![0u16; w];
-            let mut best = f64::INFINITY;
-            for _ in 0..3 {
-                let t = std::time::Instant::now();
-                for y in 0..h {
-                    f(y, &rates[y * w..(y + 1) * w], &mut out);
-                }
-                best = best.min(t.elapsed().as_secs_f64() / (w * h) as f64 * 1e9);
-            }
-            std::hint::black_box(&out);
-            best
-        };
-        let pixels = time(&mut |y, r, o| {
-            let keys = RowKeys::new(&s, y);
-            for x in 0..w {
-                o[x] = readout.pixel(&keys, x, r[x], 0.0);
-            }
-        });
-        let lanes = time(&mut |y, r, o| readout.row(&s, y, r, &columns, o));
-        println!("read-out, ns/pixel, 1 thread: per pixel {pixels:.1}, lanes {lanes:.1}");
-    }
-
     #[test]
     fn the_falloff_dims_each_pixel_by_its_cos4() {
         let (w, h) = (48, 40);
