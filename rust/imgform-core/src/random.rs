@@ -186,7 +186,7 @@ impl Ptrs {
         // The squeeze `v <= 0.9277 - 3.6224 / (b - 2)` (b > 8 here),
         // multiplied out to spare a division: ~80 % of draws end here,
         // without a logarithm.
-        let squeezed = us >= 0.07 && (0.9277 - v) * (self.b - 2.0) >= 3.6224;
+        let squeezed = (us >= 0.07) & ((0.9277 - v) * (self.b - 2.0) >= 3.6224);
         (k, us, squeezed)
     }
 
@@ -321,14 +321,17 @@ fn with_sign(x: f64, bits: u64) -> f64 {
 /// float is an integer already.
 #[inline(always)]
 fn floor(v: f64) -> f64 {
-    if v.abs() >= 4_503_599_627_370_496.0 {
-        return v;
-    }
-    let t = v as i64 as f64;
-    if t > v {
-        t - 1.0
+    const TWO_52: f64 = 4_503_599_627_370_496.0;
+    let shift = TWO_52.copysign(v);
+    let r = if v.abs() < TWO_52 {
+        (v + shift) - shift
     } else {
-        t
+        v
+    };
+    if r > v {
+        r - 1.0
+    } else {
+        r
     }
 }
 
@@ -502,28 +505,68 @@ mod tests {
         }
     }
 
+    /// A Poisson variate then two normals per lane, the sensor's draws.
+    #[inline(always)]
+    fn lane_draws(lanes: &mut Lanes, lam: &[f64; LANES], z: &Ziggurat) -> [[f64; LANES]; 3] {
+        [lanes.poisson(lam), lanes.normal(z), lanes.normal(z)]
+    }
+
+    /// [`lane_draws`] compiled as the sensor's AVX2 read-out is.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn lane_draws_avx2(
+        lanes: &mut Lanes,
+        lam: &[f64; LANES],
+        z: &Ziggurat,
+    ) -> [[f64; LANES]; 3] {
+        lane_draws(lanes, lam, z)
+    }
+
     #[test]
     fn lanes_draw_what_each_site_draws_alone() {
         // Means on both sides of the PTRS switch and of the squeeze, mixed
-        // across lanes; normals with their rare edge and tail cases.
+        // across lanes (10 and 12.5 send many candidates below k = 10 to
+        // the exact test), then means log-uniform from 0.1 to 1e6; normals with their rare edge and
+        // tail cases. The baseline and the AVX2 builds of the lanes must
+        // both give each site's own draws.
         let z = ziggurat();
         let means = [0.0, 0.3, 4.0, 9.99, 10.0, 12.5, 60.0, 3e3, 1e5, -1.0];
-        for row in 0..2000u64 {
-            let base = SplitMix64::row_base(SplitMix64::row_key(9, row as usize));
-            let x0 = (row as usize % 5) * LANES;
-            let lam: [f64; LANES] = std::array::from_fn(|i| means[(i + row as usize) % 10]);
+        let mut g = SplitMix64(31);
+        for row in 0..6000usize {
+            let base = SplitMix64::row_base(SplitMix64::row_key(9, row));
+            let x0 = (row % 5) * LANES;
+            let lam: [f64; LANES] = if row < 2000 {
+                std::array::from_fn(|i| means[(i + row) % 10])
+            } else {
+                std::array::from_fn(|_| 10f64.powf(7.0 * g.uniform() - 1.0))
+            };
             let mut lanes = Lanes::at(base, x0);
-            let (p, n) = (lanes.poisson(&lam), lanes.normal(z));
-            let more = lanes.normal(z);
+            let got = lane_draws(&mut lanes, &lam, z);
+            #[cfg(target_arch = "x86_64")]
+            if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+                let mut wide = Lanes::at(base, x0);
+                // SAFETY: AVX2 and FMA support was detected above.
+                let wide_got = unsafe { lane_draws_avx2(&mut wide, &lam, z) };
+                assert_eq!(
+                    wide_got.map(|d| d.map(f64::to_bits)),
+                    got.map(|d| d.map(f64::to_bits))
+                );
+                assert_eq!(wide.0, lanes.0, "row {row}");
+            }
             for i in 0..LANES {
                 let mut g = SplitMix64::at(base, x0 + i);
-                assert_eq!(p[i], g.poisson(lam[i]), "row {row} lane {i}");
-                assert_eq!(n[i].to_bits(), g.normal().to_bits(), "row {row} lane {i}");
-                assert_eq!(
-                    more[i].to_bits(),
-                    g.normal().to_bits(),
-                    "row {row} lane {i}"
-                );
+                let want = [g.poisson(lam[i]), g.normal(), g.normal()];
+                for (d, w) in got.iter().zip(want) {
+                    assert_eq!(
+                        d[i].to_bits(),
+                        w.to_bits(),
+                        "row {row} lane {i} mean {}",
+                        lam[i]
+                    );
+                }
                 assert_eq!(lanes.0[i], g.0);
             }
         }
@@ -552,6 +595,13 @@ mod tests {
             1e15 + 0.5,
             -1e17,
             1e300,
+            // Around 2^52, where adding 2^52 would round by 2, and the
+            // float just below 1/2, which the addition rounds up.
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            4_503_599_627_370_496.0,
+            0.499_999_999_999_999_94,
+            -0.499_999_999_999_999_94,
         ] {
             assert_eq!(floor(v), v.floor(), "{v}");
         }
