@@ -49,6 +49,22 @@ pub fn finite(name: &str, value: f64) -> Result<f64> {
     }
 }
 
+/// `true` for an image sample a kernel can take as a physical quantity
+/// (radiance, exposure, density, rate): finite and >= 0 (NaN fails both
+/// comparisons).
+#[inline(always)]
+pub(crate) fn is_valid_sample(v: f32) -> bool {
+    (0.0..=f32::MAX).contains(&v)
+}
+
+/// `true` when every sample of `x` is valid: a branch-free fold, which
+/// compiles to packed compares, so the check costs little beside a kernel
+/// that reads the same samples.
+#[inline(always)]
+pub(crate) fn all_valid(x: &[f32]) -> bool {
+    x.iter().fold(true, |ok, &v| ok & is_valid_sample(v))
+}
+
 /// Checks that every entry of a small parameter array (a matrix, a vector of
 /// coefficients) is finite.
 ///
@@ -67,6 +83,14 @@ pub fn all_finite(name: &str, values: &[f64]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn samples_must_be_finite_and_non_negative() {
+        assert!(all_valid(&[0.0, 1.0, f32::MAX]));
+        for bad in [-1e-30, f32::NAN, f32::INFINITY] {
+            assert!(!all_valid(&[1.0, bad]), "{bad}");
+        }
+    }
 
     #[test]
     fn positive_rejects_zero_nan_and_negative() {

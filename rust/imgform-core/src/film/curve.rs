@@ -84,9 +84,20 @@ impl Curve {
         let t = x * self.scale + self.shift;
         // `max` maps NaN to 0 too; then the index is in 0..last.
         let t = t.max(0.0).min(last as f32);
-        let i = (t as usize).min(last - 1);
+        // An i32 conversion and unchecked reads let a loop of lookups
+        // compile to packed conversions and gathers (a usize conversion and
+        // bounds checks would not vectorise).
+        let i = (t as i32).clamp(0, last as i32 - 1) as usize;
         let f = t - i as f32;
-        self.density[i] + f * (self.density[i + 1] - self.density[i])
+        debug_assert!(i < last);
+        // SAFETY: `i <= last - 1`, so `i` and `i + 1` index `density`.
+        let (lo, hi) = unsafe {
+            (
+                *self.density.get_unchecked(i),
+                *self.density.get_unchecked(i + 1),
+            )
+        };
+        lo + f * (hi - lo)
     }
 
     /// The smallest density of the curve: its fog (negative) or its

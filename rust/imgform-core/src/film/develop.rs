@@ -104,9 +104,11 @@ impl Emulsion {
     ///
     /// Each step that reads no neighbours runs inside the pass before it,
     /// on the row in cache: the halation's column pass takes the log
-    /// exposures (stored once); without couplers the curves follow there
-    /// too. With couplers: the donors' densities, their row blur, then row
-    /// by row their column blur and the receivers' inhibited curves.
+    /// exposures, and without couplers the curves follow there too, so
+    /// nothing else is stored. With couplers the log exposures are stored
+    /// once (both stages read them): the donors' densities, their row blur,
+    /// then row by row their column blur and the receivers' inhibited
+    /// curves.
     ///
     /// # Errors
     /// [`crate::CoreError::Shape`] for mismatched buffers or a halation of
@@ -132,6 +134,14 @@ impl Emulsion {
         let log_gain = positive("the exposure gain", gain)?.log10() as f32;
         check_samples("exposures", exposure, width, n)?;
         let row_len = width * n;
+        if let (Some(h), None) = (halation, &self.couplers) {
+            // Each row is final once halated: no log exposures are stored.
+            h.apply_then(exposure, (width, height), out, |_, row| {
+                log_exposure_in_place(log_gain, row);
+                curves_in_place(&self.curves, row);
+            });
+            return Ok(());
+        }
         let logs = halation.map(|h| {
             let mut logs = vec![0.0f32; exposure.len()];
             h.apply_then(exposure, (width, height), &mut logs, |_, row| {
@@ -150,17 +160,16 @@ impl Emulsion {
         let Some(dir) = &self.couplers else {
             for_each_row(out, row_len, |y, row| {
                 log_row(y, row);
-                self.curves_in_place(row);
+                curves_in_place(&self.curves, row);
             });
             return Ok(());
         };
         let mins: Vec<f32> = self.curves.iter().map(Curve::min_density).collect();
         for_each_row(out, row_len, |y, row| {
             log_row(y, row);
+            curves_in_place(&self.curves, row);
             for d in row.chunks_exact_mut(n) {
-                for ((v, c), m) in d.iter_mut().zip(&self.curves).zip(&mins) {
-                    *v = c.eval(*v) - m;
-                }
+                d.iter_mut().zip(&mins).for_each(|(v, m)| *v -= m);
             }
         });
         let mut donors = vec![0.0f32; out.len()];
@@ -179,9 +188,10 @@ impl Emulsion {
                     for (i, v) in d.iter_mut().enumerate() {
                         let a = &dir.matrix[i * n..][..n];
                         let inhibition: f32 = a.iter().zip(q).map(|(a, q)| a * q).sum();
-                        *v = dir.corrected[i].eval(*v - inhibition);
+                        *v -= inhibition;
                     }
                 }
+                curves_in_place(&dir.corrected, row);
             },
         );
         Ok(())
@@ -195,14 +205,39 @@ impl Emulsion {
     pub fn develop_in_place(&self, log_gain: f32, row: &mut [f32]) {
         debug_assert!(self.couplers.is_none());
         log_exposure_in_place(log_gain, row);
-        self.curves_in_place(row);
+        curves_in_place(&self.curves, row);
     }
+}
 
-    /// Log exposures to densities by the stated curves, pixel by pixel.
-    fn curves_in_place(&self, row: &mut [f32]) {
-        for d in row.chunks_exact_mut(self.layers()) {
-            for (v, c) in d.iter_mut().zip(&self.curves) {
-                *v = c.eval(*v);
+wide!(
+    /// Log exposures to densities over a row of interleaved layers, in
+    /// place, layer `k` by `curves[k]`, 8 lanes wide where the CPU has them.
+    fn curves_in_place = curves_by_layer(curves: &[Curve], row: &mut [f32])
+);
+
+/// Pixels per block of [`curves_by_layer`]: one layer's samples of a block
+/// fit a 1 KiB stack array.
+const CURVE_BLOCK: usize = 256;
+
+/// [`curves_in_place`]: the layers are interleaved, and a loop over pixels
+/// with one curve per layer would not vectorise, so each block of pixels
+/// copies one layer's samples to a contiguous array, looks them all up
+/// there (packed conversions and gathers) and copies them back.
+#[inline(always)]
+fn curves_by_layer(curves: &[Curve], row: &mut [f32]) {
+    let n = curves.len();
+    let mut plane = [0.0f32; CURVE_BLOCK];
+    for block in row.chunks_mut(CURVE_BLOCK * n) {
+        let plane = &mut plane[..block.len() / n];
+        for (k, c) in curves.iter().enumerate() {
+            for (p, v) in plane.iter_mut().zip(block[k..].iter().step_by(n)) {
+                *p = *v;
+            }
+            for p in plane.iter_mut() {
+                *p = c.eval(*p);
+            }
+            for (v, p) in block[k..].iter_mut().step_by(n).zip(plane.iter()) {
+                *v = *p;
             }
         }
     }

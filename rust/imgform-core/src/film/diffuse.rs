@@ -55,11 +55,16 @@ pub fn blur_rows(src: &[f32], width: usize, channels: usize, taps: &[f32], out: 
     for_each_band(out, row_len, ROWS_PER_TASK, |y0, rows| {
         // One padded copy of the source row per row, reused within the band.
         let mut padded = vec![0.0f32; row_len + 2 * pad];
+        let reach = taps.len() - 1;
         for (i, row) in rows.chunks_mut(row_len).enumerate() {
             let line = &src[(y0 + i) * row_len..][..row_len];
-            for (x, p) in padded.chunks_mut(channels).enumerate() {
-                let sx = mirror(x as isize - (taps.len() as isize - 1), width);
-                p.copy_from_slice(&line[sx * channels..][..channels]);
+            padded[pad..pad + row_len].copy_from_slice(line);
+            // Only the `reach` pixels beyond either end are mirrored.
+            let ends = (0..reach).chain(reach + width..2 * reach + width);
+            for x in ends {
+                let sx = mirror(x as isize - reach as isize, width);
+                padded[x * channels..][..channels]
+                    .copy_from_slice(&line[sx * channels..][..channels]);
             }
             convolve_row_wide(&padded, pad, channels, taps, row);
         }
@@ -120,7 +125,8 @@ fn column(rows: &[(&[f32], &[f32])], taps: &[f32], out: &mut [f32]) {
 /// The column pass of [`blur`] over the row pass's output `across`, handing
 /// each blurred row to `finish(y, blurred, out_row)` (out rows of
 /// `out_row_len` elements): the per-pixel stage that reads the blur runs
-/// while the row is in cache, and no blurred image is stored.
+/// while a band's few blurred rows are in cache, and no blurred image is
+/// stored.
 #[allow(clippy::too_many_arguments)]
 pub fn blur_columns_then<T, F>(
     across: &[f32],
@@ -137,18 +143,35 @@ pub fn blur_columns_then<T, F>(
 {
     let row_len = width * channels;
     for_each_band(out, out_row_len, ROWS_PER_TASK, |y0, rows| {
-        let mut blurred = vec![0.0f32; row_len];
+        let band = rows.len() / out_row_len;
+        let mut blurred = vec![0.0f32; band * row_len];
         let mut lines: Vec<(&[f32], &[f32])> = Vec::with_capacity(taps.len());
-        for (i, row) in rows.chunks_mut(out_row_len).enumerate() {
-            let y = y0 + i;
-            let at = |dy: isize| &across[mirror(y as isize + dy, height) * row_len..][..row_len];
-            lines.clear();
-            lines.extend((0..taps.len() as isize).map(|t| (at(-t), at(t))));
-            column_wide(&lines, taps, &mut blurred);
-            finish(y, &blurred, row);
+        // Strip by strip, so that the rows the band's taps read stay in the
+        // second-level cache from one output row to the next (whole rows of
+        // a wide image, times the taps, would not fit).
+        for x0 in (0..row_len).step_by(COLUMN_STRIP) {
+            let len = COLUMN_STRIP.min(row_len - x0);
+            for (i, b) in blurred.chunks_exact_mut(row_len).enumerate() {
+                let y = (y0 + i) as isize;
+                let at = |dy: isize| &across[mirror(y + dy, height) * row_len + x0..][..len];
+                lines.clear();
+                lines.extend((0..taps.len() as isize).map(|t| (at(-t), at(t))));
+                column_wide(&lines, taps, &mut b[x0..x0 + len]);
+            }
+        }
+        for (i, (b, row)) in blurred
+            .chunks_exact(row_len)
+            .zip(rows.chunks_mut(out_row_len))
+            .enumerate()
+        {
+            finish(y0 + i, b, row);
         }
     });
 }
+
+/// Samples per strip of the column pass: a band's rows within reach of a
+/// wide blur (8 + 60 for the halation's) take 270 KB of strips of 1024.
+const COLUMN_STRIP: usize = 1024;
 
 #[cfg(test)]
 mod tests {

@@ -1,5 +1,5 @@
-//! `2^x` and `log2 x` in f32 that vectorise, and the CPU check that picks
-//! the AVX2 + FMA builds of the film's row kernels.
+//! `2^x` and `log2 x` in f32 that vectorise, and the macro that builds the
+//! film's row kernels for AVX2 + FMA.
 //!
 //! A call to `exp2f` or `log10f` is opaque to the vectoriser, and the film
 //! takes 41 exponentials per printed pixel and a logarithm per layer and
@@ -56,19 +56,6 @@ pub fn log2(x: f32) -> f32 {
     e as f32 + series * std::f32::consts::LOG2_E
 }
 
-/// `true` when the CPU has AVX2 and FMA, the features the film's wide row
-/// kernels are compiled for (`std` caches the detection).
-pub fn has_avx2_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
 /// Defines `fn $name(args)` that runs the `#[inline(always)]` function
 /// `$plain(args)` compiled for AVX2 and FMA when the CPU has them, and as it
 /// is otherwise: the film's row loops are plain loops over slices, and this
@@ -89,7 +76,7 @@ macro_rules! wide {
                 $plain($($arg),*)
             }
             #[cfg(target_arch = "x86_64")]
-            if $crate::film::fastmath::has_avx2_fma() {
+            if $crate::cpu::has_avx2_fma() {
                 // SAFETY: AVX2 and FMA support was detected just above.
                 return unsafe { with_avx2_fma($($arg),*) };
             }

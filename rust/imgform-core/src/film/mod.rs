@@ -26,17 +26,32 @@ pub mod transmit;
 
 use rayon::prelude::*;
 
-use crate::error::CoreError;
+use crate::error::{all_valid, is_valid_sample, CoreError};
 use crate::invalid;
 
+/// Samples per task of [`check_samples`].
+const CHECK_BLOCK: usize = 1 << 14;
+
 /// The error for the first sample of an `(H, W, C)` buffer that is not a
-/// finite number >= 0, or `Ok` when every sample is. `position_first` makes
-/// the pixel named the same for any thread count.
+/// finite number >= 0, or `Ok` when every sample is.
+///
+/// Every sample is valid in the common case, so each block is scanned by
+/// [`all_valid`]'s packed compares with no branch per sample (a per-sample
+/// `position_first` cost as much as the kernels it guards);
+/// only a block holding a bad sample is searched for it, and taking the
+/// first such block names the same pixel for any thread count.
 fn check_samples(what: &str, data: &[f32], width: usize, channels: usize) -> Result<(), CoreError> {
-    match data
-        .par_iter()
-        .position_first(|v| !(0.0..=f32::MAX).contains(v))
-    {
+    let first = data
+        .par_chunks(CHECK_BLOCK)
+        .position_first(|block| !all_valid(block))
+        .and_then(|k| {
+            let start = k * CHECK_BLOCK;
+            data[start..]
+                .iter()
+                .position(|v| !is_valid_sample(*v))
+                .map(|i| start + i)
+        });
+    match first {
         None => Ok(()),
         Some(i) => {
             let pixel = i / channels;
@@ -92,6 +107,22 @@ mod tests {
             .to_string();
         assert!(err.contains("row 2, column 3), channel 1 is -1"), "{err}");
         assert!(check_samples("exposure", &[0.0, 1.0], 1, 2).is_ok());
+        // Past the first block, and the first of two blocks holding one.
+        let mut long = vec![1.0f32; 5 * CHECK_BLOCK];
+        long[3 * CHECK_BLOCK + 7] = f32::INFINITY;
+        long[4 * CHECK_BLOCK] = -0.0 - 1e-30;
+        let err = check_samples("density", &long, 1, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("row {}", 3 * CHECK_BLOCK + 7)),
+            "{err}"
+        );
+        long[3 * CHECK_BLOCK + 7] = f32::MAX;
+        let err = check_samples("density", &long, 1, 1)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(&format!("row {}", 4 * CHECK_BLOCK)), "{err}");
     }
 
     #[test]

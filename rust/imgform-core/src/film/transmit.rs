@@ -19,20 +19,20 @@ use crate::invalid;
 use crate::parallel::for_each_band;
 use crate::parallel::ROWS_PER_TASK;
 
-/// The spectra are stored padded to whole groups of this many wavelengths,
-/// an AVX2 register of f32: the padding's exponent is 0 and its response 0,
-/// so it adds exactly nothing, and the loops need no tail.
-const LANES: usize = 8;
+/// Pixels per step of [`transmit_row`]: one per lane of an AVX2 register
+/// of f32, so each wavelength's exponent, exponential and response sums are
+/// single packed instructions for eight pixels, with no horizontal sums.
+const PIXELS: usize = 8;
 
 /// The spectral model of one developed film: base density and the dyes'
 /// spectral densities on a grid of `grid_len` wavelengths.
 #[derive(Debug, Clone)]
 pub struct Dyes {
     grid_len: usize,
-    /// `-log2(10) b(λ)`, so that the transmittance is `2^(base + Σ D_i dye_i)`,
-    /// padded to a multiple of [`LANES`].
+    /// `-log2(10) b(λ)`, so that the transmittance is `2^(base + Σ D_i dye_i)`.
     base: Vec<f32>,
-    /// `-log2(10) e_i(λ)`, layer-major, each layer padded as `base`.
+    /// `-log2(10) e_i(λ)`, wavelength-major (`layers` values per
+    /// wavelength): the loop over wavelengths reads them in order.
     dyes: Vec<f32>,
 }
 
@@ -63,24 +63,19 @@ impl Dyes {
         let scale = |d: f64| (-d * std::f64::consts::LOG2_10) as f32;
         Ok(Self {
             grid_len: l,
-            base: padded(base, l, scale),
-            dyes: padded(dyes, l, scale),
+            base: base.iter().map(|&b| scale(b)).collect(),
+            dyes: by_wavelength(dyes, l, scale),
         })
     }
 
     /// Number of dye layers.
     pub fn layers(&self) -> usize {
-        self.dyes.len() / self.lanes()
+        self.dyes.len() / self.grid_len
     }
 
     /// Number of wavelengths.
     pub fn grid_len(&self) -> usize {
         self.grid_len
-    }
-
-    /// The padded length of one spectrum.
-    fn lanes(&self) -> usize {
-        self.base.len()
     }
 
     /// `out (H, W, m) = Σ_λ 10^-D(λ) R_k(λ)` for densities `(H, W, layers)`
@@ -130,39 +125,18 @@ impl Dyes {
         let m = response.len() / l;
         check_lengths(width, height, (density, n), (out, m))?;
         check_samples("densities", density, width, n)?;
-        let resp = padded(response, l, |r| r as f32);
+        let resp = by_wavelength(response, l, |r| r as f32);
         for_each_band(out, width * m, ROWS_PER_TASK, |y0, rows| {
-            // The spectrum of one pixel, reused for every pixel of the band.
-            let mut t = vec![0.0f32; self.lanes()];
+            // Eight pixels' dye amounts and spectra, reused within the band.
+            let mut amounts = vec![0.0f32; n * PIXELS];
+            let mut spectra = vec![0.0f32; l * PIXELS];
             for (i, row) in rows.chunks_mut(width * m).enumerate() {
                 let src = &density[(y0 + i) * width * n..][..width * n];
-                transmit_row_wide(self, src, &resp, &mut t, row);
+                transmit_row_wide(self, src, &resp, (&mut amounts, &mut spectra), row);
                 finish(row);
             }
         });
         Ok(())
-    }
-
-    /// One pixel of [`Dyes::transmit`]: the spectrum `t = 2^(base + Σ D_i
-    /// dye_i)` and its dot with each response, summed in [`LANES`] partial
-    /// sums (fixed order: the same bits on every path and thread).
-    #[inline(always)]
-    fn pixel(&self, density: &[f32], response: &[f32], t: &mut [f32], out: &mut [f32]) {
-        let lanes = self.lanes();
-        t.copy_from_slice(&self.base);
-        for (di, e) in density.iter().zip(self.dyes.chunks_exact(lanes)) {
-            t.iter_mut().zip(e).for_each(|(v, e)| *v += di * e);
-        }
-        t.iter_mut().for_each(|v| *v = exp2(*v));
-        for (v, r) in out.iter_mut().zip(response.chunks_exact(lanes)) {
-            let mut acc = [0.0f32; LANES];
-            for (a, b) in t.chunks_exact(LANES).zip(r.chunks_exact(LANES)) {
-                for j in 0..LANES {
-                    acc[j] += a[j] * b[j];
-                }
-            }
-            *v = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
-        }
     }
 }
 
@@ -172,36 +146,76 @@ wide!(
         dyes: &Dyes,
         density: &[f32],
         response: &[f32],
-        t: &mut [f32],
+        scratch: (&mut [f32], &mut [f32]),
         out: &mut [f32],
     )
 );
 
-/// The pixels of one row through [`Dyes::pixel`]; `out` holds
-/// `response.len() / lanes` values per pixel.
+/// The pixels of one row, eight at a time, the pixels across the lanes:
+/// first the transmittance `2^(base + Σ D_i dye_i)` at every wavelength,
+/// then its dot with each response, summed in a register over the
+/// wavelengths in order (every path and thread gives the same bits).
+/// `response` is wavelength-major as [`Dyes::dyes`], `out` holds `m`
+/// values per pixel, and `scratch` holds the block's amounts (`layers x 8`,
+/// layer-major) and spectra (`grid_len x 8`).
 #[inline(always)]
-fn transmit_row(dyes: &Dyes, density: &[f32], response: &[f32], t: &mut [f32], out: &mut [f32]) {
-    let m = response.len() / dyes.lanes();
-    for (d, o) in density
-        .chunks_exact(dyes.layers())
-        .zip(out.chunks_exact_mut(m))
-    {
-        dyes.pixel(d, response, t, o);
+fn transmit_row(
+    dyes: &Dyes,
+    density: &[f32],
+    response: &[f32],
+    (amounts, spectra): (&mut [f32], &mut [f32]),
+    out: &mut [f32],
+) {
+    let (n, l) = (dyes.layers(), dyes.grid_len);
+    let m = response.len() / l;
+    for (d, o) in density.chunks(n * PIXELS).zip(out.chunks_mut(m * PIXELS)) {
+        let count = d.len() / n;
+        for (i, a) in amounts.chunks_exact_mut(PIXELS).enumerate() {
+            // A short block's missing pixels get density 0: computed, never stored.
+            for (j, v) in a.iter_mut().enumerate() {
+                *v = if j < count { d[j * n + i] } else { 0.0 };
+            }
+        }
+        for ((t, b), e) in spectra
+            .chunks_exact_mut(PIXELS)
+            .zip(&dyes.base)
+            .zip(dyes.dyes.chunks_exact(n))
+        {
+            let mut x = [*b; PIXELS];
+            for (a, e) in amounts.chunks_exact(PIXELS).zip(e) {
+                for (x, a) in x.iter_mut().zip(a) {
+                    *x += a * e;
+                }
+            }
+            for (t, x) in t.iter_mut().zip(&x) {
+                *t = exp2(*x);
+            }
+        }
+        for k in 0..m {
+            let mut sum = [0.0f32; PIXELS];
+            for (t, r) in spectra
+                .chunks_exact(PIXELS)
+                .zip(response[k..].iter().step_by(m))
+            {
+                for (s, t) in sum.iter_mut().zip(t) {
+                    *s += t * r;
+                }
+            }
+            for (j, s) in sum.iter().take(count).enumerate() {
+                o[j * m + k] = *s;
+            }
+        }
     }
 }
 
-/// Spectra of `l` samples (`values` holds a whole number of them) mapped by
-/// `f` and padded with zeros to a multiple of [`LANES`] each.
-fn padded(values: &[f64], l: usize, f: impl Fn(f64) -> f32) -> Vec<f32> {
-    let lanes = l.div_ceil(LANES) * LANES;
-    values
-        .chunks_exact(l)
-        .flat_map(|s| {
-            s.iter()
-                .map(|&v| f(v))
-                .chain(std::iter::repeat(0.0))
-                .take(lanes)
-        })
+/// Spectra of `l` samples (`values` holds a whole number of them, one after
+/// the other) mapped by `f` and stored wavelength-major: for each
+/// wavelength, its sample of every spectrum.
+fn by_wavelength(values: &[f64], l: usize, f: impl Fn(f64) -> f32) -> Vec<f32> {
+    let count = values.len() / l;
+    let f = &f;
+    (0..l)
+        .flat_map(|w| (0..count).map(move |k| f(values[k * l + w])))
         .collect()
 }
 
@@ -229,8 +243,9 @@ mod tests {
     }
 
     #[test]
-    fn the_wide_pixel_gives_the_plain_bits_and_padding_adds_nothing() {
-        // 41 wavelengths (padded to 48), 3 dyes, 3 responses.
+    fn the_wide_row_gives_the_plain_bits_in_full_and_short_blocks() {
+        // 41 wavelengths, 3 dyes, 3 responses; 11 pixels: a full block of
+        // eight and a short one.
         let l = 41;
         let spectrum = |k: usize| -> Vec<f64> {
             (0..l)
@@ -241,26 +256,39 @@ mod tests {
         let dyes: Vec<f64> = (1..4).flat_map(spectrum).collect();
         let response: Vec<f64> = (4..7).flat_map(spectrum).collect();
         let model = Dyes::new(&base, &dyes).unwrap();
-        let resp = padded(&response, l, |r| r as f32);
-        let density = [0.3f32, 1.7, 0.9];
-        let mut t = vec![0.0; model.lanes()];
-        let (mut plain, mut wide_px) = ([0.0f32; 3], [0.0f32; 3]);
-        transmit_row(&model, &density, &resp, &mut t, &mut plain);
-        transmit_row_wide(&model, &density, &resp, &mut t, &mut wide_px);
+        let resp = by_wavelength(&response, l, |r| r as f32);
+        let density: Vec<f32> = (0..33).map(|i| (i % 10) as f32 * 0.2).collect();
+        let (mut amounts, mut spectra) = (vec![0.0; 3 * PIXELS], vec![0.0; l * PIXELS]);
+        let (mut plain, mut wide_px) = (vec![0.0f32; 33], vec![0.0f32; 33]);
+        transmit_row(
+            &model,
+            &density,
+            &resp,
+            (&mut amounts, &mut spectra),
+            &mut plain,
+        );
+        transmit_row_wide(
+            &model,
+            &density,
+            &resp,
+            (&mut amounts, &mut spectra),
+            &mut wide_px,
+        );
         assert_eq!(plain, wide_px);
-        for (k, got) in plain.iter().enumerate() {
+        for (i, got) in plain.iter().enumerate() {
+            let (p, k) = (i / 3, i % 3);
             let want: f64 = (0..l)
-                .map(|i| {
-                    let d = base[i]
+                .map(|w| {
+                    let d = base[w]
                         + (0..3)
-                            .map(|j| f64::from(density[j]) * dyes[j * l + i])
+                            .map(|j| f64::from(density[p * 3 + j]) * dyes[j * l + w])
                             .sum::<f64>();
-                    10f64.powf(-d) * response[k * l + i]
+                    10f64.powf(-d) * response[k * l + w]
                 })
                 .sum();
             assert!(
                 (f64::from(*got) / want - 1.0).abs() < 2e-6,
-                "{k}: {got} vs {want}"
+                "pixel {p} response {k}: {got} vs {want}"
             );
         }
     }

@@ -22,6 +22,8 @@ pub mod sensor;
 
 use rayon::prelude::*;
 
+pub(crate) use crate::cpu::has_avx2_fma;
+pub(crate) use crate::error::{all_valid, is_valid_sample};
 use crate::parallel::ROWS_PER_TASK;
 
 /// Runs `kernel(first_row, rows)` over bands of [`ROWS_PER_TASK`] rows of
@@ -40,26 +42,6 @@ where
         .enumerate()
         .filter_map(|(band, rows)| kernel(band * ROWS_PER_TASK, rows))
         .min()
-}
-
-/// `true` when the CPU has AVX2 and FMA, the features the kernels' wide
-/// variants are compiled for (the detection is cached by `std`).
-fn has_avx2_fma() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// `true` for a radiance, reflectance or rate sample a sensor can see:
-/// finite and >= 0 (NaN fails both comparisons).
-#[inline(always)]
-fn is_valid_sample(v: f32) -> bool {
-    (0.0..=f32::MAX).contains(&v)
 }
 
 /// `Σ x_i w_i` in f64, with four partial sums so the loop vectorises; the
@@ -83,13 +65,6 @@ fn dot(x: &[f32], w: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// `true` when every sample of `x` is valid; a branch-free fold, so the
-/// check costs little beside the dot product that reads the same samples.
-#[inline(always)]
-fn all_valid(x: &[f32]) -> bool {
-    x.iter().fold(true, |ok, &v| ok & is_valid_sample(v))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -101,14 +76,6 @@ mod tests {
             let w: Vec<f64> = (0..n).map(|i| 1.0 / (i as f64 + 1.0)).collect();
             let want: f64 = x.iter().zip(&w).map(|(a, b)| f64::from(*a) * b).sum();
             assert!((dot(&x, &w) - want).abs() < 1e-12, "{n}");
-        }
-    }
-
-    #[test]
-    fn samples_must_be_finite_and_non_negative() {
-        assert!(all_valid(&[0.0, 1.0, f32::MAX]));
-        for bad in [-1e-30, f32::NAN, f32::INFINITY] {
-            assert!(!all_valid(&[1.0, bad]), "{bad}");
         }
     }
 
