@@ -184,7 +184,7 @@ fn transmit_row(
             let mut x = [*b; PIXELS];
             for (a, e) in amounts.chunks_exact(PIXELS).zip(e) {
                 for (x, a) in x.iter_mut().zip(a) {
-                    *x += a * e;
+                    *x = a.mul_add(*e, *x);
                 }
             }
             for (t, x) in t.iter_mut().zip(&x) {
@@ -198,7 +198,7 @@ fn transmit_row(
                 .zip(response[k..].iter().step_by(m))
             {
                 for (s, t) in sum.iter_mut().zip(t) {
-                    *s += t * r;
+                    *s = t.mul_add(*r, *s);
                 }
             }
             for (j, s) in sum.iter().take(count).enumerate() {
