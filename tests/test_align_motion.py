@@ -366,6 +366,20 @@ def test_bad_input_is_refused_or_flagged():
         assert "match" in str(exc) or "texture" in str(exc)
     else:
         assert found.ecc < 0.2
+    # Near-constant channels (one or two grey levels of noise on a flat
+    # level), and a shift beyond the search range: refused, or flagged.
+    rng = np.random.default_rng(1)
+    faint = [(1000 + rng.integers(0, 3, ref.shape)).astype(np.uint16) for _ in range(2)]
+    beyond = np.roll(ref, (25, -3), axis=(0, 1))
+    for motion in ("euclidean", "similarity", "affine"):
+        for a, b, k in [(*faint, 20), (ref, faint[0], 20), (ref, beyond, 10)]:
+            try:
+                found = ig.align(a, b, max_shift=k, motion=motion)
+            except ValueError as exc:
+                assert re.search("match|texture|constant", str(exc)), exc
+            else:
+                assert found.low_confidence, (motion, found)
+        assert ig.align(ref, beyond, max_shift=10, motion=motion).at_limit
 
 
 def test_colorize_plate_and_cli_with_a_similarity(tmp_path, capsys):
