@@ -298,7 +298,8 @@ def motion_plate(motions: dict[str, tuple[float, float, float, float]]) -> Motio
     for i, name in enumerate("rgb"):
         angle, scale, dy, dx = motions.get(name, (0.0, 1.0, 0.0, 0.0))
         t = math.radians(angle)
-        # Landing: x_ref = s R (x_c - c) + c + d, so x_c = R^-1 (x_ref - c - d) / s + c.
+        # Pixel x of the channel shows the scene point R^-1 (x - c - d) / s + c: the
+        # scene turned, magnified by s about the centre c, then shifted by d.
         inv = np.array([[math.cos(t), math.sin(t)], [-math.sin(t), math.cos(t)]]) / scale
         off = np.array([cx, cy]) - inv @ np.array([cx + dx, cy + dy])
         truth[name] = np.linalg.inv(np.vstack([np.hstack([inv, off[:, None]]), [0, 0, 1]]))[:2]
