@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 import imgform_rs as ig
 from conftest import output_with_threads
 from imgform_rs._png import write_png
-from imgform_rs.align import default_max_shift, frame_box
+from imgform_rs.align import FRAME_SEARCH, default_max_shift, frame_box
 from imgform_rs.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -501,6 +501,67 @@ def test_frame_detection_reads_full_resolution_rows_of_a_large_plate():
 def test_frame_box_of_a_plate_without_frame_keeps_everything():
     rgb, _ = ig.colorize_plate(synthetic_plate(np.uint8, h=300, w=280), frame=False)
     assert frame_box(rgb) == (0, rgb.shape[0], 0, rgb.shape[1])
+
+
+def full_resolution_frame_box(rgb: np.ndarray) -> tuple[int, int, int, int]:
+    """:func:`frame_box`'s documented rule applied to every pixel: each
+    channel stretched to its 1st..99th percentiles, a row (column) of the
+    outer ``FRAME_SEARCH`` is frame when its mean level is below 0.1 or above
+    0.95 or the 75th percentile of its channels' disagreement exceeds the
+    median row's by more than 0.05; the crop keeps what lies inside the
+    innermost frame row."""
+    chans = []
+    for c in np.moveaxis(rgb.astype(np.float64), -1, 0):
+        lo, hi = np.percentile(c, [1, 99])
+        chans.append((c - lo) / max(hi - lo, 1e-12))
+    n = np.stack(chans)
+    level = n.mean(axis=0)
+    spread = np.abs(n - level).mean(axis=0)
+
+    def depth(axis: int, size: int, far: bool) -> int:
+        disagree = np.percentile(spread, 75, axis=axis)
+        mean = level.mean(axis=axis)
+        frame = (mean < 0.1) | (mean > 0.95) | (disagree - np.median(disagree) > 0.05)
+        band = (frame[::-1] if far else frame)[: int(FRAME_SEARCH * size)]
+        hits = np.flatnonzero(band)
+        return int(hits[-1]) + 1 if hits.size else 0
+
+    h, w = level.shape
+    return depth(1, h, False), h - depth(1, h, True), depth(0, w, False), w - depth(0, w, True)
+
+
+def ragged_plate(seed: int, h: int = 1100, w: int = 1200) -> np.ndarray:
+    """An aligned (h, w, 3) uint8 plate with a ragged dark scanner border on
+    top (its depth a random walk along the side, another per channel), a
+    ragged white margin on the right and a straight dark band at the bottom."""
+    rng = np.random.default_rng(seed)
+    scene = 40 + 170 * smooth_field(seed, h, w, sigma=6.0)
+    chans = []
+    for _ in range(3):
+        c = scene + rng.normal(0, 4, scene.shape)
+        top = np.clip(30 + np.cumsum(rng.integers(-2, 3, w)), 8, 60)
+        c[np.arange(h)[:, None] < top[None, :]] = rng.uniform(0, 12)
+        right = np.clip(25 + np.cumsum(rng.integers(-1, 2, h)), 6, 50)
+        c[np.arange(w)[None, :] >= w - right[:, None]] = 250
+        c[-15:] = 3
+        chans.append(np.clip(c, 0, 255).astype(np.uint8))
+    return np.stack(chans, axis=-1)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_frame_detection_makes_the_full_resolution_crop_decisions(seed):
+    # The detector reads only the outer bands, every 4th pixel along a side
+    # here: its crop must be the one the rule gives on every pixel. Exactly
+    # on a straight border; within one row on a ragged one, whose partly
+    # covered rows can sit at the threshold, where a sampled mean may fall
+    # on the other side of it.
+    rgb = ragged_plate(seed)
+    box, full = frame_box(rgb), full_resolution_frame_box(rgb)
+    assert box[1] == full[1] == rgb.shape[0] - 15
+    assert max(abs(a - b) for a, b in zip(box, full, strict=True)) <= 1, (box, full)
+    if CATHEDRAL is not None:
+        plate, _ = ig.colorize_plate(CATHEDRAL, reference="b", frame=False)
+        assert frame_box(plate) == full_resolution_frame_box(plate)
 
 
 def test_low_confidence_flags_unrelated_channels_and_shifts_at_the_limit():
