@@ -58,6 +58,17 @@ impl Motion {
         }
     }
 
+    /// The motion's name with its indefinite article, for messages ("an
+    /// affine motion"): `Debug` would print "a Affine".
+    pub fn with_article(self) -> &'static str {
+        match self {
+            Self::Translation => "a translation",
+            Self::Euclidean => "a Euclidean",
+            Self::Similarity => "a similarity",
+            Self::Affine => "an affine",
+        }
+    }
+
     /// Number of parameters.
     pub fn params(self) -> usize {
         match self {
