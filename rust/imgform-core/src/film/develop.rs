@@ -21,7 +21,7 @@
 //! datasheet curves are measured on neutral wedges.
 
 use super::curve::Curve;
-use super::diffuse::{blur_columns_then, blur_rows, gaussian_taps};
+use super::diffuse::{blur_columns_then, blur_rows_of, gaussian_taps};
 use super::fastmath::{log2, wide};
 use super::halation::Halation;
 use super::{check_lengths, check_samples};
@@ -103,12 +103,14 @@ impl Emulsion {
     /// after `halation` if given.
     ///
     /// Each step that reads no neighbours runs inside the pass before it,
-    /// on the row in cache: the halation's column pass takes the log
-    /// exposures, and without couplers the curves follow there too, so
-    /// nothing else is stored. With couplers the log exposures are stored
-    /// once (both stages read them): the donors' densities, their row blur,
-    /// then row by row their column blur and the receivers' inhibited
-    /// curves.
+    /// on the row in cache, and only `out` and one scratch image are
+    /// written: first `out` takes the log exposures (the halation's column
+    /// pass hands its rows over for that), and without couplers their
+    /// curves too. With couplers the donors' densities are the curves of
+    /// those rows, computed inside the diffusion's row pass into the scratch
+    /// image (the halation's row pass before), then the column pass hands
+    /// each row of `out`, still the log exposures, to be inhibited and
+    /// developed by the corrected curves in place.
     ///
     /// # Errors
     /// [`crate::CoreError::Shape`] for mismatched buffers or a halation of
@@ -134,56 +136,44 @@ impl Emulsion {
         let log_gain = positive("the exposure gain", gain)?.log10() as f32;
         check_samples("exposures", exposure, width, n)?;
         let row_len = width * n;
-        if let (Some(h), None) = (halation, &self.couplers) {
-            // Each row is final once halated: no log exposures are stored.
-            h.apply_then(exposure, (width, height), out, |_, row| {
-                log_exposure_in_place(log_gain, row);
+        // The log exposures of a row, and without couplers its densities.
+        let first = |_: usize, row: &mut [f32]| {
+            log_exposure_in_place(log_gain, row);
+            if self.couplers.is_none() {
                 curves_in_place(&self.curves, row);
-            });
-            return Ok(());
-        }
-        let logs = halation.map(|h| {
-            let mut logs = vec![0.0f32; exposure.len()];
-            h.apply_then(exposure, (width, height), &mut logs, |_, row| {
-                log_exposure_in_place(log_gain, row)
-            });
-            logs
-        });
-        // Row `y` of the log exposures, from the halated ones or computed.
-        let log_row = |y: usize, row: &mut [f32]| match &logs {
-            Some(l) => row.copy_from_slice(&l[y * row_len..][..row_len]),
-            None => {
-                row.copy_from_slice(&exposure[y * row_len..][..row_len]);
-                log_exposure_in_place(log_gain, row);
             }
         };
+        let mut scratch = if halation.is_some() || self.couplers.is_some() {
+            vec![0.0f32; exposure.len()]
+        } else {
+            Vec::new()
+        };
+        match halation {
+            Some(h) => h.apply_then(exposure, (width, height), &mut scratch, out, first),
+            None => for_each_row(out, row_len, |y, row| {
+                row.copy_from_slice(&exposure[y * row_len..][..row_len]);
+                first(y, row);
+            }),
+        }
         let Some(dir) = &self.couplers else {
-            for_each_row(out, row_len, |y, row| {
-                log_row(y, row);
-                curves_in_place(&self.curves, row);
-            });
             return Ok(());
         };
         let mins: Vec<f32> = self.curves.iter().map(Curve::min_density).collect();
-        for_each_row(out, row_len, |y, row| {
-            log_row(y, row);
+        blur_rows_of(out, width, n, &dir.taps, &mut scratch, |row| {
             curves_in_place(&self.curves, row);
             for d in row.chunks_exact_mut(n) {
                 d.iter_mut().zip(&mins).for_each(|(v, m)| *v -= m);
             }
         });
-        let mut donors = vec![0.0f32; out.len()];
-        blur_rows(out, width, n, &dir.taps, &mut donors);
         blur_columns_then(
-            &donors,
+            &scratch,
             width,
             height,
             n,
             &dir.taps,
             out,
             row_len,
-            |y, near, row| {
-                log_row(y, row);
+            |_, near, row| {
                 for (d, q) in row.chunks_exact_mut(n).zip(near.chunks_exact(n)) {
                     for (i, v) in d.iter_mut().enumerate() {
                         let a = &dir.matrix[i * n..][..n];
