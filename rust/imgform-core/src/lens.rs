@@ -41,6 +41,11 @@ use crate::error::{positive, CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
 use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
+use step::{nearest, step_cell, STEP_BITS};
+
+#[path = "lens_step.rs"]
+mod step;
+
 use crate::remap::{
     check_fill, resample_channels, to_fixed, ChannelRows, Interpolation, Resample, FRAC_BITS,
     MAX_SIDE,
@@ -691,12 +696,6 @@ pub(crate) struct GridLines {
     gains: Vec<[f64; 3]>,
 }
 
-/// Fractional bits beyond the sampler's of the positions stepped along a
-/// cell: a 16 px cell accumulates at most 8 roundings of 2^-17, so a
-/// position differs from the rounded exact interpolation only when that
-/// lies within ~2^-13 of the sampler's (1/256 px) rounding tie.
-const STEP_BITS: u32 = 16;
-
 impl ChannelRows for PositionGrid {
     type Scratch = GridLines;
 
@@ -724,15 +723,9 @@ impl ChannelRows for PositionGrid {
                 continue;
             }
             let length = (self.columns.nodes[i + 1] - self.columns.nodes[i]).max(1) as f64;
-            let mut at: [i64; 6] = std::array::from_fn(|k| (a[k] * scale).round() as i64);
-            let step: [i64; 6] =
-                std::array::from_fn(|k| ((b[k] - a[k]) / length * scale).round() as i64);
-            for q in out.chunks_exact_mut(6) {
-                for k in 0..6 {
-                    q[k] = ((at[k] + (1 << (STEP_BITS - 1))) >> STEP_BITS) as i32;
-                    at[k] += step[k];
-                }
-            }
+            let start = a.map(|v| nearest(v * scale));
+            let step = std::array::from_fn(|k| nearest((b[k] - a[k]) / length * scale));
+            step_cell(start, step, out);
         }
         if !gains.is_empty() {
             self.vertical(&self.gains, y, &mut lines.gains);

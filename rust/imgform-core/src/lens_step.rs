@@ -1,0 +1,150 @@
+//! Fixed-point positions stepped along one cell of the position grid
+//! (`PositionGrid::fill_row`): a cell's pixels are evenly spaced, so their
+//! six coordinates (x and y of R, G and B) advance by constant integer
+//! steps, one addition each instead of an interpolation.
+//!
+//! The running values carry [`STEP_BITS`] fractional bits beyond the
+//! sampler's and are kept biased by 2^47 so that they are never negative:
+//! rounding to the sampler's fixed point is then a logical shift, which
+//! AVX2 has for 64-bit lanes (it has no arithmetic one), and both paths
+//! compute the same integers.
+
+/// Fractional bits beyond the sampler's of the positions stepped along a
+/// cell: a 16 px cell accumulates at most 8 roundings of 2^-17, so a
+/// position differs from the rounded exact interpolation only when that
+/// lies within ~2^-13 of the sampler's (1/256 px) rounding tie.
+pub(super) const STEP_BITS: u32 = 16;
+
+/// The bias of the running values: positions are below 2^22 px, i.e.
+/// 2^46 in units of 2^-24 px, so biased they stay within `(0, 2^48)`.
+const BIAS: u64 = 1 << 47;
+
+/// `BIAS` after the shift, in the 32 bits of a position.
+const BIAS_SHIFTED: u32 = (BIAS >> STEP_BITS) as u32;
+
+/// `x` rounded to the nearest integer (ties to even) without a libm call
+/// (baseline x86-64 has no rounding instruction): adding and subtracting
+/// 1.5 · 2^52 leaves no fractional bits. Exact for `|x| < 2^51`.
+pub(super) fn nearest(x: f64) -> i64 {
+    const MAGIC: f64 = 6_755_399_441_055_744.0;
+    ((x + MAGIC) - MAGIC) as i64
+}
+
+/// Writes the positions of `out.len() / 6` pixels: coordinate `k` of pixel
+/// `p` is `(start[k] + p · step[k] + 2^15) >> STEP_BITS` (the sampler's
+/// fixed point, rounded half up). `start` and every value reached lie below
+/// 2^46 in magnitude.
+pub(super) fn step_cell(start: [i64; 6], step: [i64; 6], out: &mut [i32]) {
+    let at = start.map(|s| ((s + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS));
+    let step = step.map(|s| s as u64);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 was detected just above.
+        return unsafe { avx2::step_cell(at, step, out) };
+    }
+    scalar(at, step, out);
+}
+
+/// [`step_cell`] one value at a time from the biased `at`.
+fn scalar(mut at: [u64; 6], step: [u64; 6], out: &mut [i32]) {
+    for q in out.chunks_exact_mut(6) {
+        for k in 0..6 {
+            q[k] = unbias(at[k]);
+            at[k] = at[k].wrapping_add(step[k]);
+        }
+    }
+}
+
+/// A biased running value to the sampler's fixed point.
+#[inline(always)]
+fn unbias(at: u64) -> i32 {
+    ((at >> STEP_BITS) as u32).wrapping_sub(BIAS_SHIFTED) as i32
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    use super::{scalar, BIAS_SHIFTED, STEP_BITS};
+
+    /// Two pixels (12 values, three registers of four) per iteration; an
+    /// odd last pixel goes to the scalar loop.
+    ///
+    /// # Safety
+    /// AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn step_cell(at: [u64; 6], step: [u64; 6], out: &mut [i32]) {
+        // Pixel 1's values follow pixel 0's: registers hold values 0-3,
+        // 4-11 of the pair, each advancing by two steps.
+        let pair: [u64; 12] = std::array::from_fn(|i| {
+            let k = i % 6;
+            at[k].wrapping_add(step[k].wrapping_mul((i / 6) as u64))
+        });
+        let twice: [u64; 12] = std::array::from_fn(|i| step[i % 6].wrapping_mul(2));
+        // SAFETY: the arrays hold 12 values, three registers' worth.
+        let load =
+            |a: &[u64; 12], r: usize| unsafe { _mm256_loadu_si256(a.as_ptr().add(4 * r).cast()) };
+        let mut v: [__m256i; 3] = std::array::from_fn(|r| load(&pair, r));
+        let d: [__m256i; 3] = std::array::from_fn(|r| load(&twice, r));
+        let low_halves = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
+        let bias = _mm256_set1_epi32(BIAS_SHIFTED as i32);
+        let pairs = out.len() / 12;
+        let dst = out.as_mut_ptr();
+        for p in 0..pairs {
+            for (r, (v, d)) in v.iter_mut().zip(&d).enumerate() {
+                let shifted = _mm256_srli_epi64(*v, STEP_BITS as i32);
+                let lows = _mm256_permutevar8x32_epi32(shifted, low_halves);
+                let q = _mm256_sub_epi32(lows, bias);
+                // SAFETY: pair p writes values 12p .. 12p + 12 of `out`.
+                unsafe {
+                    _mm_storeu_si128(dst.add(12 * p + 4 * r).cast(), _mm256_castsi256_si128(q))
+                };
+                *v = _mm256_add_epi64(*v, *d);
+            }
+        }
+        let done = 2 * pairs as u64;
+        let at: [u64; 6] = std::array::from_fn(|k| at[k].wrapping_add(step[k].wrapping_mul(done)));
+        scalar(at, step, &mut out[12 * pairs..]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rounds_ties_to_even_and_keeps_large_values() {
+        for (x, want) in [
+            (0.4, 0),
+            (0.5, 0),
+            (1.5, 2),
+            (-0.5, 0),
+            (-1.6, -2),
+            (2.7e13, 27_000_000_000_000),
+        ] {
+            assert_eq!(nearest(x), want, "{x}");
+        }
+        assert_eq!(nearest(-(1i64 << 46) as f64 - 0.75), -(1i64 << 46) - 1);
+    }
+
+    #[test]
+    fn both_paths_step_to_the_exact_multiples() {
+        // Negative and positive positions and steps, near the ends of the
+        // range, over even and odd pixel counts.
+        let start = [-(1i64 << 45), 123_456_789, -5, (1 << 45) + 77, 0, -65_536];
+        let step = [16_777_216, -16_777_300, 1, -3_000_000, 65_535, -65_537];
+        for n in [0, 1, 2, 7, 16, 17] {
+            let mut fast = vec![0; 6 * n];
+            step_cell(start, step, &mut fast);
+            let at = start.map(|s| ((s + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS));
+            let mut slow = vec![0; 6 * n];
+            scalar(at, step.map(|s| s as u64), &mut slow);
+            assert_eq!(fast, slow, "{n} pixels");
+            for (i, &q) in fast.iter().enumerate() {
+                let (p, k) = ((i / 6) as i64, i % 6);
+                let want = (start[k] + p * step[k] + (1 << 15)) >> STEP_BITS;
+                assert_eq!(i64::from(q), want, "pixel {p}, value {k}");
+            }
+        }
+    }
+}
