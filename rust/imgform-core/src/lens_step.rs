@@ -9,6 +9,8 @@
 //! AVX2 has for 64-bit lanes (it has no arithmetic one), and both paths
 //! compute the same integers.
 
+use std::ops::Range;
+
 /// Fractional bits beyond the sampler's of the positions stepped along a
 /// cell: a 16 px cell accumulates at most 8 roundings of 2^-17, so a
 /// position differs from the rounded exact interpolation only when that
@@ -30,22 +32,46 @@ pub(super) fn nearest(x: f64) -> i64 {
     ((x + MAGIC) - MAGIC) as i64
 }
 
-/// Writes the positions of `out.len() / 6` pixels: coordinate `k` of pixel
-/// `p` is `(start[k] + p · step[k] + 2^15) >> STEP_BITS` (the sampler's
-/// fixed point, rounded half up). `start` and every value reached lie below
-/// 2^46 in magnitude.
-pub(super) fn step_cell(start: [i64; 6], step: [i64; 6], out: &mut [i32]) {
-    let at = start.map(|s| ((s + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS));
-    let step = step.map(|s| s as u64);
+/// One cell of a row: coordinate `k` of its `p`-th pixel is
+/// `(start[k] + p · step[k] + 2^15) >> STEP_BITS`, the sampler's fixed point
+/// rounded half up. `start` and every value reached lie below 2^46 in
+/// magnitude.
+#[derive(Debug, Clone)]
+pub(super) struct Cell {
+    /// The row's pixels the cell covers.
+    pub(super) pixels: Range<usize>,
+    pub(super) start: [i64; 6],
+    pub(super) step: [i64; 6],
+}
+
+/// Writes the positions of every cell's pixels into `out` (six per pixel
+/// of the row): one dispatch per row, as the cells are short.
+pub(super) fn step_cells(cells: &[Cell], out: &mut [i32]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: AVX2 was detected just above.
-        return unsafe { avx2::step_cell(at, step, out) };
+        return unsafe { avx2::step_cells(cells, out) };
     }
-    scalar(at, step, out);
+    for cell in cells {
+        let (at, step) = biased(cell);
+        scalar(
+            at,
+            step,
+            &mut out[6 * cell.pixels.start..6 * cell.pixels.end],
+        );
+    }
 }
 
-/// [`step_cell`] one value at a time from the biased `at`.
+/// The cell's first values biased, and its steps, as the loops add them.
+fn biased(cell: &Cell) -> ([u64; 6], [u64; 6]) {
+    (
+        cell.start
+            .map(|s| ((s + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS)),
+        cell.step.map(|s| s as u64),
+    )
+}
+
+/// The positions of a cell from its biased first values, one at a time.
 fn scalar(mut at: [u64; 6], step: [u64; 6], out: &mut [i32]) {
     for q in out.chunks_exact_mut(6) {
         for k in 0..6 {
@@ -65,46 +91,47 @@ fn unbias(at: u64) -> i32 {
 mod avx2 {
     use std::arch::x86_64::*;
 
-    use super::{scalar, BIAS_SHIFTED, STEP_BITS};
+    use super::{biased, scalar, Cell, BIAS_SHIFTED, STEP_BITS};
 
-    /// Two pixels (12 values, three registers of four) per iteration; an
-    /// odd last pixel goes to the scalar loop.
+    /// [`super::step_cells`] with two pixels (12 values, three registers of
+    /// four) per iteration; a cell's odd last pixel goes to the scalar loop.
     ///
     /// # Safety
     /// AVX2.
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn step_cell(at: [u64; 6], step: [u64; 6], out: &mut [i32]) {
-        // Pixel 1's values follow pixel 0's: registers hold values 0-3,
-        // 4-11 of the pair, each advancing by two steps.
-        let pair: [u64; 12] = std::array::from_fn(|i| {
-            let k = i % 6;
-            at[k].wrapping_add(step[k].wrapping_mul((i / 6) as u64))
-        });
-        let twice: [u64; 12] = std::array::from_fn(|i| step[i % 6].wrapping_mul(2));
-        // SAFETY: the arrays hold 12 values, three registers' worth.
-        let load =
-            |a: &[u64; 12], r: usize| unsafe { _mm256_loadu_si256(a.as_ptr().add(4 * r).cast()) };
-        let mut v: [__m256i; 3] = std::array::from_fn(|r| load(&pair, r));
-        let d: [__m256i; 3] = std::array::from_fn(|r| load(&twice, r));
+    pub(super) unsafe fn step_cells(cells: &[Cell], out: &mut [i32]) {
         let low_halves = _mm256_setr_epi32(0, 2, 4, 6, 0, 2, 4, 6);
         let bias = _mm256_set1_epi32(BIAS_SHIFTED as i32);
-        let pairs = out.len() / 12;
-        let dst = out.as_mut_ptr();
-        for p in 0..pairs {
-            for (r, (v, d)) in v.iter_mut().zip(&d).enumerate() {
-                let shifted = _mm256_srli_epi64(*v, STEP_BITS as i32);
-                let lows = _mm256_permutevar8x32_epi32(shifted, low_halves);
-                let q = _mm256_sub_epi32(lows, bias);
-                // SAFETY: pair p writes values 12p .. 12p + 12 of `out`.
-                unsafe {
-                    _mm_storeu_si128(dst.add(12 * p + 4 * r).cast(), _mm256_castsi256_si128(q))
-                };
-                *v = _mm256_add_epi64(*v, *d);
+        for cell in cells {
+            let (at, step) = biased(cell);
+            let out = &mut out[6 * cell.pixels.start..6 * cell.pixels.end];
+            // Pixel 1's values follow pixel 0's; each advances by two steps.
+            let pair: [u64; 12] = std::array::from_fn(|i| {
+                at[i % 6].wrapping_add(step[i % 6].wrapping_mul((i / 6) as u64))
+            });
+            let twice: [u64; 12] = std::array::from_fn(|i| step[i % 6].wrapping_mul(2));
+            // SAFETY: the arrays hold 12 values, three registers' worth.
+            let load = |a: &[u64; 12], r: usize| unsafe {
+                _mm256_loadu_si256(a.as_ptr().add(4 * r).cast())
+            };
+            let mut v: [__m256i; 3] = std::array::from_fn(|r| load(&pair, r));
+            let d: [__m256i; 3] = std::array::from_fn(|r| load(&twice, r));
+            let pairs = out.len() / 12;
+            let dst = out.as_mut_ptr();
+            for p in 0..pairs {
+                for (r, (v, d)) in v.iter_mut().zip(&d).enumerate() {
+                    let shifted = _mm256_srli_epi64(*v, STEP_BITS as i32);
+                    let lows = _mm256_permutevar8x32_epi32(shifted, low_halves);
+                    let q = _mm256_castsi256_si128(_mm256_sub_epi32(lows, bias));
+                    // SAFETY: pair p writes values 12p .. 12p + 12 of `out`.
+                    unsafe { _mm_storeu_si128(dst.add(12 * p + 4 * r).cast(), q) };
+                    *v = _mm256_add_epi64(*v, *d);
+                }
             }
+            let done = 2 * pairs as u64;
+            let at = std::array::from_fn(|k| at[k].wrapping_add(step[k].wrapping_mul(done)));
+            scalar(at, step, &mut out[12 * pairs..]);
         }
-        let done = 2 * pairs as u64;
-        let at: [u64; 6] = std::array::from_fn(|k| at[k].wrapping_add(step[k].wrapping_mul(done)));
-        scalar(at, step, &mut out[12 * pairs..]);
     }
 }
 
@@ -130,20 +157,38 @@ mod tests {
     #[test]
     fn both_paths_step_to_the_exact_multiples() {
         // Negative and positive positions and steps, near the ends of the
-        // range, over even and odd pixel counts.
+        // range, over even and odd pixel counts, cells side by side.
         let start = [-(1i64 << 45), 123_456_789, -5, (1 << 45) + 77, 0, -65_536];
         let step = [16_777_216, -16_777_300, 1, -3_000_000, 65_535, -65_537];
-        for n in [0, 1, 2, 7, 16, 17] {
-            let mut fast = vec![0; 6 * n];
-            step_cell(start, step, &mut fast);
-            let at = start.map(|s| ((s + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS));
-            let mut slow = vec![0; 6 * n];
-            scalar(at, step.map(|s| s as u64), &mut slow);
-            assert_eq!(fast, slow, "{n} pixels");
-            for (i, &q) in fast.iter().enumerate() {
-                let (p, k) = ((i / 6) as i64, i % 6);
-                let want = (start[k] + p * step[k] + (1 << 15)) >> STEP_BITS;
-                assert_eq!(i64::from(q), want, "pixel {p}, value {k}");
+        let mut cells = Vec::new();
+        let mut first = 0;
+        for (c, n) in [0, 1, 2, 7, 16, 17].into_iter().enumerate() {
+            let shift = c as i64 * 1_000_003;
+            cells.push(Cell {
+                pixels: first..first + n,
+                start: start.map(|s| s + shift),
+                step: step.map(|s| s - shift / 1000),
+            });
+            first += n;
+        }
+        let mut fast = vec![0; 6 * first];
+        step_cells(&cells, &mut fast);
+        let mut slow = vec![0; 6 * first];
+        for cell in &cells {
+            let (at, step) = biased(cell);
+            scalar(
+                at,
+                step,
+                &mut slow[6 * cell.pixels.start..6 * cell.pixels.end],
+            );
+        }
+        assert_eq!(fast, slow);
+        for cell in &cells {
+            for (p, u) in cell.pixels.clone().enumerate() {
+                for k in 0..6 {
+                    let want = (cell.start[k] + p as i64 * cell.step[k] + (1 << 15)) >> STEP_BITS;
+                    assert_eq!(i64::from(fast[6 * u + k]), want, "pixel {u}, value {k}");
+                }
             }
         }
     }

@@ -1231,7 +1231,11 @@ mod tests {
         let table = std::array::from_fn(<T::Bilinear as Arith<T>>::bilinear);
         let taps = Taps::<T, T::Bilinear, 2, 3>::new(view, &table, fill);
         for gains in [Vec::new(), gains] {
-            let coords = Scattered { width: w, xy: xy.clone(), gains };
+            let coords = Scattered {
+                width: w,
+                xy: xy.clone(),
+                gains,
+            };
             let mut fast = vec![T::default(); 3 * w * h];
             resample_channels(view, &coords, Interpolation::Bilinear, fill, &mut fast).unwrap();
             for (y, row) in fast.chunks_exact(3 * w).enumerate() {
@@ -1255,11 +1259,21 @@ mod tests {
             for stride in [3 * w, 3 * w + 5] {
                 let n = (h - 1) * stride + 3 * w;
                 let u8s: Vec<u8> = (0..n).map(|i| (i * 97 % 256) as u8).collect();
-                assert_channel_rows_match_the_scalar_path(&ImageView::new(&u8s, w, h, 3, stride).unwrap());
+                assert_channel_rows_match_the_scalar_path(
+                    &ImageView::new(&u8s, w, h, 3, stride).unwrap(),
+                );
                 let u16s: Vec<u16> = (0..n)
-                    .map(|i| if i % 3 == 0 { 65535 } else { (i * 7919 % 65536) as u16 })
+                    .map(|i| {
+                        if i % 3 == 0 {
+                            65535
+                        } else {
+                            (i * 7919 % 65536) as u16
+                        }
+                    })
                     .collect();
-                assert_channel_rows_match_the_scalar_path(&ImageView::new(&u16s, w, h, 3, stride).unwrap());
+                assert_channel_rows_match_the_scalar_path(
+                    &ImageView::new(&u16s, w, h, 3, stride).unwrap(),
+                );
                 let f32s: Vec<f32> = (0..n)
                     .map(|i| match i % 11 {
                         0 => -0.0,
@@ -1267,7 +1281,9 @@ mod tests {
                         _ => (i * 7919 % 1000) as f32 / 999.0,
                     })
                     .collect();
-                assert_channel_rows_match_the_scalar_path(&ImageView::new(&f32s, w, h, 3, stride).unwrap());
+                assert_channel_rows_match_the_scalar_path(
+                    &ImageView::new(&f32s, w, h, 3, stride).unwrap(),
+                );
             }
         }
     }
