@@ -736,11 +736,17 @@ impl ChannelRows for PositionGrid {
                 continue;
             }
             let length = (self.columns.nodes[i + 1] - self.columns.nodes[i]).max(1) as f64;
-            lines.cells.push(Cell {
-                pixels: span.clone(),
-                start: a.map(|v| nearest(v * scale)),
-                step: std::array::from_fn(|k| nearest((b[k] - a[k]) / length * scale)),
-            });
+            let mut cell = Cell {
+                pixels: span,
+                start: [0; 6],
+                step: [0; 6],
+            };
+            // Plain loops: `array::map` was not inlined, a call per cell.
+            for k in 0..6 {
+                cell.start[k] = nearest(a[k] * scale);
+                cell.step[k] = nearest((b[k] - a[k]) / length * scale);
+            }
+            lines.cells.push(cell);
         }
         step_cells(&lines.cells, xy);
         if !gains.is_empty() {

@@ -63,12 +63,15 @@ pub(super) fn step_cells(cells: &[Cell], out: &mut [i32]) {
 }
 
 /// The cell's first values biased, and its steps, as the loops add them.
+/// (Plain loops: `array::map` was not inlined, a call per cell.)
+#[inline(always)]
 fn biased(cell: &Cell) -> ([u64; 6], [u64; 6]) {
-    (
-        cell.start
-            .map(|s| ((s + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS)),
-        cell.step.map(|s| s as u64),
-    )
+    let (mut at, mut step) = ([0; 6], [0; 6]);
+    for k in 0..6 {
+        at[k] = ((cell.start[k] + (1 << (STEP_BITS - 1))) as u64).wrapping_add(BIAS);
+        step[k] = cell.step[k] as u64;
+    }
+    (at, step)
 }
 
 /// The positions of a cell from its biased first values, one at a time.

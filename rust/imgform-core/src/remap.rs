@@ -37,9 +37,12 @@
 //! single-channel u16 images are sampled eight output pixels at a time
 //! (`remap_avx2.rs`): interior windows without per-tap bounds or fill
 //! handling, the same integer (bilinear) or `f32` (bicubic) operations as
-//! the scalar path, so the output is bit-identical to it (tested). Pixels
-//! near the borders, other layouts, f32 images and the computed positions
-//! of [`crate::chromatic`] take the scalar path. Measured on the shared
+//! the scalar path, so the output is bit-identical to it (tested). The
+//! per-channel rows of a lens correction (each channel of an RGB image at
+//! its own position, [`resample_channels`]) are sampled bilinearly eight
+//! samples at a time for u8, u16 and f32 (`remap_channels_avx2.rs`), again
+//! bit-identical. Pixels near the borders, other layouts, other f32 images
+//! and the computed positions of [`crate::chromatic`] take the scalar path. Measured on the shared
 //! 2-core AMD machine (24 MP, best of 5, `benchmarks/geometry.py` and
 //! interleaved runs): u8 RGB bilinear ~1.3-2x faster than `cv2.remap` with
 //! fixed-point maps (its fastest path for RGB), u16 bilinear ~1.2-1.5x
