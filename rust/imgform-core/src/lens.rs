@@ -41,6 +41,11 @@ use crate::error::{positive, CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
 use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
+use step::{nearest, step_cells, Cell, STEP_BITS};
+
+#[path = "lens_step.rs"]
+mod step;
+
 use crate::remap::{
     check_fill, resample_channels, to_fixed, ChannelRows, Interpolation, Resample, FRAC_BITS,
     MAX_SIDE,
@@ -192,8 +197,10 @@ impl Vignetting {
     fn gain(&self, r2: f64) -> f64 {
         let [k1, k2, k3] = self.k;
         let falloff = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        // Both sides computed, then selected: a loop of gains vectorises.
+        let gain = 1.0 / falloff;
         if falloff > 0.0 {
-            1.0 / falloff
+            gain
         } else {
             0.0
         }
@@ -412,26 +419,34 @@ impl LensCorrection {
                 out.len()
             )));
         }
-        let tile_rows = black_tile.len() / black_width;
         let channels = src.channels();
+        // The black tile laid out over whole rows, so that the loop over a
+        // row's samples is a plain zip that vectorises (cycling through the
+        // tile in it, or indexing `u % black_width`, did not).
+        let black_rows: Vec<Vec<f64>> = black_tile
+            .chunks_exact(black_width)
+            .map(|tile| tile.iter().copied().cycle().take(row_len).collect())
+            .collect();
         let gains = self.gain_rows();
         for_each_band(out, row_len, ROWS_PER_TASK, |v0, band| {
             let mut gain = vec![0.0; self.width];
+            let mut per_sample = vec![0.0; if channels > 1 { row_len } else { 0 }];
             for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
                 let v = v0 + i;
                 gains.row(v, &mut gain);
-                let blacks = &black_tile[(v % tile_rows) * black_width..][..black_width];
-                // Cycled, not indexed `u % black_width`: an integer division
-                // per pixel cost more than the rest of the loop.
-                for (((px, s), &g), &black) in row
-                    .chunks_exact_mut(channels)
-                    .zip(src.row(v).chunks_exact(channels))
-                    .zip(&gain)
-                    .zip(blacks.iter().cycle())
-                {
-                    for (o, &value) in px.iter_mut().zip(s) {
-                        *o = T::from_f32((black + (f64::from(value.to_f32()) - black) * g) as f32);
+                let gain = if channels > 1 {
+                    for (g, &p) in per_sample.chunks_exact_mut(channels).zip(&gain) {
+                        g.fill(p);
                     }
+                    &per_sample
+                } else {
+                    &gain
+                };
+                let black = &black_rows[v % black_rows.len()];
+                for (((o, &value), &g), &black) in
+                    row.iter_mut().zip(src.row(v)).zip(gain).zip(black)
+                {
+                    *o = T::from_f32((black + (f64::from(value.to_f32()) - black) * g) as f32);
                 }
             }
         });
@@ -689,13 +704,9 @@ fn lerp<const N: usize>(a: &[f64; N], b: &[f64; N], t: f64) -> [f64; N] {
 pub(crate) struct GridLines {
     positions: Vec<[f64; 6]>,
     gains: Vec<[f64; 3]>,
+    /// The row's cells whose positions are stepped.
+    cells: Vec<Cell>,
 }
-
-/// Fractional bits beyond the sampler's of the positions stepped along a
-/// cell: a 16 px cell accumulates at most 8 roundings of 2^-17, so a
-/// position differs from the rounded exact interpolation only when that
-/// lies within ~2^-13 of the sampler's (1/256 px) rounding tie.
-const STEP_BITS: u32 = 16;
 
 impl ChannelRows for PositionGrid {
     type Scratch = GridLines;
@@ -710,12 +721,13 @@ impl ChannelRows for PositionGrid {
         let line = &lines.positions;
         let width = self.columns.cell.len();
         let scale = f64::from(1u32 << (FRAC_BITS + STEP_BITS));
+        lines.cells.clear();
         for i in 0..line.len() - 1 {
             let span = self.columns.span(i, width);
             let (a, b) = (&line[i], &line[i + 1]);
-            let out = &mut xy[6 * span.start..6 * span.end];
             let in_range = |p: &[f64; 6]| p.iter().all(|v| v.abs() < MAX_SIDE as f64);
             if !(in_range(a) && in_range(b)) {
+                let out = &mut xy[6 * span.start..6 * span.end];
                 for (q, &w) in out.chunks_exact_mut(6).zip(&self.columns.weight[span]) {
                     for (q, v) in q.iter_mut().zip(lerp(a, b, w)) {
                         *q = to_fixed(v);
@@ -724,16 +736,19 @@ impl ChannelRows for PositionGrid {
                 continue;
             }
             let length = (self.columns.nodes[i + 1] - self.columns.nodes[i]).max(1) as f64;
-            let mut at: [i64; 6] = std::array::from_fn(|k| (a[k] * scale).round() as i64);
-            let step: [i64; 6] =
-                std::array::from_fn(|k| ((b[k] - a[k]) / length * scale).round() as i64);
-            for q in out.chunks_exact_mut(6) {
-                for k in 0..6 {
-                    q[k] = ((at[k] + (1 << (STEP_BITS - 1))) >> STEP_BITS) as i32;
-                    at[k] += step[k];
-                }
+            let mut cell = Cell {
+                pixels: span,
+                start: [0; 6],
+                step: [0; 6],
+            };
+            // Plain loops: `array::map` was not inlined, a call per cell.
+            for k in 0..6 {
+                cell.start[k] = nearest(a[k] * scale);
+                cell.step[k] = nearest((b[k] - a[k]) / length * scale);
             }
+            lines.cells.push(cell);
         }
+        step_cells(&lines.cells, xy);
         if !gains.is_empty() {
             self.vertical(&self.gains, y, &mut lines.gains);
             let line = &lines.gains;

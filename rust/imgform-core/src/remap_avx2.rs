@@ -21,6 +21,10 @@ use std::arch::x86_64::*;
 
 use super::{FRAC_BITS, KEYS_A};
 
+#[path = "remap_channels_avx2.rs"]
+mod channels;
+pub(super) use channels::{channel_row_f32, channel_row_u16, channel_row_u8};
+
 /// Pixels per vector step.
 const LANES: usize = 8;
 
@@ -171,15 +175,28 @@ fn weight_pairs(fx: __m256i) -> __m256i {
 }
 
 /// `(top · 256 + (bottom - top) · fy + 2^15) >> 16` lane by lane: the
-/// vertical stage and the rounding. Exact modulo 2^32, and the true value
-/// is below 2^32 (at most `65535 · 2^16 + 2^15`), so the logical shift
-/// yields it even when intermediate terms wrap.
+/// vertical stage and the rounding ([`vertical_sum`], [`round_sum`]).
 #[target_feature(enable = "avx2")]
 fn vertical(top: __m256i, bottom: __m256i, fy: __m256i) -> __m256i {
-    let sum = _mm256_add_epi32(
+    round_sum(vertical_sum(top, bottom, fy))
+}
+
+/// `top · 256 + (bottom - top) · fy` lane by lane: the window's exact sum
+/// in 2^16ths. Exact modulo 2^32, and the true value is below 2^32 (at
+/// most `65535 · 2^16`), so as an unsigned lane it is that value even when
+/// intermediate terms wrap.
+#[target_feature(enable = "avx2")]
+fn vertical_sum(top: __m256i, bottom: __m256i, fy: __m256i) -> __m256i {
+    _mm256_add_epi32(
         _mm256_slli_epi32(top, FRAC_BITS as i32),
         _mm256_mullo_epi32(_mm256_sub_epi32(bottom, top), fy),
-    );
+    )
+}
+
+/// `(sum + 2^15) >> 16` of unsigned sums below `2^32 - 2^15`: rounded half
+/// up (the logical shift reads a wrapped sign bit as 2^31).
+#[target_feature(enable = "avx2")]
+fn round_sum(sum: __m256i) -> __m256i {
     _mm256_srli_epi32(
         _mm256_add_epi32(sum, _mm256_set1_epi32(1 << (2 * FRAC_BITS - 1))),
         2 * FRAC_BITS as i32,

@@ -1,0 +1,249 @@
+//! AVX2 bilinear rows whose samples each have a position of their own: the
+//! lateral chromatic aberration correction reads red, green and blue of an
+//! RGB image from three places (`resample_channels`).
+//!
+//! Sample `s` of an output row is channel `s % 3` read at `xy[2s..2s + 2]`,
+//! so the row is a single-channel map over `3 W` samples whose two taps per
+//! source row are one pixel (three samples) apart and offset by the
+//! sample's channel. Eight samples per step, through the parent module's
+//! [`walk`]; the arithmetic is the scalar path's, so the bits are the same
+//! (tested against it): exact integers in 256ths for u8 and u16, the scalar
+//! `f32` operations in their order for f32. With gains, each sample's
+//! unrounded value is multiplied by its gain and rounded once, as
+//! `Arith::store_scaled` does.
+
+use std::arch::x86_64::*;
+
+use super::{
+    gather, round_sum, store_gray_u8, store_u16, vertical_sum, walk, weight_pairs, Geometry, Step,
+    LANES,
+};
+
+/// The channel of each lane of step `k` is `(8k + lane) % 3`; `8k % 3`
+/// cycles through 0, 2, 1.
+const CHANNELS: [[i32; LANES]; 3] = [
+    [0, 1, 2, 0, 1, 2, 0, 1],
+    [2, 0, 1, 2, 0, 1, 2, 0],
+    [1, 2, 0, 1, 2, 0, 1, 2],
+];
+
+/// The byte offsets of step `k`'s lanes' channels in samples of `size`
+/// bytes.
+#[target_feature(enable = "avx2")]
+fn channel_bytes(k: usize, size: i32) -> __m256i {
+    // SAFETY: the array holds 8 lanes.
+    let c = unsafe { _mm256_loadu_si256(CHANNELS[k % 3].as_ptr().cast()) };
+    _mm256_mullo_epi32(c, _mm256_set1_epi32(size))
+}
+
+/// Whether the lengths fit: two coordinates and, if any, one gain per
+/// output sample.
+fn fits(xy: &[i32], gains: &[f32], samples: usize) -> bool {
+    xy.len() == 2 * samples && (gains.is_empty() || gains.len() == samples)
+}
+
+/// Step `k`'s gains times `scale` (`2^-16` for the integer sums: a power
+/// of two, exact like the scalar division).
+///
+/// # Safety
+/// AVX2; `gains` holds step `k`'s.
+#[target_feature(enable = "avx2")]
+unsafe fn gain_lanes(gains: &[f32], k: usize, scale: f32) -> __m256 {
+    // SAFETY: the caller guarantees gains 8k .. 8k + 8.
+    let g = unsafe { _mm256_loadu_ps(gains.as_ptr().add(LANES * k)) };
+    _mm256_mul_ps(g, _mm256_set1_ps(scale))
+}
+
+/// `(v + 0.5) as T` lane by lane for integer types of largest value `max`:
+/// `as` truncates and saturates (NaN to 0), which the clamp reproduces
+/// (`max_ps` returns its second operand, 0, for a NaN).
+#[target_feature(enable = "avx2")]
+fn round_to(v: __m256, max: f32) -> __m256i {
+    let v = _mm256_add_ps(v, _mm256_set1_ps(0.5));
+    let v = _mm256_min_ps(_mm256_max_ps(v, _mm256_setzero_ps()), _mm256_set1_ps(max));
+    _mm256_cvttps_epi32(v)
+}
+
+/// `v as f32` for unsigned 32-bit lanes, rounded once to nearest as `as`
+/// does: the high half times 2^16 and the low half are exact, so only the
+/// sum rounds.
+#[target_feature(enable = "avx2")]
+fn u32_to_f32(v: __m256i) -> __m256 {
+    let high = _mm256_cvtepi32_ps(_mm256_srli_epi32(v, 16));
+    let low = _mm256_cvtepi32_ps(_mm256_and_si256(v, _mm256_set1_epi32(0xffff)));
+    _mm256_add_ps(_mm256_mul_ps(high, _mm256_set1_ps(65536.0)), low)
+}
+
+/// The geometry of an RGB source of `T` samples for per-channel taps:
+/// `read` bytes from a window's first tap without its channel offset.
+fn geometry<T>(src: &[T], stride: usize, size: (usize, usize), read: usize) -> Option<Geometry> {
+    let bytes = std::mem::size_of::<T>();
+    Geometry::new(
+        src.as_ptr().cast(),
+        bytes * src.len(),
+        bytes * stride,
+        3 * bytes,
+        2,
+        size,
+        read,
+    )
+}
+
+/// u8 RGB: per lane one 4-byte read at the left tap, whose first and last
+/// bytes are the two taps of the sample's channel.
+///
+/// # Safety
+/// AVX2; `src` is an RGB image of `w x h` pixels with rows `stride` bytes
+/// apart.
+#[target_feature(enable = "avx2")]
+pub(in crate::remap) unsafe fn channel_row_u8(
+    src: &[u8],
+    stride: usize,
+    size: (usize, usize),
+    (xy, gains, out): (&[i32], &[f32], &mut [u8]),
+    sample: &mut dyn FnMut(usize, &mut [u8]),
+) -> bool {
+    // The 4-byte read at the left tap, up to 2 bytes further for blue.
+    let Some(g) = geometry(src, stride, size, 6).filter(|_| fits(xy, gains, out.len())) else {
+        return false;
+    };
+    let (base, dst) = (src.as_ptr(), out.as_mut_ptr());
+    let pairs = _mm256_setr_epi8(
+        0, -1, 3, -1, 4, -1, 7, -1, 8, -1, 11, -1, 12, -1, 15, -1, 0, -1, 3, -1, 4, -1, 7, -1, 8,
+        -1, 11, -1, 12, -1, 15, -1,
+    );
+    let stride_v = _mm256_set1_epi32(g.stride);
+    let body = |k: usize, s: Step| {
+        let top = _mm256_add_epi32(s.top, channel_bytes(k, 1));
+        let wx = weight_pairs(s.fx);
+        // SAFETY: `step` admitted only windows whose reads end inside `src`.
+        let line = |at: __m256i| unsafe {
+            _mm256_madd_epi16(_mm256_shuffle_epi8(gather(base, at), pairs), wx)
+        };
+        let sum = vertical_sum(line(top), line(_mm256_add_epi32(top, stride_v)), s.fy);
+        let v = if gains.is_empty() {
+            round_sum(sum)
+        } else {
+            // Below 255 · 2^16 < 2^24: the conversion is exact.
+            // SAFETY: the row has a gain per sample.
+            let g = unsafe { gain_lanes(gains, k, 1.0 / 65536.0) };
+            round_to(_mm256_mul_ps(_mm256_cvtepi32_ps(sum), g), 255.0)
+        };
+        // SAFETY: step k writes samples 8k .. 8k + 8 of the row.
+        unsafe { store_gray_u8(dst.add(LANES * k), v) };
+    };
+    // SAFETY: AVX2; the body writes only step k's samples.
+    unsafe { walk(xy, &g, body, (dst, 1), sample) };
+    true
+}
+
+/// u16 RGB: per lane one 4-byte read at each tap, of which the low half is
+/// the sample. The sums reach `65535 · 2^16`, beyond `madd`'s range, so
+/// both stages multiply in 32 bits.
+///
+/// # Safety
+/// As for [`channel_row_u8`], with `stride` in samples.
+#[target_feature(enable = "avx2")]
+pub(in crate::remap) unsafe fn channel_row_u16(
+    src: &[u16],
+    stride: usize,
+    size: (usize, usize),
+    (xy, gains, out): (&[i32], &[f32], &mut [u16]),
+    sample: &mut dyn FnMut(usize, &mut [u16]),
+) -> bool {
+    // Blue's right tap: 4 + 6 bytes on, read 4 bytes.
+    let Some(g) = geometry(src, stride, size, 14).filter(|_| fits(xy, gains, out.len())) else {
+        return false;
+    };
+    let (base, dst) = (src.as_ptr().cast::<u8>(), out.as_mut_ptr());
+    let (stride_v, right, low) = (
+        _mm256_set1_epi32(g.stride),
+        _mm256_set1_epi32(6),
+        _mm256_set1_epi32(0xffff),
+    );
+    let body = |k: usize, s: Step| {
+        let top = _mm256_add_epi32(s.top, channel_bytes(k, 2));
+        let line = |at: __m256i| {
+            // SAFETY: `step` admitted only windows whose reads end inside `src`.
+            let (l, r) = unsafe { (gather(base, at), gather(base, _mm256_add_epi32(at, right))) };
+            let (l, r) = (_mm256_and_si256(l, low), _mm256_and_si256(r, low));
+            _mm256_add_epi32(
+                _mm256_slli_epi32(l, 8),
+                _mm256_mullo_epi32(_mm256_sub_epi32(r, l), s.fx),
+            )
+        };
+        let sum = vertical_sum(line(top), line(_mm256_add_epi32(top, stride_v)), s.fy);
+        let v = if gains.is_empty() {
+            round_sum(sum)
+        } else {
+            // SAFETY: the row has a gain per sample.
+            let g = unsafe { gain_lanes(gains, k, 1.0 / 65536.0) };
+            round_to(_mm256_mul_ps(u32_to_f32(sum), g), 65535.0)
+        };
+        // SAFETY: step k writes samples 8k .. 8k + 8 of the row.
+        unsafe { store_u16(dst.add(LANES * k), v) };
+    };
+    // SAFETY: as in `channel_row_u8`.
+    unsafe { walk(xy, &g, body, (dst, 1), sample) };
+    true
+}
+
+/// f32 RGB: the scalar path's operations, `((0 + a0 p0) + a1 p1)` per row
+/// and the same of the rows, in `f32` without fused multiply-adds (the
+/// additions to zero turn a -0 into +0, as the scalar sums do).
+///
+/// # Safety
+/// As for [`channel_row_u8`], with `stride` in samples.
+#[target_feature(enable = "avx2")]
+pub(in crate::remap) unsafe fn channel_row_f32(
+    src: &[f32],
+    stride: usize,
+    size: (usize, usize),
+    (xy, gains, out): (&[i32], &[f32], &mut [f32]),
+    sample: &mut dyn FnMut(usize, &mut [f32]),
+) -> bool {
+    // Blue's right tap: 8 + 12 bytes on, read 4 bytes.
+    let Some(g) = geometry(src, stride, size, 24).filter(|_| fits(xy, gains, out.len())) else {
+        return false;
+    };
+    let (base, dst) = (src.as_ptr().cast::<u8>(), out.as_mut_ptr());
+    let (stride_v, right) = (_mm256_set1_epi32(g.stride), _mm256_set1_epi32(12));
+    let (zero, one, unit) = (
+        _mm256_setzero_ps(),
+        _mm256_set1_ps(1.0),
+        _mm256_set1_ps(1.0 / 256.0),
+    );
+    let weights = |f: __m256i| {
+        let t = _mm256_mul_ps(_mm256_cvtepi32_ps(f), unit);
+        (_mm256_sub_ps(one, t), t)
+    };
+    let blend = |(a0, a1): (__m256, __m256), p0: __m256, p1: __m256| {
+        _mm256_add_ps(
+            _mm256_add_ps(zero, _mm256_mul_ps(a0, p0)),
+            _mm256_mul_ps(a1, p1),
+        )
+    };
+    let body = |k: usize, s: Step| {
+        let top = _mm256_add_epi32(s.top, channel_bytes(k, 4));
+        let wx = weights(s.fx);
+        let line = |at: __m256i| {
+            // SAFETY: `step` admitted only windows whose reads end inside `src`.
+            let (l, r) = unsafe { (gather(base, at), gather(base, _mm256_add_epi32(at, right))) };
+            blend(wx, _mm256_castsi256_ps(l), _mm256_castsi256_ps(r))
+        };
+        let mut v = blend(
+            weights(s.fy),
+            line(top),
+            line(_mm256_add_epi32(top, stride_v)),
+        );
+        if !gains.is_empty() {
+            // SAFETY: the row has a gain per sample.
+            v = _mm256_mul_ps(v, unsafe { gain_lanes(gains, k, 1.0) });
+        }
+        // SAFETY: step k writes samples 8k .. 8k + 8 of the row.
+        unsafe { _mm256_storeu_ps(dst.add(LANES * k), v) };
+    };
+    // SAFETY: as in `channel_row_u8`.
+    unsafe { walk(xy, &g, body, (dst, 1), sample) };
+    true
+}
