@@ -1037,6 +1037,25 @@ mod tests {
         assert_eq!(fast, slow, "{interp:?}, {c} channels");
     }
 
+    /// `n` u8 samples of every value.
+    fn u8_samples(n: usize) -> Vec<u8> {
+        (0..n).map(|i| (i * 97 % 256) as u8).collect()
+    }
+
+    /// `n` u16 samples, every third the largest: extreme values exercise
+    /// the wrap-around in the 32-bit sums.
+    fn u16_samples(n: usize) -> Vec<u16> {
+        (0..n)
+            .map(|i| {
+                if i % 3 == 0 {
+                    65535
+                } else {
+                    (i * 7919 % 65536) as u16
+                }
+            })
+            .collect()
+    }
+
     #[test]
     fn simd_rows_match_the_scalar_path_bit_for_bit() {
         for (w, h, interp) in [
@@ -1051,19 +1070,10 @@ mod tests {
                 // Contiguous, and with 5 samples of padding after each row.
                 for stride in [w * c, w * c + 5] {
                     let n = (h - 1) * stride + w * c;
-                    let u8s: Vec<u8> = (0..n).map(|i| (i * 97 % 256) as u8).collect();
+                    let u8s = u8_samples(n);
                     let view = ImageView::new(&u8s, w, h, c, stride).unwrap();
                     assert_simd_matches_scalar(&view, interp);
-                    // Extreme u16 values exercise the wrap-around in the 32-bit sums.
-                    let u16s: Vec<u16> = (0..n)
-                        .map(|i| {
-                            if i % 3 == 0 {
-                                65535
-                            } else {
-                                (i * 7919 % 65536) as u16
-                            }
-                        })
-                        .collect();
+                    let u16s = u16_samples(n);
                     let view = ImageView::new(&u16s, w, h, c, stride).unwrap();
                     assert_simd_matches_scalar(&view, interp);
                 }
@@ -1261,19 +1271,11 @@ mod tests {
             // Contiguous, and with 5 samples of padding after each row.
             for stride in [3 * w, 3 * w + 5] {
                 let n = (h - 1) * stride + 3 * w;
-                let u8s: Vec<u8> = (0..n).map(|i| (i * 97 % 256) as u8).collect();
+                let u8s = u8_samples(n);
                 assert_channel_rows_match_the_scalar_path(
                     &ImageView::new(&u8s, w, h, 3, stride).unwrap(),
                 );
-                let u16s: Vec<u16> = (0..n)
-                    .map(|i| {
-                        if i % 3 == 0 {
-                            65535
-                        } else {
-                            (i * 7919 % 65536) as u16
-                        }
-                    })
-                    .collect();
+                let u16s = u16_samples(n);
                 assert_channel_rows_match_the_scalar_path(
                     &ImageView::new(&u16s, w, h, 3, stride).unwrap(),
                 );
