@@ -80,7 +80,7 @@ fn geometry<T>(src: &[T], stride: usize, size: (usize, usize), read: usize) -> O
     let bytes = std::mem::size_of::<T>();
     Geometry::new(
         src.as_ptr().cast(),
-        bytes * src.len(),
+        std::mem::size_of_val(src),
         bytes * stride,
         3 * bytes,
         2,
