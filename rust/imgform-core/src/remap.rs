@@ -39,7 +39,7 @@
 //! handling, the same integer (bilinear) or `f32` (bicubic) operations as
 //! the scalar path, so the output is bit-identical to it (tested). The
 //! per-channel rows of a lens correction (each channel of an RGB image at
-//! its own position, [`resample_channels`]) are sampled bilinearly eight
+//! its own position, `resample_channels`) are sampled bilinearly eight
 //! samples at a time for u8, u16 and f32 (`remap_channels_avx2.rs`), again
 //! bit-identical. Pixels near the borders, other layouts, other f32 images
 //! and the computed positions of [`crate::chromatic`] take the scalar path. Measured on the shared
@@ -188,7 +188,7 @@ pub trait Resample: Sample {
         false
     }
 
-    /// Samples one row of [`resample_channels`] bilinearly with a SIMD
+    /// Samples one row of `resample_channels` bilinearly with a SIMD
     /// kernel: sample `s` of `row` is channel `s % 3` read at
     /// `xy[2s..2s + 2]`, times `gains[s]` when `gains` is not empty.
     /// `sample(s, px)` writes the samples it leaves to the scalar path.
