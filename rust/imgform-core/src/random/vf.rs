@@ -23,12 +23,10 @@ impl<const N: usize> From<f64> for Vf<N> {
     }
 }
 
-/// The element-wise operators, each between two `Vf`s or a `Vf` and an
-/// `f64` (only in that order: with `f64 op Vf` too, a float literal on the
-/// left would leave its type ambiguous).
+/// An element-wise binary operator between two `Vf`s or two `Mask`s.
 macro_rules! elementwise {
-    ($trait:ident, $method:ident, $assign:tt) => {
-        impl<const N: usize> $trait for Vf<N> {
+    ($type:ident, $trait:ident, $method:ident, $assign:tt) => {
+        impl<const N: usize> $trait for $type<N> {
             type Output = Self;
             #[inline(always)]
             fn $method(self, rhs: Self) -> Self {
@@ -39,6 +37,15 @@ macro_rules! elementwise {
                 Self(out)
             }
         }
+    };
+}
+
+/// An arithmetic operator between two `Vf`s, and between a `Vf` and an
+/// `f64` (only in that order: with `f64 op Vf` too, a float literal on the
+/// left would leave its type ambiguous).
+macro_rules! arithmetic {
+    ($trait:ident, $method:ident, $assign:tt) => {
+        elementwise!(Vf, $trait, $method, $assign);
         impl<const N: usize> $trait<f64> for Vf<N> {
             type Output = Self;
             #[inline(always)]
@@ -49,10 +56,12 @@ macro_rules! elementwise {
     };
 }
 
-elementwise!(Add, add, +=);
-elementwise!(Sub, sub, -=);
-elementwise!(Mul, mul, *=);
-elementwise!(Div, div, /=);
+arithmetic!(Add, add, +=);
+arithmetic!(Sub, sub, -=);
+arithmetic!(Mul, mul, *=);
+arithmetic!(Div, div, /=);
+elementwise!(Mask, BitAnd, bitand, &=);
+elementwise!(Mask, BitOr, bitor, |=);
 
 impl<const N: usize> Neg for Vf<N> {
     type Output = Self;
@@ -165,30 +174,6 @@ impl<const N: usize> Mask<N> {
     #[inline(always)]
     pub(crate) fn any(self) -> bool {
         self.0.iter().fold(false, |a, &m| a | m)
-    }
-}
-
-impl<const N: usize> BitAnd for Mask<N> {
-    type Output = Self;
-    #[inline(always)]
-    fn bitand(self, rhs: Self) -> Self {
-        let mut out = self.0;
-        for (o, r) in out.iter_mut().zip(rhs.0) {
-            *o &= r;
-        }
-        Self(out)
-    }
-}
-
-impl<const N: usize> BitOr for Mask<N> {
-    type Output = Self;
-    #[inline(always)]
-    fn bitor(self, rhs: Self) -> Self {
-        let mut out = self.0;
-        for (o, r) in out.iter_mut().zip(rhs.0) {
-            *o |= r;
-        }
-        Self(out)
     }
 }
 

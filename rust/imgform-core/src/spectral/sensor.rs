@@ -20,8 +20,9 @@
 //! frame of one sensor; the temporal noise comes from `(seed, y, x)`, so a new
 //! seed is a new frame. Either way a frame does not depend on the thread count.
 //!
-//! The read-out runs eight pixels at a time (`random::Lanes`), compiled for
-//! AVX2 where the CPU has it; every pixel still draws exactly what its own
+//! The read-out runs a row at a time in vector steps (`random::Lanes` for
+//! the normals, `random::PoissonRow` for the shot noise), compiled for AVX2
+//! where the CPU has it; every pixel still draws exactly what its own
 //! scalar generator would, so the frame is the same on any CPU.
 
 use super::falloff::Falloff;
@@ -198,17 +199,16 @@ impl Sensor {
         let readout = Readout::new(self);
         let bad = bands_first_bad(out, width, |y0, rows| {
             let mut first_bad = None;
-            let mut row_rates = vec![0.0; width];
             let mut scratch = RowScratch::new(width);
             for (dy, row) in rows.chunks_exact_mut(width).enumerate() {
                 let y = y0 + dy;
-                if let Some(x) = rates(y, &mut row_rates) {
+                if let Some(x) = rates(y, &mut scratch.rates) {
                     first_bad = first_bad.or(Some(y * width + x));
                 }
                 if let Some(f) = falloff {
-                    f.apply_row(y, &mut row_rates);
+                    f.apply_row(y, &mut scratch.rates);
                 }
-                readout.row(self, y, &row_rates, &columns, row, &mut scratch);
+                readout.row(RowKeys::new(self, y, &columns), row, &mut scratch);
             }
             first_bad
         });
@@ -361,25 +361,17 @@ impl Readout {
         }
     }
 
-    /// Reads row `y` of mean rates `rates` (e-/s) into `out`, through the
-    /// widest vector unit the CPU has (the same bits either way).
-    fn row(
-        &self,
-        sensor: &Sensor,
-        y: usize,
-        rates: &[f64],
-        columns: &[f64],
-        out: &mut [u16],
-        scratch: &mut RowScratch,
-    ) {
-        let keys = RowKeys::new(sensor, y);
+    /// Reads the row of `keys`, its mean rates (e-/s) in `scratch.rates`,
+    /// into `out`, through the widest vector unit the CPU has (the same
+    /// bits either way).
+    fn row(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
         #[cfg(target_arch = "x86_64")]
         if has_avx2_fma() {
             // SAFETY: AVX2 and FMA support was detected just above.
-            unsafe { self.row_avx2(keys, rates, columns, out, scratch) };
+            unsafe { self.row_avx2(keys, out, scratch) };
             return;
         }
-        self.row_lanes(keys, rates, columns, out, scratch);
+        self.row_lanes(keys, out, scratch);
     }
 
     /// [`Self::row_lanes`] compiled for AVX2 (and FMA, which the arithmetic
@@ -389,15 +381,8 @@ impl Readout {
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn row_avx2(
-        &self,
-        keys: RowKeys,
-        rates: &[f64],
-        columns: &[f64],
-        out: &mut [u16],
-        scratch: &mut RowScratch,
-    ) {
-        self.row_lanes(keys, rates, columns, out, scratch);
+    unsafe fn row_avx2(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
+        self.row_lanes(keys, out, scratch);
     }
 
     /// Reads a row in three passes over it, each [`LANES`] pixels at a time
@@ -406,23 +391,17 @@ impl Readout {
     /// undecided pixels are finished together across the row); the read
     /// noise and the ADC. Each pixel draws what [`Self::pixel`] draws.
     #[inline(always)]
-    fn row_lanes(
-        &self,
-        keys: RowKeys,
-        rates: &[f64],
-        columns: &[f64],
-        out: &mut [u16],
-        scratch: &mut RowScratch,
-    ) {
-        let width = rates.len();
-        let blocks = width / LANES * LANES;
+    fn row_lanes(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
         let RowScratch {
+            rates,
             means,
             offsets,
             counts,
             states,
             poisson,
         } = scratch;
+        let (width, columns) = (rates.len(), keys.columns);
+        let blocks = width / LANES * LANES;
         for x0 in (0..blocks).step_by(LANES) {
             let at = x0..x0 + LANES;
             let (mean, offset) = self.charges(&keys, x0, rates[at.clone()].try_into().unwrap());
@@ -515,12 +494,12 @@ impl Readout {
     /// Pixel `x`'s reading of a signal of mean `rate` e-/s: the sensor's
     /// model, one pixel at a time, as [`Self::row_lanes`] runs it by lanes.
     #[cfg(test)]
-    fn pixel(&self, keys: &RowKeys, x: usize, rate: f64, column_offset: f64) -> u16 {
+    fn pixel(&self, keys: &RowKeys<'_>, x: usize, rate: f64) -> u16 {
         let (mean, offset) = self.pixel_charges(keys, x, rate);
         let mut rng = SplitMix64::at(keys.temporal, x);
         let collected = rng.poisson(mean);
         self.read(
-            collected.min(self.full_well) + offset + column_offset,
+            collected.min(self.full_well) + offset + keys.columns[x],
             &mut rng,
         )
     }
@@ -553,6 +532,8 @@ impl Readout {
 
 /// The per-row buffers of [`Readout::row_lanes`], allocated once per band.
 struct RowScratch {
+    /// The row's mean rates, e-/s: the read-out's input.
+    rates: Vec<f64>,
     means: Vec<f64>,
     offsets: Vec<f64>,
     counts: Vec<f64>,
@@ -563,6 +544,7 @@ struct RowScratch {
 impl RowScratch {
     fn new(width: usize) -> Self {
         Self {
+            rates: vec![0.0; width],
             means: vec![0.0; width],
             offsets: vec![0.0; width],
             counts: vec![0.0; width],
@@ -573,20 +555,23 @@ impl RowScratch {
 }
 
 /// What a row's pixels share: the bases of its fixed-pattern and temporal
-/// generators ([`SplitMix64::row_base`]) and the ziggurat's table.
-struct RowKeys {
+/// generators ([`SplitMix64::row_base`]), the ziggurat's table and the
+/// frame's column offsets (e-).
+struct RowKeys<'a> {
     fixed: u64,
     temporal: u64,
     ziggurat: &'static Ziggurat,
+    columns: &'a [f64],
 }
 
-impl RowKeys {
-    fn new(sensor: &Sensor, y: usize) -> Self {
+impl<'a> RowKeys<'a> {
+    fn new(sensor: &Sensor, y: usize, columns: &'a [f64]) -> Self {
         let base = |seed| SplitMix64::row_base(SplitMix64::row_key(seed, y));
         Self {
             fixed: base(sensor.pattern_seed),
             temporal: base(sensor.seed),
             ziggurat: ziggurat(),
+            columns,
         }
     }
 }
@@ -790,9 +775,9 @@ mod tests {
 
     /// Reads a row pixel by pixel, the scalar oracle of the lanes.
     fn row_by_pixels(s: &Sensor, y: usize, rates: &[f64], columns: &[f64]) -> Vec<u16> {
-        let (readout, keys) = (Readout::new(s), RowKeys::new(s, y));
+        let (readout, keys) = (Readout::new(s), RowKeys::new(s, y, columns));
         (0..rates.len())
-            .map(|x| readout.pixel(&keys, x, rates[x], columns[x]))
+            .map(|x| readout.pixel(&keys, x, rates[x]))
             .collect()
     }
 
@@ -814,14 +799,16 @@ mod tests {
         let rates: Vec<f64> = (0..w).map(|x| means[(x * 7) % means.len()]).collect();
         let columns: Vec<f64> = (0..w).map(|x| x as f64 * 0.1 - 3.0).collect();
         let mut scratch = RowScratch::new(w);
+        let readout = Readout::new(&s);
         for y in 0..40 {
             let want = row_by_pixels(&s, y, &rates, &columns);
-            let (readout, keys) = (Readout::new(&s), RowKeys::new(&s, y));
+            scratch.rates.copy_from_slice(&rates);
             let mut got = vec![0u16; w];
-            readout.row_lanes(keys, &rates, &columns, &mut got, &mut scratch);
+            readout.row_lanes(RowKeys::new(&s, y, &columns), &mut got, &mut scratch);
             assert_eq!(got, want, "row {y}");
+            scratch.rates.copy_from_slice(&rates);
             let mut dispatched = vec![0u16; w];
-            readout.row(&s, y, &rates, &columns, &mut dispatched, &mut scratch);
+            readout.row(RowKeys::new(&s, y, &columns), &mut dispatched, &mut scratch);
             assert_eq!(dispatched, want, "row {y}");
         }
     }
