@@ -389,7 +389,8 @@ impl Readout {
     /// (the last `width % LANES` pixels one at a time): the fixed patterns
     /// and the mean charges; the Poisson counts ([`PoissonRow`], whose
     /// undecided pixels are finished together across the row); the read
-    /// noise and the ADC. Each pixel draws what [`Self::pixel`] draws.
+    /// noise and the ADC. Each pixel draws what the per-pixel model `pixel`
+    /// (in the tests) draws.
     #[inline(always)]
     fn row_lanes(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
         let RowScratch {
