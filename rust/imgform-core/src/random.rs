@@ -4,16 +4,22 @@
 //! is shared between pixels: each site `(y, x)` seeds its own tiny generator
 //! from `(seed, y, x)`. That makes the per-site set-up and every draw part of
 //! the per-pixel cost of a sensor simulation, which is why the variates here
-//! avoid transcendental functions on their common paths: the normal by
-//! Marsaglia and Tsang's ziggurat, the Poisson by Hörmann's PTRS with its
-//! logarithms left to the rare rejection branch.
+//! avoid libm on their common paths: the normal by Marsaglia and Tsang's
+//! ziggurat, the Poisson by Hörmann's PTRS with polynomial logarithms and
+//! exponentials ([`poisson`]).
 //!
-//! [`Lanes`] steps the generators of [`LANES`] neighbouring sites together,
-//! so that the common paths run as vector instructions across pixels; each
-//! lane that misses a fast path finishes with the scalar code, so every site
+//! [`Lanes`] steps the normals of [`LANES`] neighbouring sites together,
+//! and [`PoissonRow`] the Poisson variates of a whole row, so that the
+//! common paths run as vector instructions across pixels; every site still
 //! draws exactly the numbers its own [`SplitMix64`] would.
 
 use std::sync::OnceLock;
+
+mod poisson;
+mod vf;
+
+pub(crate) use poisson::PoissonRow;
+use vf::TWO_52;
 
 /// SplitMix64 (Steele, Lea, Flood 2014): a tiny generator whose state can be
 /// set from any counter, which is what makes the noise of each pixel a pure
@@ -55,6 +61,18 @@ impl SplitMix64 {
     #[inline(always)]
     pub(crate) fn at(row_base: u64, x: usize) -> Self {
         Self((row_base ^ x as u64).wrapping_add(Self::GOLDEN))
+    }
+
+    /// The generator's state, to resume it later with [`Self::from_state`].
+    #[inline(always)]
+    pub(crate) fn state(&self) -> u64 {
+        self.0
+    }
+
+    /// The generator left in `state`.
+    #[inline(always)]
+    pub(crate) fn from_state(state: u64) -> Self {
+        Self(state)
     }
 
     #[inline(always)]
@@ -117,91 +135,6 @@ impl SplitMix64 {
         let y = z.f[layer] + self.uniform() * (z.f[layer + 1] - z.f[layer]);
         (y < density(x)).then_some(x)
     }
-
-    /// A Poisson variate of mean `lam` (0 for `lam <= 0`): inversion by
-    /// sequential search for small means, Hörmann's transformed rejection
-    /// with squeeze (PTRS, 1993) above, where the search would take ~`lam`
-    /// steps. Both are exact at every mean; neither switches to a Gaussian.
-    #[inline(always)]
-    pub(crate) fn poisson(&mut self, lam: f64) -> f64 {
-        if lam < 10.0 {
-            return self.poisson_by_search(lam);
-        }
-        let p = Ptrs::new(lam);
-        loop {
-            let (u, v) = (self.uniform(), self.uniform());
-            let (k, us, squeezed) = p.candidate(u, v);
-            if squeezed {
-                return k;
-            }
-            if let Some(k) = p.accept(us, v, k) {
-                return k;
-            }
-        }
-    }
-
-    fn poisson_by_search(&mut self, lam: f64) -> f64 {
-        if lam <= 0.0 {
-            return 0.0;
-        }
-        let u = self.uniform();
-        let mut k = 0.0;
-        let mut p = (-lam).exp();
-        let mut cdf = p;
-        // The tail beyond 100 has probability < 1e-60 for lam < 10.
-        while u > cdf && k < 100.0 {
-            k += 1.0;
-            p *= lam / k;
-            cdf += p;
-        }
-        k
-    }
-}
-
-/// The constants of Hörmann's PTRS for one mean `lam` (>= 10).
-struct Ptrs {
-    lam: f64,
-    a: f64,
-    b: f64,
-}
-
-impl Ptrs {
-    #[inline(always)]
-    fn new(lam: f64) -> Self {
-        let b = 0.931 + 2.53 * lam.sqrt();
-        Self {
-            lam,
-            a: -0.059 + 0.02483 * b,
-            b,
-        }
-    }
-
-    /// The candidate `k` of the uniforms `u01, v`, with `us` and whether
-    /// the squeeze accepts it.
-    #[inline(always)]
-    fn candidate(&self, u01: f64, v: f64) -> (f64, f64, bool) {
-        let u = u01 - 0.5;
-        let us = 0.5 - u.abs();
-        let k = floor((2.0 * self.a / us + self.b) * u + self.lam + 0.43);
-        // The squeeze `v <= 0.9277 - 3.6224 / (b - 2)` (b > 8 here),
-        // multiplied out to spare a division: ~80 % of draws end here,
-        // without a logarithm.
-        let squeezed = (us >= 0.07) & ((0.9277 - v) * (self.b - 2.0) >= 3.6224);
-        (k, us, squeezed)
-    }
-
-    /// PTRS's exact acceptance test, for the draws the squeeze did not
-    /// decide.
-    #[cold]
-    fn accept(&self, us: f64, v: f64, k: f64) -> Option<f64> {
-        let (lam, a, b) = (self.lam, self.a, self.b);
-        if k < 0.0 || (us < 0.013 && v > us) {
-            return None;
-        }
-        let inv_alpha = 1.1239 + 1.1328 / (b - 3.4);
-        let lhs = (v * inv_alpha / (a / (us * us) + b)).ln();
-        (lhs <= -lam + k * lam.ln() - ln_factorial(k)).then_some(k)
-    }
 }
 
 /// Pixels whose generators [`Lanes`] steps together: eight f64 lanes fill
@@ -220,7 +153,17 @@ impl Lanes {
     /// [`SplitMix64::row_base`] `row_base`.
     #[inline(always)]
     pub(crate) fn at(row_base: u64, x0: usize) -> Self {
-        Self(std::array::from_fn(|i| SplitMix64::at(row_base, x0 + i).0))
+        let mut states = [0; LANES];
+        for (i, s) in states.iter_mut().enumerate() {
+            *s = SplitMix64::at(row_base, x0 + i).0;
+        }
+        Self(states)
+    }
+
+    /// The generators left in `states` (e.g. by a [`PoissonRow`]).
+    #[inline(always)]
+    pub(crate) fn from_states(states: [u64; LANES]) -> Self {
+        Self(states)
     }
 
     #[inline(always)]
@@ -260,45 +203,6 @@ impl Lanes {
         }
         out
     }
-
-    /// A Poisson variate per lane of mean `lam[i]`
-    /// ([`SplitMix64::poisson`]): one PTRS candidate for every lane, kept
-    /// where the mean is >= 10 and the squeeze accepts it (~76 %); other
-    /// lanes are finished by [`Self::poisson_undecided`].
-    #[inline(always)]
-    pub(crate) fn poisson(&mut self, lam: &[f64; LANES]) -> [f64; LANES] {
-        let (u, v) = (self.next_u64(), self.next_u64());
-        let mut out = [0.0; LANES];
-        let mut us = [0.0; LANES];
-        let mut hit = [false; LANES];
-        for i in 0..LANES {
-            let (k, u_s, squeezed) = Ptrs::new(lam[i]).candidate(unit(u[i]), unit(v[i]));
-            (out[i], us[i]) = (k, u_s);
-            hit[i] = lam[i] >= 10.0 && squeezed;
-        }
-        for i in 0..LANES {
-            if !hit[i] {
-                out[i] = self.poisson_undecided(i, lam[i], (out[i], us[i], unit(v[i])));
-            }
-        }
-        out
-    }
-
-    /// Lane `i`'s Poisson variate when the vector step left it undecided,
-    /// as the scalar sampler goes on: a mean below 10 is drawn again by
-    /// the search from before the step's two draws; a larger one takes
-    /// PTRS's exact test of the step's candidate `(k, us, v)`, then the
-    /// scalar loop's next draws. Kept out of line: a quarter of lanes come
-    /// here, and eight inlined copies of the sampler would crowd the loop.
-    #[inline(never)]
-    fn poisson_undecided(&mut self, i: usize, lam: f64, (k, us, v): (f64, f64, f64)) -> f64 {
-        if lam < 10.0 {
-            self.0[i] = self.0[i].wrapping_sub(SplitMix64::GOLDEN.wrapping_mul(2));
-        } else if let Some(k) = Ptrs::new(lam).accept(us, v, k) {
-            return k;
-        }
-        self.finish(i, |g| g.poisson(lam))
-    }
 }
 
 /// SplitMix64's output function: a bijective mix of the state.
@@ -316,25 +220,6 @@ fn with_sign(x: f64, bits: u64) -> f64 {
     f64::from_bits(x.to_bits() ^ ((bits & 0x100) << 55))
 }
 
-/// `v.floor()` without a call to libm (`floor` is not an instruction of
-/// baseline x86-64): truncation, corrected below zero. From 2^52 up every
-/// float is an integer already.
-#[inline(always)]
-fn floor(v: f64) -> f64 {
-    const TWO_52: f64 = 4_503_599_627_370_496.0;
-    let shift = TWO_52.copysign(v);
-    let r = if v.abs() < TWO_52 {
-        (v + shift) - shift
-    } else {
-        v
-    };
-    if r > v {
-        r - 1.0
-    } else {
-        r
-    }
-}
-
 /// The top 53 bits of `bits` as a uniform number in [0, 1):
 /// `(bits >> 11) 2^-53`, computed from the two 32-bit halves, each made a
 /// float by placing it in the mantissa of 2^52 and subtracting 2^52. Every
@@ -343,34 +228,10 @@ fn floor(v: f64) -> f64 {
 /// vectorises with AVX2.
 #[inline(always)]
 fn unit(bits: u64) -> f64 {
-    const TWO_52: f64 = 4_503_599_627_370_496.0;
     let half = |h: u64| f64::from_bits(TWO_52.to_bits() | h) - TWO_52;
     let hi = half(bits >> 32);
     let lo = half(bits & 0xFFFF_F800);
     (hi * 4_294_967_296.0 + lo) * (1.0 / 18_446_744_073_709_551_616.0)
-}
-
-/// `ln(k!)`: exact table below 10, Stirling's series above (error < 1e-10).
-fn ln_factorial(k: f64) -> f64 {
-    const TABLE: [f64; 10] = [
-        0.0,
-        0.0,
-        std::f64::consts::LN_2,
-        1.791_759_469_228_055,
-        3.178_053_830_347_945_7,
-        4.787_491_742_782_046,
-        6.579_251_212_010_101,
-        8.525_161_361_065_415,
-        10.604_602_902_745_25,
-        12.801_827_480_081_469,
-    ];
-    if k < 10.0 {
-        return TABLE[k as usize];
-    }
-    let k2 = k * k;
-    k * k.ln() - k + 0.5 * (std::f64::consts::TAU * k).ln() + 1.0 / (12.0 * k)
-        - 1.0 / (360.0 * k2 * k)
-        + 1.0 / (1260.0 * k2 * k2 * k)
 }
 
 /// Layers of the ziggurat.
@@ -482,74 +343,38 @@ mod tests {
         }
     }
 
-    #[test]
-    fn poisson_probabilities_match_the_law_on_both_branches() {
-        // P(k) for a mean below and above the switch, against the exact law,
-        // each within 5 binomial standard errors.
-        let n = 400_000;
-        for lam in [3.0f64, 40.0] {
-            let mut g = SplitMix64::for_site(1, 2, 3);
-            let mut counts = vec![0usize; 200];
-            for _ in 0..n {
-                counts[g.poisson(lam) as usize] += 1;
-            }
-            for (k, &count) in counts.iter().enumerate().take((3.0 * lam) as usize) {
-                let kf = k as f64;
-                let p = (-lam + kf * lam.ln() - ln_factorial(kf)).exp();
-                let sigma = (n as f64 * p * (1.0 - p)).sqrt();
-                assert!(
-                    (count as f64 - n as f64 * p).abs() < 5.0 * sigma + 1.0,
-                    "mean {lam}, P({k}): {count} of {n}"
-                );
-            }
-        }
-    }
-
-    /// A Poisson variate then two normals per lane, the sensor's draws.
+    /// Two normals per lane, as the sensor's fixed patterns draw them.
     #[inline(always)]
-    fn lane_draws(lanes: &mut Lanes, lam: &[f64; LANES], z: &Ziggurat) -> [[f64; LANES]; 3] {
-        [lanes.poisson(lam), lanes.normal(z), lanes.normal(z)]
+    fn lane_normals(lanes: &mut Lanes, z: &Ziggurat) -> [[f64; LANES]; 2] {
+        [lanes.normal(z), lanes.normal(z)]
     }
 
-    /// [`lane_draws`] compiled as the sensor's AVX2 read-out is.
+    /// [`lane_normals`] compiled as the sensor's AVX2 read-out is.
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn lane_draws_avx2(
-        lanes: &mut Lanes,
-        lam: &[f64; LANES],
-        z: &Ziggurat,
-    ) -> [[f64; LANES]; 3] {
-        lane_draws(lanes, lam, z)
+    unsafe fn lane_normals_avx2(lanes: &mut Lanes, z: &Ziggurat) -> [[f64; LANES]; 2] {
+        lane_normals(lanes, z)
     }
 
     #[test]
-    fn lanes_draw_what_each_site_draws_alone() {
-        // Means on both sides of the PTRS switch and of the squeeze, mixed
-        // across lanes (10 and 12.5 send many candidates below k = 10 to
-        // the exact test), then means log-uniform from 0.1 to 1e6; normals with their rare edge and
-        // tail cases. The baseline and the AVX2 builds of the lanes must
+    fn lanes_draw_the_normals_each_site_draws_alone() {
+        // 16 000 rows of eight lanes: ~1 300 draws miss the fast path, some
+        // into the tail. The baseline and the AVX2 builds of the lanes must
         // both give each site's own draws.
         let z = ziggurat();
-        let means = [0.0, 0.3, 4.0, 9.99, 10.0, 12.5, 60.0, 3e3, 1e5, -1.0];
-        let mut g = SplitMix64(31);
-        for row in 0..6000usize {
+        for row in 0..16_000usize {
             let base = SplitMix64::row_base(SplitMix64::row_key(9, row));
             let x0 = (row % 5) * LANES;
-            let lam: [f64; LANES] = if row < 2000 {
-                std::array::from_fn(|i| means[(i + row) % 10])
-            } else {
-                std::array::from_fn(|_| 10f64.powf(7.0 * g.uniform() - 1.0))
-            };
             let mut lanes = Lanes::at(base, x0);
-            let got = lane_draws(&mut lanes, &lam, z);
+            let got = lane_normals(&mut lanes, z);
             #[cfg(target_arch = "x86_64")]
             if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
                 let mut wide = Lanes::at(base, x0);
                 // SAFETY: AVX2 and FMA support was detected above.
-                let wide_got = unsafe { lane_draws_avx2(&mut wide, &lam, z) };
+                let wide_got = unsafe { lane_normals_avx2(&mut wide, z) };
                 assert_eq!(
                     wide_got.map(|d| d.map(f64::to_bits)),
                     got.map(|d| d.map(f64::to_bits))
@@ -558,14 +383,8 @@ mod tests {
             }
             for i in 0..LANES {
                 let mut g = SplitMix64::at(base, x0 + i);
-                let want = [g.poisson(lam[i]), g.normal(), g.normal()];
-                for (d, w) in got.iter().zip(want) {
-                    assert_eq!(
-                        d[i].to_bits(),
-                        w.to_bits(),
-                        "row {row} lane {i} mean {}",
-                        lam[i]
-                    );
+                for d in got {
+                    assert_eq!(d[i].to_bits(), g.normal().to_bits(), "row {row} lane {i}");
                 }
                 assert_eq!(lanes.0[i], g.0);
             }
@@ -580,36 +399,5 @@ mod tests {
             let plain = (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
             assert_eq!(unit(bits).to_bits(), plain.to_bits(), "{bits:#x}");
         }
-    }
-
-    #[test]
-    fn floor_matches_the_library_floor() {
-        for v in [
-            -2.5,
-            -2.0,
-            -0.3,
-            -0.0,
-            0.0,
-            0.7,
-            3.0,
-            1e15 + 0.5,
-            -1e17,
-            1e300,
-            // Around 2^52, where adding 2^52 would round by 2, and the
-            // float just below 1/2, which the addition rounds up.
-            4_503_599_627_370_495.5,
-            -4_503_599_627_370_495.5,
-            4_503_599_627_370_496.0,
-            0.499_999_999_999_999_94,
-            -0.499_999_999_999_999_94,
-        ] {
-            assert_eq!(floor(v), v.floor(), "{v}");
-        }
-    }
-
-    #[test]
-    fn stirling_matches_the_table_where_they_meet() {
-        let exact_10 = 15.104_412_573_075_516;
-        assert!((ln_factorial(10.0) - exact_10).abs() < 1e-10);
     }
 }

@@ -20,8 +20,9 @@
 //! frame of one sensor; the temporal noise comes from `(seed, y, x)`, so a new
 //! seed is a new frame. Either way a frame does not depend on the thread count.
 //!
-//! The read-out runs eight pixels at a time (`random::Lanes`), compiled for
-//! AVX2 where the CPU has it; every pixel still draws exactly what its own
+//! The read-out runs a row at a time in vector steps (`random::Lanes` for
+//! the normals, `random::PoissonRow` for the shot noise), compiled for AVX2
+//! where the CPU has it; every pixel still draws exactly what its own
 //! scalar generator would, so the frame is the same on any CPU.
 
 use super::falloff::Falloff;
@@ -30,7 +31,7 @@ use super::{bands_first_bad, cfa_rates, has_avx2_fma, is_valid_sample};
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
 use crate::invalid;
-use crate::random::{ziggurat, Lanes, SplitMix64, Ziggurat, LANES};
+use crate::random::{ziggurat, Lanes, PoissonRow, SplitMix64, Ziggurat, LANES};
 
 /// Mixed into the pattern seed for the column offsets, so that they are not
 /// the row-0 pixel offsets in disguise.
@@ -198,16 +199,16 @@ impl Sensor {
         let readout = Readout::new(self);
         let bad = bands_first_bad(out, width, |y0, rows| {
             let mut first_bad = None;
-            let mut row_rates = vec![0.0; width];
+            let mut scratch = RowScratch::new(width);
             for (dy, row) in rows.chunks_exact_mut(width).enumerate() {
                 let y = y0 + dy;
-                if let Some(x) = rates(y, &mut row_rates) {
+                if let Some(x) = rates(y, &mut scratch.rates) {
                     first_bad = first_bad.or(Some(y * width + x));
                 }
                 if let Some(f) = falloff {
-                    f.apply_row(y, &mut row_rates);
+                    f.apply_row(y, &mut scratch.rates);
                 }
-                readout.row(self, y, &row_rates, &columns, row);
+                readout.row(RowKeys::new(self, y, &columns), row, &mut scratch);
             }
             first_bad
         });
@@ -360,17 +361,17 @@ impl Readout {
         }
     }
 
-    /// Reads row `y` of mean rates `rates` (e-/s) into `out`, through the
-    /// widest vector unit the CPU has (the same bits either way).
-    fn row(&self, sensor: &Sensor, y: usize, rates: &[f64], columns: &[f64], out: &mut [u16]) {
-        let keys = RowKeys::new(sensor, y);
+    /// Reads the row of `keys`, its mean rates (e-/s) in `scratch.rates`,
+    /// into `out`, through the widest vector unit the CPU has (the same
+    /// bits either way).
+    fn row(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
         #[cfg(target_arch = "x86_64")]
         if has_avx2_fma() {
             // SAFETY: AVX2 and FMA support was detected just above.
-            unsafe { self.row_avx2(keys, rates, columns, out) };
+            unsafe { self.row_avx2(keys, out, scratch) };
             return;
         }
-        self.row_lanes(keys, rates, columns, out);
+        self.row_lanes(keys, out, scratch);
     }
 
     /// [`Self::row_lanes`] compiled for AVX2 (and FMA, which the arithmetic
@@ -380,82 +381,128 @@ impl Readout {
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn row_avx2(&self, keys: RowKeys, rates: &[f64], columns: &[f64], out: &mut [u16]) {
-        self.row_lanes(keys, rates, columns, out);
+    unsafe fn row_avx2(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
+        self.row_lanes(keys, out, scratch);
     }
 
-    /// Reads a row [`LANES`] pixels at a time ([`Self::block`]), the last
-    /// `width % LANES` pixels one at a time ([`Self::pixel`]).
+    /// Reads a row in three passes over it, each [`LANES`] pixels at a time
+    /// (the last `width % LANES` pixels one at a time): the fixed patterns
+    /// and the mean charges; the Poisson counts ([`PoissonRow`], whose
+    /// undecided pixels are finished together across the row); the read
+    /// noise and the ADC. Each pixel draws what the per-pixel model `pixel`
+    /// (in the tests) draws.
     #[inline(always)]
-    fn row_lanes(&self, keys: RowKeys, rates: &[f64], columns: &[f64], out: &mut [u16]) {
-        let blocks = rates.len() / LANES * LANES;
-        let lanes = rates[..blocks]
-            .chunks_exact(LANES)
-            .zip(columns.chunks_exact(LANES))
-            .zip(out.chunks_exact_mut(LANES));
-        for (i, ((r, c), o)) in lanes.enumerate() {
-            let (r, c) = (r.try_into().unwrap(), c.try_into().unwrap());
-            o.copy_from_slice(&self.block(&keys, i * LANES, r, c));
+    fn row_lanes(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
+        let RowScratch {
+            rates,
+            means,
+            offsets,
+            counts,
+            states,
+            poisson,
+        } = scratch;
+        let (width, columns) = (rates.len(), keys.columns);
+        let blocks = width / LANES * LANES;
+        for x0 in (0..blocks).step_by(LANES) {
+            let at = x0..x0 + LANES;
+            let (mean, offset) = self.charges(&keys, x0, rates[at.clone()].try_into().unwrap());
+            means[at.clone()].copy_from_slice(&mean);
+            offsets[at].copy_from_slice(&offset);
         }
-        for x in blocks..rates.len() {
-            out[x] = self.pixel(&keys, x, rates[x], columns[x]);
+        for x in blocks..width {
+            (means[x], offsets[x]) = self.pixel_charges(&keys, x, rates[x]);
+        }
+        for (x, s) in states.iter_mut().enumerate() {
+            *s = SplitMix64::at(keys.temporal, x).state();
+        }
+        poisson.fill(means, counts, states);
+        for x0 in (0..blocks).step_by(LANES) {
+            let at = x0..x0 + LANES;
+            let mut electrons = [0.0; LANES];
+            for (i, e) in electrons.iter_mut().enumerate() {
+                *e = counts[x0 + i].min(self.full_well) + offsets[x0 + i] + columns[x0 + i];
+            }
+            if self.read_noise > 0.0 {
+                let noise = Lanes::from_states(states[at.clone()].try_into().unwrap())
+                    .normal(keys.ziggurat);
+                for (e, n) in electrons.iter_mut().zip(noise) {
+                    *e += self.read_noise * n;
+                }
+            }
+            for (o, e) in out[at].iter_mut().zip(electrons) {
+                *o = self.adc(e);
+            }
+        }
+        for x in blocks..width {
+            let electrons = counts[x].min(self.full_well) + offsets[x] + columns[x];
+            out[x] = self.read(electrons, &mut SplitMix64::from_state(states[x]));
         }
     }
 
-    /// Pixels `x0 .. x0 + LANES` of a row: [`Self::pixel`]'s arithmetic
-    /// lane by lane, with the generators stepped together.
+    /// The mean charges of pixels `x0 .. x0 + LANES` of signal rates
+    /// `rates` (e-/s), and their fixed offsets: [`Self::pixel_charges`]
+    /// lane by lane, with the fixed-pattern generators stepped together.
     #[inline(always)]
-    fn block(
+    fn charges(
         &self,
         keys: &RowKeys,
         x0: usize,
         rates: &[f64; LANES],
-        columns: &[f64; LANES],
-    ) -> [u16; LANES] {
-        let mut signal = rates.map(|r| r * self.exposure_time);
-        let mut offset = *columns;
+    ) -> ([f64; LANES], [f64; LANES]) {
+        let mut signal = *rates;
+        for s in &mut signal {
+            *s *= self.exposure_time;
+        }
+        let mut offset = [0.0; LANES];
         if self.prnu > 0.0 || self.dsnu > 0.0 {
             let mut g = Lanes::at(keys.fixed, x0);
             let gain = g.normal(keys.ziggurat);
             let dark = g.normal(keys.ziggurat);
             for i in 0..LANES {
                 signal[i] *= self.gain(gain[i]);
-                offset[i] += self.dsnu * dark[i];
+                offset[i] = self.dsnu * dark[i];
             }
         }
-        let mut rng = Lanes::at(keys.temporal, x0);
-        let collected = rng.poisson(&signal.map(|s| self.mean(s)));
-        let mut electrons = [0.0; LANES];
-        for i in 0..LANES {
-            electrons[i] = collected[i].min(self.full_well) + offset[i];
+        for s in &mut signal {
+            *s = self.mean(*s);
         }
-        if self.read_noise > 0.0 {
-            let noise = rng.normal(keys.ziggurat);
-            for (e, n) in electrons.iter_mut().zip(noise) {
-                *e += self.read_noise * n;
-            }
-        }
-        electrons.map(|e| self.adc(e))
+        (signal, offset)
     }
 
-    /// Pixel `x`'s reading of a signal of mean `rate` e-/s: the sensor's
-    /// model, one pixel at a time, as [`Self::block`] runs it by lanes.
+    /// Pixel `x`'s mean charge for a signal of `rate` e-/s, dimmed by its
+    /// fixed gain and with dark charge, and its fixed offset (DSNU).
     #[inline(always)]
-    fn pixel(&self, keys: &RowKeys, x: usize, rate: f64, column_offset: f64) -> u16 {
+    fn pixel_charges(&self, keys: &RowKeys, x: usize, rate: f64) -> (f64, f64) {
         let mut signal = rate * self.exposure_time;
-        let mut offset = column_offset;
+        let mut offset = 0.0;
         if self.prnu > 0.0 || self.dsnu > 0.0 {
             let mut g = SplitMix64::at(keys.fixed, x);
             signal *= self.gain(g.normal());
-            offset += self.dsnu * g.normal();
+            offset = self.dsnu * g.normal();
         }
-        let mut rng = SplitMix64::at(keys.temporal, x);
-        let collected = rng.poisson(self.mean(signal));
-        let mut electrons = collected.min(self.full_well) + offset;
+        (self.mean(signal), offset)
+    }
+
+    /// The code of a charge of `electrons` after read noise from `rng`.
+    #[inline(always)]
+    fn read(&self, mut electrons: f64, rng: &mut SplitMix64) -> u16 {
         if self.read_noise > 0.0 {
             electrons += self.read_noise * rng.normal();
         }
         self.adc(electrons)
+    }
+
+    /// Pixel `x`'s reading of a signal of mean `rate` e-/s: the sensor's
+    /// model, one pixel at a time, as [`Self::row_lanes`] runs it by lanes.
+    #[cfg(test)]
+    fn pixel(&self, keys: &RowKeys<'_>, x: usize, rate: f64) -> u16 {
+        let (mean, offset) = self.pixel_charges(keys, x, rate);
+        let mut rng = SplitMix64::at(keys.temporal, x);
+        let collected = rng.poisson(mean);
+        self.read(
+            collected.min(self.full_well) + offset + keys.columns[x],
+            &mut rng,
+        )
     }
 
     /// The fixed gain `1 + prnu z`. A gain below zero needs a draw beyond
@@ -484,21 +531,48 @@ impl Readout {
     }
 }
 
+/// The per-row buffers of [`Readout::row_lanes`], allocated once per band.
+struct RowScratch {
+    /// The row's mean rates, e-/s: the read-out's input.
+    rates: Vec<f64>,
+    means: Vec<f64>,
+    offsets: Vec<f64>,
+    counts: Vec<f64>,
+    states: Vec<u64>,
+    poisson: PoissonRow,
+}
+
+impl RowScratch {
+    fn new(width: usize) -> Self {
+        Self {
+            rates: vec![0.0; width],
+            means: vec![0.0; width],
+            offsets: vec![0.0; width],
+            counts: vec![0.0; width],
+            states: vec![0; width],
+            poisson: PoissonRow::default(),
+        }
+    }
+}
+
 /// What a row's pixels share: the bases of its fixed-pattern and temporal
-/// generators ([`SplitMix64::row_base`]) and the ziggurat's table.
-struct RowKeys {
+/// generators ([`SplitMix64::row_base`]), the ziggurat's table and the
+/// frame's column offsets (e-).
+struct RowKeys<'a> {
     fixed: u64,
     temporal: u64,
     ziggurat: &'static Ziggurat,
+    columns: &'a [f64],
 }
 
-impl RowKeys {
-    fn new(sensor: &Sensor, y: usize) -> Self {
+impl<'a> RowKeys<'a> {
+    fn new(sensor: &Sensor, y: usize, columns: &'a [f64]) -> Self {
         let base = |seed| SplitMix64::row_base(SplitMix64::row_key(seed, y));
         Self {
             fixed: base(sensor.pattern_seed),
             temporal: base(sensor.seed),
             ziggurat: ziggurat(),
+            columns,
         }
     }
 }
@@ -702,9 +776,9 @@ mod tests {
 
     /// Reads a row pixel by pixel, the scalar oracle of the lanes.
     fn row_by_pixels(s: &Sensor, y: usize, rates: &[f64], columns: &[f64]) -> Vec<u16> {
-        let (readout, keys) = (Readout::new(s), RowKeys::new(s, y));
+        let (readout, keys) = (Readout::new(s), RowKeys::new(s, y, columns));
         (0..rates.len())
-            .map(|x| readout.pixel(&keys, x, rates[x], columns[x]))
+            .map(|x| readout.pixel(&keys, x, rates[x]))
             .collect()
     }
 
@@ -725,14 +799,17 @@ mod tests {
         let w = 61;
         let rates: Vec<f64> = (0..w).map(|x| means[(x * 7) % means.len()]).collect();
         let columns: Vec<f64> = (0..w).map(|x| x as f64 * 0.1 - 3.0).collect();
+        let mut scratch = RowScratch::new(w);
+        let readout = Readout::new(&s);
         for y in 0..40 {
             let want = row_by_pixels(&s, y, &rates, &columns);
-            let (readout, keys) = (Readout::new(&s), RowKeys::new(&s, y));
+            scratch.rates.copy_from_slice(&rates);
             let mut got = vec![0u16; w];
-            readout.row_lanes(keys, &rates, &columns, &mut got);
+            readout.row_lanes(RowKeys::new(&s, y, &columns), &mut got, &mut scratch);
             assert_eq!(got, want, "row {y}");
+            scratch.rates.copy_from_slice(&rates);
             let mut dispatched = vec![0u16; w];
-            readout.row(&s, y, &rates, &columns, &mut dispatched);
+            readout.row(RowKeys::new(&s, y, &columns), &mut dispatched, &mut scratch);
             assert_eq!(dispatched, want, "row {y}");
         }
     }
