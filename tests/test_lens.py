@@ -218,6 +218,22 @@ def test_correct_devignettes_in_the_resampling_pass(dtype) -> None:
     assert one[:20, :20].mean() > 1.2 * plain[:20, :20].mean()
 
 
+@pytest.mark.parametrize("geometry", [True, False])
+def test_correct_writes_into_a_given_output(geometry) -> None:
+    p = _synthetic(distortion=("poly3", (-0.02,)), vignetting=(-0.3, 0.0, 0.0))
+    img = np.random.default_rng(4).random((30, 40, 3), dtype=np.float32)
+    out = np.full_like(img, np.nan)
+    got = p.correct(img, geometry=geometry, out=out)
+    assert got is out
+    np.testing.assert_array_equal(out, p.correct(img, geometry=geometry))
+    with pytest.raises(ValueError, match="shape"):
+        p.correct(img, geometry=geometry, out=np.empty((30, 41, 3), np.float32))
+    with pytest.raises(TypeError, match="dtype"):
+        p.correct(img, geometry=geometry, out=np.empty((30, 40, 3), np.uint16))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        p.correct(img, geometry=geometry, out=np.empty((40, 30, 3), np.float32).transpose(1, 0, 2))
+
+
 def test_bad_profiles_and_images_raise_clear_errors() -> None:
     with pytest.raises(ValueError, match="unknown distortion model"):
         _synthetic(distortion=("poly9", (0.1,))).positions(10, 10)

@@ -97,6 +97,8 @@ class NativeLensCorrection:
         interpolation: str = "bilinear",
         fill: float = 0.0,
         vignetting: bool = False,
+        *,
+        out: npt.NDArray[Any] | None = None,
     ) -> npt.NDArray[Any]: ...
     def devignette(
         self, image: npt.NDArray[Any], black: npt.NDArray[np.float64]
@@ -220,6 +222,7 @@ def develop(
     tone: str,
     method: str,
     bps: str,
+    lens: NativeLensCorrection | None = None,
 ) -> npt.NDArray[Any]: ...
 
 # --- metrology ---

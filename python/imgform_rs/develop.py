@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -369,26 +370,23 @@ def develop(
     pattern = raw.pattern if isinstance(raw.pattern, str) else np.asarray(raw.pattern, np.int64)
     tiles = _tiles(raw, scale4)
     profile = _lens_profile(raw, lens_correction)
-    cfa, correction = raw.cfa, None
-    if profile is not None:
-        correction = profile.native(raw.cfa.shape[1], raw.cfa.shape[0])
-        if profile.vignetting is not None:
-            cfa = correction.devignette(raw.cfa, tiles[0])
+    h, w = raw.cfa.shape
 
-    def run(matrix: np.ndarray, tone: str, bps: str) -> np.ndarray:
+    def run(matrix: np.ndarray, tone: str, bps: str, lens: Any) -> np.ndarray:
         m = np.ascontiguousarray(matrix, np.float64)
-        return _native.develop(cfa, pattern, *tiles, m, tone, demosaic, bps)
+        native = None if lens is None else lens.native(w, h)
+        return _native.develop(raw.cfa, pattern, *tiles, m, tone, demosaic, bps, native)
 
     if auto and highlights == "clip":
         # LibRaw clips after the matrix and again after brightening; with a
         # gain >= 1 that is one clip of the brightened values, so the gain
-        # folds into the matrix.
-        linear = run(matrix, "linear", "16")
+        # folds into the matrix. The level is LibRaw's, found on the
+        # devignetted image before its geometry is corrected.
+        light = None if profile is None else replace(profile, distortion=None, tca=None)
+        linear = run(matrix, "linear", "16", light)
         matrix = matrix * _auto_gain(linear, _stretched_pixels(linear.shape, raw.pixel_aspect))
         del linear
-    rgb = run(matrix, _tone_for(color, tone), _BPS[bps])
-    if correction is not None and profile is not None and profile.corrects_geometry:
-        rgb = correction.correct_geometry(rgb, "bilinear", 0.0)
+    rgb = run(matrix, _tone_for(color, tone), _BPS[bps], profile)
     rgb = _stretch(rgb, raw.pixel_aspect)
     return _orient(rgb, raw.flip) if orientation == "auto" else rgb
 

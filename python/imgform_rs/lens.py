@@ -50,7 +50,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from . import _native
+from . import _native, _samples
 from .remap import ImageT, Interpolation
 
 __all__ = ["LensMatch", "LensProfile", "find_profile", "lens_database", "match_lens"]
@@ -218,6 +218,7 @@ class LensProfile:
         geometry: bool = True,
         interpolation: Interpolation = "bilinear",
         fill: float = 0,
+        out: ImageT | None = None,
     ) -> ImageT:
         """Correct an RGB image taken with this lens at this setting.
 
@@ -231,11 +232,18 @@ class LensProfile:
         interpolation : {"bilinear", "bicubic"}
         fill : float
             Value read outside the source (the border pincushion correction leaves).
+        out : ndarray, optional
+            Where to write the result, returned instead of a new array: the
+            image's shape and dtype, C-contiguous, writeable, sharing no
+            memory with ``image``. Reusing one buffer over many images of one
+            size saves the page faults and zeroing of a fresh output (about a
+            third of a 24 MP float32 correction's time in a profile).
 
         Returns
         -------
         ndarray
-            Same shape and dtype; integer values clamp to the type's range.
+            Same shape and dtype (``out`` if given); integer values clamp to
+            the type's range.
 
         Examples
         --------
@@ -252,10 +260,9 @@ class LensProfile:
         if geometry and self.corrects_geometry:
             # One pass: each sample is read at its position and multiplied
             # by the vignetting gain there.
-            return native.correct_geometry(image, interpolation, float(fill), devignette)
-        if devignette:
-            return native.devignette(image, np.zeros((1, 1)))
-        return image
+            return native.correct_geometry(image, interpolation, float(fill), devignette, out=out)
+        result = native.devignette(image, np.zeros((1, 1))) if devignette else image
+        return result if out is None else _samples.fill_out(out, result, np.asarray(image))
 
     def describe(self) -> str:
         """One line: the entries, the setting and the models applied."""

@@ -314,6 +314,11 @@ impl LensCorrection {
         out
     }
 
+    /// Whether the correction moves pixels (has a distortion or TCA model).
+    pub fn corrects_geometry(&self) -> bool {
+        self.distortion != RadialDistortion::None || self.tca != Tca::None
+    }
+
     /// The vignetting gain at pixel `(u, v)` (1 without a vignetting model).
     #[inline(always)]
     pub fn gain(&self, u: f64, v: f64) -> f64 {
@@ -433,7 +438,7 @@ impl LensCorrection {
             let mut per_sample = vec![0.0; if channels > 1 { row_len } else { 0 }];
             for (i, row) in band.chunks_exact_mut(row_len).enumerate() {
                 let v = v0 + i;
-                gains.row(v, &mut gain);
+                gains.row(v, 0, &mut gain);
                 let gain = if channels > 1 {
                     for (g, &p) in per_sample.chunks_exact_mut(channels).zip(&gain) {
                         g.fill(p);
@@ -456,7 +461,7 @@ impl LensCorrection {
     /// The vignetting gains by row: `r²` splits into a column and a row term,
     /// so each row's gains cost one polynomial per pixel and no coordinate
     /// transform (the same bits as [`LensCorrection::gain`]).
-    fn gain_rows(&self) -> GainRows {
+    pub(crate) fn gain_rows(&self) -> GainRows {
         let n = &self.normalization;
         let square = |p: f64, scale: f64, centre: f64| {
             let d = p * scale - centre;
@@ -752,12 +757,17 @@ impl ChannelRows for PositionGrid {
         if !gains.is_empty() {
             self.vertical(&self.gains, y, &mut lines.gains);
             let line = &lines.gains;
-            for (g, (&i, &w)) in gains
-                .chunks_exact_mut(3)
-                .zip(self.columns.cell.iter().zip(&self.columns.weight))
-            {
-                for (g, v) in g.iter_mut().zip(lerp(&line[i], &line[i + 1], w)) {
-                    *g = v as f32;
+            // Cell by cell, as `lerp` computes them (the same bits) but
+            // with the cell's differences taken once, not per pixel.
+            for i in 0..line.len() - 1 {
+                let span = self.columns.span(i, width);
+                let (a, b) = (&line[i], &line[i + 1]);
+                let d: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
+                let out = &mut gains[3 * span.start..3 * span.end];
+                for (g, &w) in out.chunks_exact_mut(3).zip(&self.columns.weight[span]) {
+                    for k in 0..3 {
+                        g[k] = (a[k] + d[k] * w) as f32;
+                    }
                 }
             }
         }
@@ -769,7 +779,7 @@ impl ChannelRows for PositionGrid {
 }
 
 /// See [`LensCorrection::gain_rows`].
-struct GainRows {
+pub(crate) struct GainRows {
     vignetting: Option<Vignetting>,
     /// `x²` of each column in normalised units.
     columns: Vec<f64>,
@@ -779,15 +789,16 @@ struct GainRows {
 }
 
 impl GainRows {
-    /// Writes row `v`'s gains into `out` (one per column).
-    fn row(&self, v: usize, out: &mut [f64]) {
+    /// Writes the gains of row `v`, columns `x0 .. x0 + out.len()`, into
+    /// `out`.
+    pub(crate) fn row(&self, v: usize, x0: usize, out: &mut [f64]) {
         let Some(vig) = self.vignetting else {
             out.fill(1.0);
             return;
         };
         let y = v as f64 * self.scale - self.centre;
         let y2 = y * y;
-        for (g, &x2) in out.iter_mut().zip(&self.columns) {
+        for (g, &x2) in out.iter_mut().zip(&self.columns[x0..]) {
             *g = vig.gain((x2 + y2) * self.to_diagonal * self.to_diagonal);
         }
     }
@@ -1187,10 +1198,14 @@ mod tests {
         let rows = c.gain_rows();
         let mut row = vec![0.0; 61];
         for v in [0, 17, 40] {
-            rows.row(v, &mut row);
+            rows.row(v, 0, &mut row);
             for (u, &g) in row.iter().enumerate() {
                 assert_eq!(g, c.gain(u as f64, v as f64));
             }
+            // A run from any column: the same gains.
+            let mut tail = vec![0.0; 61 - 13];
+            rows.row(v, 13, &mut tail);
+            assert_eq!(tail, row[13..]);
         }
     }
 

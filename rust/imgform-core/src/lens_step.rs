@@ -155,6 +155,18 @@ mod tests {
             assert_eq!(nearest(x), want, "{x}");
         }
         assert_eq!(nearest(-(1i64 << 46) as f64 - 0.75), -(1i64 << 46) - 1);
+        // Over the positions' whole range, halves and near-halves included.
+        for e in 0..46 {
+            for x in [
+                2f64.powi(e) * 1.37,
+                -(2f64.powi(e)) * 1.37,
+                (1u64 << e) as f64,
+            ] {
+                for t in [x, x + 0.5, x - 0.5, x + 0.499_999_9, x + 1.5] {
+                    assert_eq!(nearest(t), t.round_ties_even() as i64, "{t}");
+                }
+            }
+        }
     }
 
     #[test]

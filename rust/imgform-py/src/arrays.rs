@@ -157,6 +157,20 @@ where
     Ok(arr.clone())
 }
 
+/// [`detached_into_out`] into the caller's `out` if given, else
+/// [`detached_into`] a new array.
+pub fn detached_into_given<'py, T: Element + Send>(
+    py: Python<'py>,
+    out: Option<&Bound<'py, PyAny>>,
+    shape: &[usize],
+    kernel: impl Send + FnOnce(&mut [T]) -> imgform_core::Result<()>,
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    match out {
+        Some(out) => detached_into_out(py, out, shape, kernel),
+        None => detached_into(py, shape, kernel),
+    }
+}
+
 /// Runs `kernel` on the memory of the C-contiguous `arr` with the GIL
 /// released. Only a caller's `out` can fail the write borrow.
 fn fill<T, F>(py: Python<'_>, arr: &Bound<'_, PyArrayDyn<T>>, kernel: F) -> PyResult<()>

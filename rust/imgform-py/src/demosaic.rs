@@ -8,7 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{contiguous, detached_into, detached_into_out, AnyImage};
+use crate::arrays::{contiguous, detached_into_given, AnyImage};
 use crate::cfa::pattern_arg;
 use crate::dispatch_image;
 use crate::errors::to_pyerr;
@@ -31,11 +31,7 @@ fn demosaic_typed<'py, T: Sample + Element>(
     let src = contiguous(&arr);
     let kernel =
         |out: &mut [T]| demosaic_kernel(ImageView::contiguous(&src, w, h, 1)?, p, method, out);
-    let out = match out {
-        Some(out) => detached_into_out(py, out, &[h, w, 3], kernel)?,
-        None => detached_into(py, &[h, w, 3], kernel)?,
-    };
-    Ok(out.into_any())
+    Ok(detached_into_given(py, out, &[h, w, 3], kernel)?.into_any())
 }
 
 /// Demosaics a mosaic (H, W) -> (H, W, 3), same dtype, into a new array or

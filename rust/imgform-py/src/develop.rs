@@ -1,7 +1,9 @@
 //! Bindings of `imgform_core::develop`.
 
 use imgform_core::demosaic::Method;
-use imgform_core::develop::{develop as develop_kernel, develop_in_place, DevelopParams, Tone};
+use imgform_core::develop::{
+    develop as develop_kernel, develop_corrected, develop_in_place, DevelopParams, Tone,
+};
 use imgform_core::image::{ImageView, Sample};
 use numpy::{Element, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -11,6 +13,7 @@ use pyo3::types::PyTuple;
 use crate::arrays::{contiguous, describe, detached_into, fixed};
 use crate::cfa::pattern_arg;
 use crate::errors::to_pyerr;
+use crate::lens::NativeLensCorrection;
 
 /// Runs `kernel` on the mosaic into a new `(H, W, 3)` array of `U`.
 fn run<'py, U, K>(
@@ -47,9 +50,10 @@ fn tile_shape(black: &Bound<'_, PyAny>, period: usize) -> [usize; 2] {
     }
 }
 
-/// Develops a uint16 mosaic (H, W) -> (H, W, 3) uint8 / uint16 / float32.
+/// Develops a uint16 mosaic (H, W) -> (H, W, 3) uint8 / uint16 / float32,
+/// through `lens`'s corrections if given (made for the mosaic's size).
 #[pyfunction]
-#[pyo3(signature = (raw, pattern, black, scale, matrix, tone, method, bps))]
+#[pyo3(signature = (raw, pattern, black, scale, matrix, tone, method, bps, lens=None))]
 #[allow(clippy::too_many_arguments)]
 fn develop<'py>(
     py: Python<'py>,
@@ -61,6 +65,7 @@ fn develop<'py>(
     tone: &str,
     method: &str,
     bps: &str,
+    lens: Option<Bound<'py, NativeLensCorrection>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let arr = raw.extract::<PyReadonlyArrayDyn<'py, u16>>().map_err(|_| {
         PyTypeError::new_err(format!(
@@ -89,17 +94,22 @@ fn develop<'py>(
     };
     let src = contiguous(&arr);
     let (p, pat) = (&params, &pattern);
+    let lens = lens.map(|l| l.get().correction());
     // 8-bit output keeps a 16-bit demosaic; 16-bit and float outputs are
-    // demosaiced and finished in the output array itself.
+    // demosaiced and finished in the output array itself unless a lens
+    // correction resamples them.
     match bps {
-        "8" => run(py, &src, (h, w), |v, out| {
-            develop_kernel::<u16, u8>(v, pat, p, out)
+        "8" => run(py, &src, (h, w), |v, out| match &lens {
+            Some(c) => develop_corrected::<u16, u8>(v, pat, p, c, out),
+            None => develop_kernel::<u16, u8>(v, pat, p, out),
         }),
-        "16" => run(py, &src, (h, w), |v, out| {
-            develop_in_place::<u16>(v, pat, p, out)
+        "16" => run(py, &src, (h, w), |v, out| match &lens {
+            Some(c) => develop_corrected::<u16, u16>(v, pat, p, c, out),
+            None => develop_in_place::<u16>(v, pat, p, out),
         }),
-        "float" => run(py, &src, (h, w), |v, out| {
-            develop_in_place::<f32>(v, pat, p, out)
+        "float" => run(py, &src, (h, w), |v, out| match &lens {
+            Some(c) => develop_corrected::<f32, f32>(v, pat, p, c, out),
+            None => develop_in_place::<f32>(v, pat, p, out),
         }),
         other => Err(PyValueError::new_err(format!(
             "bps must be \"8\", \"16\" or \"float\", got {other:?}"

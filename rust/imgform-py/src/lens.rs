@@ -1,12 +1,13 @@
 //! Bindings of `imgform_core::lens`: one validated correction object per
 //! lens setting and image size, so the models are checked once.
 
+use imgform_core::image::ImageView;
 use imgform_core::lens::{LensCorrection, Normalization, RadialDistortion, Tca, Vignetting};
 use imgform_core::remap::{Interpolation, Resample};
 use numpy::{Element, PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, detached_into, AnyImage};
+use crate::arrays::{contiguous, detached_into, detached_into_given, image_dims, AnyImage};
 use crate::dispatch_image;
 use crate::errors::to_pyerr;
 use crate::remap::resample_into;
@@ -14,6 +15,13 @@ use crate::remap::resample_into;
 /// lensfun's corrections of one lens at one setting, for images of one size.
 #[pyclass(frozen, name = "NativeLensCorrection", module = "imgform_rs._native")]
 pub struct NativeLensCorrection(LensCorrection);
+
+impl NativeLensCorrection {
+    /// The core correction, for other bindings that apply it.
+    pub fn correction(&self) -> LensCorrection {
+        self.0
+    }
+}
 
 #[pymethods]
 impl NativeLensCorrection {
@@ -59,9 +67,10 @@ impl NativeLensCorrection {
         detached_into(py, &[c.height, c.width, 3, 2], |out| c.positions(out))
     }
 
-    /// The distortion- and TCA-corrected RGB image; with `vignetting`, also
-    /// devignetted in the same pass (linear values).
-    #[pyo3(signature = (image, interpolation="bilinear", fill=0.0, vignetting=false))]
+    /// The distortion- and TCA-corrected RGB image, in a new array or in
+    /// `out`; with `vignetting`, also devignetted in the same pass (linear
+    /// values).
+    #[pyo3(signature = (image, interpolation="bilinear", fill=0.0, vignetting=false, *, out=None))]
     fn correct_geometry<'py>(
         &self,
         py: Python<'py>,
@@ -69,12 +78,13 @@ impl NativeLensCorrection {
         interpolation: &str,
         fill: f64,
         vignetting: bool,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let interpolation = Interpolation::from_name(interpolation).map_err(to_pyerr)?;
         let img = AnyImage::extract(image, "image")?;
         dispatch_image!(
             img,
-            geometry_typed(py, &self.0, interpolation, fill, vignetting)
+            geometry_typed(py, &self.0, interpolation, fill, vignetting, out)
         )
     }
 
@@ -105,13 +115,15 @@ fn geometry_typed<'py, T: Resample + Element>(
     interpolation: Interpolation,
     fill: f64,
     vignetting: bool,
+    out: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    resample_into(
-        py,
-        arr,
-        |s| s.to_vec(),
-        |view, out| lens.correct_geometry(view, interpolation, fill, vignetting, out),
-    )
+    let (h, w, c) = image_dims(arr.shape(), "image")?;
+    let src = contiguous(&arr);
+    let kernel = |out: &mut [T]| {
+        let view = ImageView::contiguous(&src, w, h, c)?;
+        lens.correct_geometry(&view, interpolation, fill, vignetting, out)
+    };
+    Ok(detached_into_given(py, out, arr.shape(), kernel)?.into_any())
 }
 
 fn devignette_typed<'py, T: Resample + Element>(
