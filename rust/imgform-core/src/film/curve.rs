@@ -5,6 +5,7 @@
 //! fog, above the shoulder its maximum density). Uniform steps make a lookup
 //! one multiply, which matters at 24 MP x 3 layers.
 
+use super::fastmath::LANES;
 use crate::error::Result;
 use crate::invalid;
 
@@ -75,28 +76,10 @@ impl Curve {
 
     /// The density at log exposure `x`; NaN and -inf (zero exposure) give
     /// the first sample.
-    #[inline(always)]
     pub fn eval(&self, x: f32) -> f32 {
         let last = self.density.len() - 1;
-        // The sample index in f32: for curves of < 2^12 samples its rounding
-        // moves `x` by < 3e-4 of a step, a density error below 3e-4 of one
-        // step's rise (~1e-6 on the shipped curves).
-        let t = x * self.scale + self.shift;
-        // `max` maps NaN to 0 too; then the index is in 0..last.
-        let t = t.max(0.0).min(last as f32);
-        // An i32 conversion and unchecked reads let a loop of lookups
-        // compile to packed conversions and gathers (a usize conversion and
-        // bounds checks would not vectorise).
-        let i = (t as i32).clamp(0, last as i32 - 1) as usize;
-        let f = t - i as f32;
-        debug_assert!(i < last);
-        // SAFETY: `i <= last - 1`, so `i` and `i + 1` index `density`.
-        let (lo, hi) = unsafe {
-            (
-                *self.density.get_unchecked(i),
-                *self.density.get_unchecked(i + 1),
-            )
-        };
+        let (i, f) = locate(x, self.scale, self.shift, last as f32, last as i32 - 1);
+        let (lo, hi) = (self.density[i], self.density[i + 1]);
         lo + f * (hi - lo)
     }
 
@@ -161,6 +144,121 @@ impl Curve {
     }
 }
 
+/// The sample `i` below log exposure `x` and the fraction `f` of the step
+/// from it to `i + 1`, on a curve of samples `0..=last` (`top = last - 1`
+/// as an integer, `scale` and `shift` as in [`Curve`]), held at the ends.
+#[inline(always)]
+fn locate(x: f32, scale: f32, shift: f32, last: f32, top: i32) -> (usize, f32) {
+    // The sample index in f32: for curves of < 2^12 samples its rounding
+    // moves `x` by < 3e-4 of a step, a density error below 3e-4 of one
+    // step's rise (~1e-6 on the shipped curves).
+    let t = x * scale + shift;
+    // `max` maps NaN to 0 too; then the index is in 0..last.
+    let t = t.max(0.0).min(last);
+    // An i32 conversion lets a loop of lookups compile to packed
+    // conversions (a usize conversion would not vectorise).
+    let i = (t as i32).max(0).min(top);
+    (i as usize, t - i as f32)
+}
+
+/// `f` of each layer's curve at every position of a block of [`LANES`]
+/// pixels: position `k` holds layer `k mod n`.
+fn per_lane<T>(curves: &[Curve], f: impl Fn(&Curve) -> T) -> Vec<T> {
+    (0..LANES).flat_map(|_| curves.iter().map(&f)).collect()
+}
+
+/// The curves of an emulsion's `n` layers, read over rows of interleaved
+/// layers (`n` samples per pixel) in place.
+///
+/// One curve per register does not fit interleaved layers, and taking them
+/// apart into planes and back cost two scalar stores per sample, more than
+/// the lookups themselves. So a block of [`LANES`] pixels is read as it
+/// lies, each of its `8 n` positions with its own layer's parameters (the
+/// pattern repeats from block to block); the curves share one table of
+/// `(density, rise to the next sample)` pairs, one 8-byte read per lookup.
+/// Each density is `lo + f rise`, `rise = hi - lo` rounded as
+/// [`Curve::eval`] rounds it: the same bits.
+#[derive(Debug, Clone)]
+pub struct LayerCurves {
+    curves: Vec<Curve>,
+    /// Per position of a block, the `scale`, `shift`, `last` and first
+    /// table entry of its layer's curve, and its minimum density.
+    scale: Vec<f32>,
+    shift: Vec<f32>,
+    last: Vec<f32>,
+    top: Vec<i32>,
+    first: Vec<u32>,
+    min: Vec<f32>,
+    /// 0 at every position: [`LayerCurves::apply`] subtracts nothing.
+    zero: Vec<f32>,
+    table: Vec<[f32; 2]>,
+}
+
+impl LayerCurves {
+    /// The curves of layers `0..curves.len()`, in that order.
+    pub fn new(curves: Vec<Curve>) -> Self {
+        let mut first = Vec::with_capacity(curves.len());
+        let mut table = Vec::new();
+        for c in &curves {
+            first.push(table.len() as u32);
+            table.extend(c.density.windows(2).map(|p| [p[0], p[1] - p[0]]));
+        }
+        Self {
+            scale: per_lane(&curves, |c| c.scale),
+            shift: per_lane(&curves, |c| c.shift),
+            last: per_lane(&curves, |c| (c.density.len() - 1) as f32),
+            top: per_lane(&curves, |c| c.density.len() as i32 - 2),
+            first: (0..LANES).flat_map(|_| first.iter().copied()).collect(),
+            min: per_lane(&curves, Curve::min_density),
+            zero: per_lane(&curves, |_| 0.0),
+            table,
+            curves,
+        }
+    }
+
+    /// The curves, one per layer.
+    pub fn curves(&self) -> &[Curve] {
+        &self.curves
+    }
+
+    /// Number of layers.
+    pub fn layers(&self) -> usize {
+        self.curves.len()
+    }
+
+    /// Log exposures to densities over a row of interleaved layers, in
+    /// place.
+    #[inline(always)]
+    pub fn apply(&self, row: &mut [f32]) {
+        self.apply_less(row, &self.zero);
+    }
+
+    /// Log exposures to each layer's density above its curve's minimum (a
+    /// DIR donor's development), over a row of interleaved layers, in place.
+    #[inline(always)]
+    pub fn apply_above_min(&self, row: &mut [f32]) {
+        self.apply_less(row, &self.min);
+    }
+
+    /// `row[k] = D(row[k]) - less[k mod 8 n]`, block by block.
+    #[inline(always)]
+    fn apply_less(&self, row: &mut [f32], less: &[f32]) {
+        for block in row.chunks_mut(self.scale.len()) {
+            let lanes = self.scale.iter().zip(&self.shift).zip(&self.last);
+            let more = self.top.iter().zip(&self.first).zip(less);
+            for (v, (((scale, shift), last), ((top, first), less))) in
+                block.iter_mut().zip(lanes.zip(more))
+            {
+                let (i, f) = locate(*v, *scale, *shift, *last, *top);
+                // SAFETY: `i <= top = last - 1`, and the `last` pairs of this
+                // curve start at `first`.
+                let [lo, rise] = unsafe { *self.table.get_unchecked(*first as usize + i) };
+                *v = lo + f * rise - less;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,6 +279,30 @@ mod tests {
         assert_eq!(c.eval(f32::NAN), 0.1);
         assert_eq!(c.eval(9.0), 2.1);
         assert_eq!(c.min_density(), 0.1);
+    }
+
+    #[test]
+    fn layer_curves_give_each_layer_the_bits_of_its_curve() {
+        let falling: Vec<f64> = (0..13).map(|k| 3.0 - 0.2 * k as f64).collect();
+        let curves = vec![ramp(), Curve::new(-1.0, 0.25, &falling).unwrap()];
+        let layers = LayerCurves::new(curves.clone());
+        // 11 pixels: a whole block of 8 and a short one; values inside,
+        // between and beyond the samples, and the zero exposure's -inf.
+        let x: Vec<f32> = (0..22)
+            .map(|k| match k {
+                3 => f32::NEG_INFINITY,
+                8 => f32::NAN,
+                _ => -3.0 + 0.37 * k as f32,
+            })
+            .collect();
+        let (mut densities, mut above) = (x.clone(), x.clone());
+        layers.apply(&mut densities);
+        layers.apply_above_min(&mut above);
+        for (k, v) in x.iter().enumerate() {
+            let c = &curves[k % 2];
+            assert_eq!(densities[k].to_bits(), c.eval(*v).to_bits(), "{k}");
+            assert_eq!(above[k], c.eval(*v) - c.min_density(), "{k}");
+        }
     }
 
     #[test]

@@ -20,10 +20,11 @@
 //! (interimage effects) and edges, as they do in a real stock whose
 //! datasheet curves are measured on neutral wedges.
 
-use super::curve::Curve;
+use super::curve::{Curve, LayerCurves};
 use super::diffuse::{blur_columns_then, blur_rows_of, gaussian_taps};
 use super::fastmath::{log2, wide};
 use super::halation::Halation;
+use super::inhibit::Inhibition;
 use super::{check_lengths, check_samples};
 use crate::error::{all_finite, positive, CoreError, Result};
 use crate::invalid;
@@ -32,7 +33,7 @@ use crate::parallel::for_each_row;
 /// The layers of one emulsion and their couplers, validated once.
 #[derive(Debug, Clone)]
 pub struct Emulsion {
-    curves: Vec<Curve>,
+    curves: LayerCurves,
     /// `None` without couplers: development is then the curves exactly.
     couplers: Option<Couplers>,
 }
@@ -41,9 +42,9 @@ pub struct Emulsion {
 /// receivers' pre-corrected curves.
 #[derive(Debug, Clone)]
 struct Couplers {
-    matrix: Vec<f32>,
+    inhibition: Inhibition,
     taps: Vec<f32>,
-    corrected: Vec<Curve>,
+    corrected: LayerCurves,
 }
 
 impl Emulsion {
@@ -84,12 +85,15 @@ impl Emulsion {
         } else {
             Some(Couplers::new(&curves, matrix, diffusion)?)
         };
-        Ok(Self { curves, couplers })
+        Ok(Self {
+            curves: LayerCurves::new(curves),
+            couplers,
+        })
     }
 
     /// Number of layers.
     pub fn layers(&self) -> usize {
-        self.curves.len()
+        self.curves.layers()
     }
 
     /// `true` when the emulsion has DIR couplers, whose development reads
@@ -158,12 +162,8 @@ impl Emulsion {
         let Some(dir) = &self.couplers else {
             return Ok(());
         };
-        let mins: Vec<f32> = self.curves.iter().map(Curve::min_density).collect();
         blur_rows_of(out, width, n, &dir.taps, &mut scratch, |row| {
-            curves_in_place(&self.curves, row);
-            for d in row.chunks_exact_mut(n) {
-                d.iter_mut().zip(&mins).for_each(|(v, m)| *v -= m);
-            }
+            donors_in_place(&self.curves, row);
         });
         blur_columns_then(
             &scratch,
@@ -174,13 +174,7 @@ impl Emulsion {
             out,
             row_len,
             |_, near, row| {
-                for (d, q) in row.chunks_exact_mut(n).zip(near.chunks_exact(n)) {
-                    for (i, v) in d.iter_mut().enumerate() {
-                        let a = &dir.matrix[i * n..][..n];
-                        let inhibition: f32 = a.iter().zip(q).map(|(a, q)| a * q).sum();
-                        *v -= inhibition;
-                    }
-                }
+                inhibit_in_place(&dir.inhibition, near, row);
                 curves_in_place(&dir.corrected, row);
             },
         );
@@ -200,37 +194,38 @@ impl Emulsion {
 }
 
 wide!(
-    /// Log exposures to densities over a row of interleaved layers, in
-    /// place, layer `k` by `curves[k]`, 8 lanes wide where the CPU has them.
-    fn curves_in_place = curves_by_layer(curves: &[Curve], row: &mut [f32])
+    /// [`LayerCurves::apply`], 8 lanes wide where the CPU has them.
+    fn curves_in_place = apply_curves(curves: &LayerCurves, row: &mut [f32])
 );
 
-/// Pixels per block of [`curves_by_layer`]: one layer's samples of a block
-/// fit a 1 KiB stack array.
-const CURVE_BLOCK: usize = 256;
-
-/// [`curves_in_place`]: the layers are interleaved, and a loop over pixels
-/// with one curve per layer would not vectorise, so each block of pixels
-/// copies one layer's samples to a contiguous array, looks them all up
-/// there (packed conversions and gathers) and copies them back.
 #[inline(always)]
-fn curves_by_layer(curves: &[Curve], row: &mut [f32]) {
-    let n = curves.len();
-    let mut plane = [0.0f32; CURVE_BLOCK];
-    for block in row.chunks_mut(CURVE_BLOCK * n) {
-        let plane = &mut plane[..block.len() / n];
-        for (k, c) in curves.iter().enumerate() {
-            for (p, v) in plane.iter_mut().zip(block[k..].iter().step_by(n)) {
-                *p = *v;
-            }
-            for p in plane.iter_mut() {
-                *p = c.eval(*p);
-            }
-            for (v, p) in block[k..].iter_mut().step_by(n).zip(plane.iter()) {
-                *v = *p;
-            }
-        }
-    }
+fn apply_curves(curves: &LayerCurves, row: &mut [f32]) {
+    curves.apply(row);
+}
+
+wide!(
+    /// [`LayerCurves::apply_above_min`], 8 lanes wide where the CPU has
+    /// them.
+    fn donors_in_place = apply_donors(curves: &LayerCurves, row: &mut [f32])
+);
+
+#[inline(always)]
+fn apply_donors(curves: &LayerCurves, row: &mut [f32]) {
+    curves.apply_above_min(row);
+}
+
+wide!(
+    /// [`Inhibition::subtract`], 8 lanes wide where the CPU has them.
+    fn inhibit_in_place = subtract_inhibition(
+        inhibition: &Inhibition,
+        near: &[f32],
+        row: &mut [f32],
+    )
+);
+
+#[inline(always)]
+fn subtract_inhibition(inhibition: &Inhibition, near: &[f32], row: &mut [f32]) {
+    inhibition.subtract(near, row);
 }
 
 wide!(
@@ -268,10 +263,11 @@ impl Couplers {
         } else {
             vec![1.0]
         };
+        let matrix: Vec<f32> = matrix.iter().map(|&a| a as f32).collect();
         Ok(Self {
-            matrix: matrix.iter().map(|&a| a as f32).collect(),
+            inhibition: Inhibition::new(&matrix, n),
             taps,
-            corrected,
+            corrected: LayerCurves::new(corrected),
         })
     }
 }
@@ -315,7 +311,7 @@ mod tests {
         for (i, (d, x)) in out.iter().zip(&ex).enumerate() {
             // The vectorised log10 is within 1e-7 of `log10`; the curves'
             // slopes are < 1.
-            let want = e.curves[i % 3].eval((2.0 * x).log10());
+            let want = e.curves.curves()[i % 3].eval((2.0 * x).log10());
             assert!((d - want).abs() < 1e-6, "{i}: {d} vs {want}");
         }
     }
@@ -331,7 +327,10 @@ mod tests {
             let mut out = vec![0.0; ex.len()];
             e.develop(&ex, (w, h), 1.0, None, &mut out).unwrap();
             for (i, d) in out.iter().enumerate() {
-                assert!((d - e.curves[i % 3].eval(x)).abs() < 2e-3, "{x} {i}: {d}");
+                assert!(
+                    (d - e.curves.curves()[i % 3].eval(x)).abs() < 2e-3,
+                    "{x} {i}: {d}"
+                );
             }
         }
         // Red exposed 3x more than green and blue: the red donor inhibits
@@ -341,7 +340,11 @@ mod tests {
         ex.chunks_mut(3).for_each(|p| p[0] = 0.3);
         let mut out = vec![0.0; ex.len()];
         e.develop(&ex, (20, 20), 1.0, None, &mut out).unwrap();
-        assert!(out[1] < e.curves[1].eval(-1.0) - 0.01, "{}", out[1]);
+        assert!(
+            out[1] < e.curves.curves()[1].eval(-1.0) - 0.01,
+            "{}",
+            out[1]
+        );
     }
 
     #[test]

@@ -9,6 +9,12 @@
 //! AVX2 build, libm's `fmaf` (rounded once as well) in the baseline build,
 //! so both builds give the same bits; the compiler contracts nothing else.
 
+/// Pixels per block of the kernels that read rows of `n` interleaved layers
+/// sample by sample, each sample with its own layer's parameters: `8 n`
+/// samples, a whole number of 8-lane registers whose pattern of layers
+/// repeats from block to block.
+pub const LANES: usize = 8;
+
 /// `2^x` for `x` in about `[-126, 126]` (clamped there), to 1.7e-7
 /// relative: three operations fewer than a 6th-power Taylor series of
 /// `e^(r ln 2)`, and closer (that gave 2.3e-7).

@@ -21,6 +21,7 @@ pub mod diffuse;
 pub mod fastmath;
 pub mod grain;
 pub mod halation;
+pub mod inhibit;
 pub mod print;
 pub mod transmit;
 

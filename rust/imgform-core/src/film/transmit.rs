@@ -191,9 +191,14 @@ fn transmit_row(
                     *x = a.mul_add(*e, *x);
                 }
             }
-            for (t, x) in t.iter_mut().zip(&x) {
-                *t = exp2(*x);
-            }
+            *t = x;
+        }
+        // The exponentials apart, in one loop over all wavelengths: each is a
+        // chain of dependent multiply-adds (the polynomial), and taken one
+        // wavelength at a time, inside the loop above, they waited on one
+        // another; here the iterations are independent and overlap.
+        for t in spectra.as_flattened_mut() {
+            *t = exp2(*t);
         }
         for (g, group) in response.chunks_exact(l).enumerate() {
             // Loops, not `array::from_fn`: what is not inlined into the wide
