@@ -2,7 +2,7 @@
 RGB images, for every method of ours and every peer installed, in one run.
 
 ``python benchmarks/demosaic.py [section ...]`` runs some of the sections (speed,
-memory, quality, artefacts, xtrans), e.g. ``quality`` alone; none runs them all.
+memory, quality, oracle, artefacts, xtrans), e.g. ``quality`` alone; none runs them all.
 
 Speed. The mosaic is a simulated 14-bit raw (``simulate_sensor``) of
 scikit-image's astronaut resized to 6000 x 4000, so adaptive methods see real
@@ -75,7 +75,7 @@ MP = H * W / 1e6
 CROP = (800, 1250)  # 1 MP for colour-demosaicing
 IMAGES = EVALUATION_IMAGES  # held out of every training
 LIBRAW_METHODS = ["LINEAR", "VNG", "PPG", "AHD", "DCB", "DHT", "AAHD"]
-SECTIONS = ["speed", "memory", "quality", "artefacts", "xtrans"]
+SECTIONS = ["speed", "memory", "quality", "oracle", "artefacts", "xtrans"]
 SKIMAGE7 = "skimage7"
 # The subsets in the shared demosaic-val folder: name in the tables, subfolder.
 VALIDATION_SUBSETS = {"CBSD68": "cbsd68", "Urban24": "urban24"}
@@ -468,6 +468,43 @@ def quality(tmp: Path, methods: Methods) -> None:
     print(f"\nquality took {took:.0f} s in all ({os.cpu_count()} cores)")
 
 
+# The classical bases of the oracle and the sets of them it chooses from: each
+# alone, each pair with MLRI, the best three, all five.
+ORACLE_BASES = ["mlri", "menon2007", "rcd", "leung2011", "ahd"]
+ORACLE_SETS = [
+    *([b] for b in ORACLE_BASES),
+    *(["mlri", b] for b in ORACLE_BASES[1:]),
+    ["mlri", "menon2007", "rcd"],
+    ORACLE_BASES,
+]
+
+
+def oracle() -> None:
+    """The per-pixel oracle: at every pixel the base whose three colours are
+    closest to the truth, scored like ``quality``. It bounds what any per-pixel
+    combination of these bases can reach, so it says whether a fusion of them has
+    room left (its own row, ``ours fusion``, for comparison) before a better base
+    is needed. An upper bound only: it picks with the truth in hand."""
+    subsets = validation_images()
+    choices = {"+".join(c): c for c in ORACLE_SETS} | {"ours fusion": ["fusion"]}
+    scores = {name: {s: [] for s in subsets} for name in choices}
+    for subset, images in subsets.items():
+        for rgb in images.values():
+            raw = ig.mosaic(rgb, "RGGB")
+            ref = rgb[10:-10, 10:-10].astype(np.float64)
+            err = {}
+            for m in [*ORACLE_BASES, "fusion"]:
+                out = ig.demosaic(raw, "RGGB", m)[10:-10, 10:-10].astype(np.float64)
+                err[m] = ((out - ref) ** 2).sum(-1)
+            for name, c in choices.items():
+                mse = np.min([err[m] for m in c], axis=0).mean() / 3
+                scores[name][subset].append(10 * np.log10(255.0**2 / mse))
+    rows = [[name, *(f"{np.mean(v[s]):.2f}" for s in subsets)] for name, v in scores.items()]
+    print("\n## Per-pixel oracle over our classical bases: CPSNR (dB) of the best base at")
+    print("each pixel, chosen with the truth (an upper bound for any per-pixel fusion)\n")
+    print(table(["bases", *subsets], rows))
+
+
 def zone_plate(n: int = 512) -> np.ndarray:
     """A grey zone plate: rings whose frequency grows to Nyquist at the corners."""
     y, x = (np.mgrid[0:n, 0:n] - n / 2) / n
@@ -610,6 +647,8 @@ def main() -> None:
                 quality(Path(d), methods)
             if "artefacts" in wanted:
                 artefacts(methods)
+        if "oracle" in wanted:
+            oracle()
         if "xtrans" in wanted:
             xtrans(Path(d))
 
