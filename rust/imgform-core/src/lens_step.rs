@@ -25,11 +25,16 @@ const BIAS: u64 = 1 << 47;
 const BIAS_SHIFTED: u32 = (BIAS >> STEP_BITS) as u32;
 
 /// `x` rounded to the nearest integer (ties to even) without a libm call
-/// (baseline x86-64 has no rounding instruction): adding and subtracting
-/// 1.5 · 2^52 leaves no fractional bits. Exact for `|x| < 2^51`.
+/// (baseline x86-64 has no rounding instruction): adding 1.5 · 2^52 leaves
+/// no fractional bits, and the sum, in `[2^52, 2^53)` where one unit of the
+/// last place is 1, has bits that exceed the constant's by exactly the
+/// integer. Exact for `|x| < 2^51`. Integer arithmetic on the bits rather
+/// than a float-to-integer cast, which Rust saturates with compares and
+/// selects per value (most of the cell setup's instructions in a profile).
+#[inline(always)]
 pub(super) fn nearest(x: f64) -> i64 {
     const MAGIC: f64 = 6_755_399_441_055_744.0;
-    ((x + MAGIC) - MAGIC) as i64
+    ((x + MAGIC).to_bits() as i64).wrapping_sub(MAGIC.to_bits() as i64)
 }
 
 /// One cell of a row: coordinate `k` of its `p`-th pixel is
