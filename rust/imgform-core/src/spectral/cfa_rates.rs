@@ -98,20 +98,20 @@ unsafe fn dot_avx2(x: &[f32], w: &[f32]) -> (f32, bool) {
     )
 }
 
-/// Fills `rates` with the rate of each site of a row: `src` holds the row's
-/// spectra (`grid_len` samples per pixel), `colors` the CFA channel of each
-/// column (repeated), `response` the f32 responses `(3, grid_len)`, `dot`
-/// the checked dot product ([`dot_checked`] or [`dot_avx2`]). Returns the
+/// Fills `rates` with the rate of each site of a row: `response` holds the
+/// f32 responses `(3, L)`, `src` the row's spectra (`L` samples per pixel,
+/// `L > 0`), `colors` the CFA channel of each column (repeated), `dot` the
+/// checked dot product ([`dot_checked`] or [`dot_avx2`]). Returns the
 /// column of the first pixel with a negative or non-finite sample.
 #[inline(always)]
 fn row_with(
     dot: impl Fn(&[f32], &[f32]) -> (f32, bool),
     src: &[f32],
-    grid_len: usize,
     colors: &[u8],
     response: &[f32],
     rates: &mut [f64],
 ) -> Option<usize> {
+    let grid_len = response.len() / 3;
     let mut first_bad = None;
     let pixels = src.chunks_exact(grid_len).zip(colors.iter().cycle());
     for (x, (r, (px, &c))) in rates.iter_mut().zip(pixels).enumerate() {
@@ -125,17 +125,6 @@ fn row_with(
     first_bad
 }
 
-/// [`row_with`] [`dot_checked`], the portable form.
-fn row_generic(
-    src: &[f32],
-    grid_len: usize,
-    colors: &[u8],
-    response: &[f32],
-    rates: &mut [f64],
-) -> Option<usize> {
-    row_with(dot_checked, src, grid_len, colors, response, rates)
-}
-
 /// [`row_with`] [`dot_avx2`].
 ///
 /// # Safety
@@ -144,21 +133,19 @@ fn row_generic(
 #[target_feature(enable = "avx2,fma")]
 unsafe fn row_avx2(
     src: &[f32],
-    grid_len: usize,
     colors: &[u8],
     response: &[f32],
     rates: &mut [f64],
 ) -> Option<usize> {
     // SAFETY: the caller vouches for AVX2 and FMA.
     let dot = |x: &[f32], w: &[f32]| unsafe { dot_avx2(x, w) };
-    row_with(dot, src, grid_len, colors, response, rates)
+    row_with(dot, src, colors, response, rates)
 }
 
-/// The rates of a row (see [`row_generic`]) through the widest vector unit
+/// The rates of a row (see [`row_with`]) through the widest vector unit
 /// the CPU has; the same bits either way.
 pub(super) fn row(
     src: &[f32],
-    grid_len: usize,
     colors: &[u8],
     response: &[f32],
     rates: &mut [f64],
@@ -166,9 +153,9 @@ pub(super) fn row(
     #[cfg(target_arch = "x86_64")]
     if has_avx2_fma() {
         // SAFETY: AVX2 and FMA support was detected just above.
-        return unsafe { row_avx2(src, grid_len, colors, response, rates) };
+        return unsafe { row_avx2(src, colors, response, rates) };
     }
-    row_generic(src, grid_len, colors, response, rates)
+    row_with(dot_checked, src, colors, response, rates)
 }
 
 #[cfg(test)]
@@ -239,9 +226,9 @@ mod tests {
         let response: Vec<f32> = (0..3 * l).map(|i| (i % 13) as f32 * 0.37).collect();
         let colors = [1u8, 0, 2];
         let (mut scalar, mut wide) = (vec![0.0; w], vec![0.0; w]);
-        row_generic(&src, l, &colors, &response, &mut scalar);
+        row_with(dot_checked, &src, &colors, &response, &mut scalar);
         // SAFETY: AVX2 and FMA support was checked above.
-        unsafe { row_avx2(&src, l, &colors, &response, &mut wide) };
+        unsafe { row_avx2(&src, &colors, &response, &mut wide) };
         assert_eq!(scalar, wide);
         // Column 4 is channel 0 (4 % 3 = 1 -> colors[1]).
         let px = &src[4 * l..5 * l];
@@ -260,6 +247,6 @@ mod tests {
         src[6 * l + 8] = -1.0;
         src[8 * l] = f32::NAN;
         let mut rates = vec![0.0; w];
-        assert_eq!(row(&src, l, &[0], &[1.0; 27], &mut rates), Some(6));
+        assert_eq!(row(&src, &[0], &[1.0; 27], &mut rates), Some(6));
     }
 }

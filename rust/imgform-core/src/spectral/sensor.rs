@@ -289,7 +289,7 @@ impl Sensor {
         // below the shot noise (see `cfa_rates`).
         let response: Vec<f32> = response.iter().map(|&v| v as f32).collect();
         self.read_frame((width, height), falloff, spectra, out, |y, src, row| {
-            cfa_rates::row(src, grid_len, pattern.row(y), &response, row)
+            cfa_rates::row(src, pattern.row(y), &response, row)
         })
     }
 
