@@ -409,6 +409,32 @@ def _mosaic(matrix, rgb):
     return np.take_along_axis(rates, channel[..., None], -1)[..., 0].astype(np.float32)
 
 
+@pytest.mark.parametrize("pattern", ["GBRG", "XTRANS"])
+def test_the_cube_capture_reads_each_pixel_through_its_own_filter(pattern):
+    """Every pixel of an (H, W, L) capture is a Poisson count of its own CFA
+    channel's mean, for a Bayer phase and X-Trans alike, on a width that is
+    no multiple of the kernels' eight lanes; the neighbouring channel's mean
+    would miss most pixels, so a wrong channel cannot pass."""
+    from imgform_rs.cfa import pattern_cells
+
+    wl = sp.wavelengths()
+    cam = sp.SpectralCamera(wl, pattern=pattern, sensor=_ideal())
+    rgb = np.random.default_rng(6).random((29, 37, 3), dtype=np.float32)
+    cube = (sp.rgb_to_reflectance(rgb, wl) * sp.illuminant("D65", wl)).astype(np.float32)
+    rates = cam.camera_rates(cube).astype(np.float64)
+    t = 3e4 / rates.max()
+    tile = pattern_cells(pattern).astype(np.intp)
+    channel = np.tile(tile, (15, 19))[:29, :37]
+    raw = cam.capture(cube, exposure_time=t, seed=9).astype(np.float64)
+
+    def within_5_sigma(c):
+        mean = np.take_along_axis(rates, c[..., None], -1)[..., 0] * t
+        return np.abs(raw - mean) < 5 * np.sqrt(mean) + 1
+
+    assert within_5_sigma(channel).all()
+    assert within_5_sigma((channel + 1) % 3).mean() < 0.2
+
+
 def test_auto_exposure_meters_the_mean_or_a_percentile_and_brackets_in_stops():
     sensor = sp.Sensor(read_noise=0.0, dark_current=0.0, full_well=16_000.0, bit_depth=16)
     rates = np.random.default_rng(3).gamma(2.0, 5_000.0, (200, 300)).astype(np.float32)

@@ -150,14 +150,23 @@ pub(crate) struct PoissonRow {
 impl PoissonRow {
     /// `counts[x]`: a Poisson variate of mean `lam[x]` drawn by the
     /// generator whose state is `states[x]`, left in `states[x]` past the
-    /// variate's draws (for the draws that follow it).
+    /// variate's draws (for the draws that follow it). `progress(x)` is
+    /// called as the first round passes site `x`, so that a caller can
+    /// interleave work of its own (the sensor streams its next row).
     #[inline(always)]
-    pub(crate) fn fill(&mut self, lam: &[f64], counts: &mut [f64], states: &mut [u64]) {
+    pub(crate) fn fill(
+        &mut self,
+        lam: &[f64],
+        counts: &mut [f64],
+        states: &mut [u64],
+        mut progress: impl FnMut(usize),
+    ) {
         self.undecided.resize(lam.len(), 0);
         self.len = 0;
         let blocks = lam.len() / LANES * LANES;
         for x0 in (0..blocks).step_by(LANES) {
             self.first_round(x0, lam, counts, states);
+            progress(x0 + LANES);
         }
         for x in blocks..lam.len() {
             let mut g = SplitMix64(states[x]);
@@ -459,7 +468,7 @@ mod tests {
             .map(|x| SplitMix64::at(row_base, x).state())
             .collect();
         let mut counts = vec![0.0; lam.len()];
-        PoissonRow::default().fill(lam, &mut counts, &mut states);
+        PoissonRow::default().fill(lam, &mut counts, &mut states, |_| {});
         (counts, states)
     }
 

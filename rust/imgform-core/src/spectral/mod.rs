@@ -13,6 +13,7 @@
 //! coordinates and a seed alone, so a capture is the same for any number of
 //! threads.
 
+mod ahead;
 mod cfa_rates;
 pub mod falloff;
 pub mod grid;

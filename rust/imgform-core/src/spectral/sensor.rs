@@ -25,6 +25,7 @@
 //! where the CPU has it; every pixel still draws exactly what its own
 //! scalar generator would, so the frame is the same on any CPU.
 
+use super::ahead::Ahead;
 use super::falloff::Falloff;
 use super::integrate::{bad_pixel, check_response};
 use super::{bands_first_bad, cfa_rates, has_avx2_fma, is_valid_sample};
@@ -175,40 +176,52 @@ impl Sensor {
             .collect()
     }
 
-    /// Reads a `height x width` frame. `rates(y, row)` fills `row` with
-    /// the mean rates (e-/s) of row `y`'s pixels and returns the column of
-    /// its first bad input, if any; the row is dimmed by `falloff`, if
-    /// any, and the sensor reads it.
+    /// Reads a `height x width` frame from `input`, whose rows are
+    /// `input.len() / height` values each (the caller checked the length).
+    /// `rates(y, src, row)` fills `row` with the mean rates (e-/s) of row
+    /// `y`'s pixels from its input `src` and returns the column of its first
+    /// bad input, if any; the row is dimmed by `falloff`, if any, and the
+    /// sensor reads it.
     ///
     /// Working a row at a time keeps the input's loop (a dot product per
     /// pixel) apart from the noise's, so each stays simple enough to
-    /// optimise, while the row of rates stays in cache between the two.
+    /// optimise, while the row of rates stays in cache between the two. The
+    /// noise loops stream the band's next row of input into cache
+    /// ([`Ahead`]), so the memory bus is busy while the core computes.
     fn read_frame<F>(
         &self,
         (width, height): (usize, usize),
         falloff: Option<&Falloff>,
+        input: &[f32],
         out: &mut [u16],
         rates: F,
     ) -> Result<()>
     where
-        F: Fn(usize, &mut [f64]) -> Option<usize> + Sync,
+        F: Fn(usize, &[f32], &mut [f64]) -> Option<usize> + Sync,
     {
         self.validate()?;
         check_out_len(out.len(), width * height, "the sensor")?;
+        let row_len = input.len() / height.max(1);
         let columns = self.column_offsets(width);
         let readout = Readout::new(self);
         let bad = bands_first_bad(out, width, |y0, rows| {
             let mut first_bad = None;
             let mut scratch = RowScratch::new(width);
+            // The band's input; its last row streams nothing ahead (the next
+            // band may be another thread's).
+            let band = &input[y0 * row_len..][..rows.len() / width * row_len];
+            let mut src_rows = band.chunks_exact(row_len).peekable();
             for (dy, row) in rows.chunks_exact_mut(width).enumerate() {
                 let y = y0 + dy;
-                if let Some(x) = rates(y, &mut scratch.rates) {
+                let src = src_rows.next().unwrap_or(&[]);
+                if let Some(x) = rates(y, src, &mut scratch.rates) {
                     first_bad = first_bad.or(Some(y * width + x));
                 }
                 if let Some(f) = falloff {
                     f.apply_row(y, &mut scratch.rates);
                 }
-                readout.row(RowKeys::new(self, y, &columns), row, &mut scratch);
+                let ahead = Ahead::new(src_rows.peek().copied().unwrap_or(&[]));
+                readout.row(RowKeys::new(self, y, &columns), row, &mut scratch, ahead);
             }
             first_bad
         });
@@ -231,8 +244,7 @@ impl Sensor {
         out: &mut [u16],
     ) -> Result<()> {
         check_input_len("rates", rates.len(), width * height)?;
-        self.read_frame((width, height), None, out, |y, row| {
-            let src = &rates[y * width..(y + 1) * width];
+        self.read_frame((width, height), None, rates, out, |_, src, row| {
             for (r, &v) in row.iter_mut().zip(src) {
                 *r = f64::from(v);
             }
@@ -266,7 +278,7 @@ impl Sensor {
         out: &mut [u16],
     ) -> Result<()> {
         check_response(response, 3, grid_len)?;
-        if spectra.len() != width * height * grid_len {
+        if grid_len == 0 || spectra.len() != width * height * grid_len {
             return Err(CoreError::Shape(format!(
                 "a {height} x {width} image of {grid_len} wavelengths needs {} samples, got {}",
                 width * height * grid_len,
@@ -276,10 +288,8 @@ impl Sensor {
         // f32 keeps the dot product at memory speed; its rounding is far
         // below the shot noise (see `cfa_rates`).
         let response: Vec<f32> = response.iter().map(|&v| v as f32).collect();
-        let row_len = width * grid_len;
-        self.read_frame((width, height), falloff, out, |y, row| {
-            let src = &spectra[y * row_len..(y + 1) * row_len];
-            cfa_rates::row(src, grid_len, pattern.row(y), &response, row)
+        self.read_frame((width, height), falloff, spectra, out, |y, src, row| {
+            cfa_rates::row(src, pattern.row(y), &response, row)
         })
     }
 
@@ -307,8 +317,7 @@ impl Sensor {
     ) -> Result<()> {
         check_response(matrix, 3, 3)?;
         check_input_len("rgb", rgb.len(), 3 * width * height)?;
-        self.read_frame((width, height), falloff, out, |y, row| {
-            let src = &rgb[3 * y * width..3 * (y + 1) * width];
+        self.read_frame((width, height), falloff, rgb, out, |y, src, row| {
             let mut first_bad = None;
             let pixels = src.chunks_exact(3).zip(pattern.row(y).iter().cycle());
             for (x, (r, (px, &c))) in row.iter_mut().zip(pixels).enumerate() {
@@ -363,15 +372,15 @@ impl Readout {
 
     /// Reads the row of `keys`, its mean rates (e-/s) in `scratch.rates`,
     /// into `out`, through the widest vector unit the CPU has (the same
-    /// bits either way).
-    fn row(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
+    /// bits either way), streaming `ahead` into cache meanwhile.
+    fn row(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch, ahead: Ahead) {
         #[cfg(target_arch = "x86_64")]
         if has_avx2_fma() {
             // SAFETY: AVX2 and FMA support was detected just above.
-            unsafe { self.row_avx2(keys, out, scratch) };
+            unsafe { self.row_avx2(keys, out, scratch, ahead) };
             return;
         }
-        self.row_lanes(keys, out, scratch);
+        self.row_lanes(keys, out, scratch, ahead);
     }
 
     /// [`Self::row_lanes`] compiled for AVX2 (and FMA, which the arithmetic
@@ -381,8 +390,14 @@ impl Readout {
     /// The CPU must support AVX2 and FMA.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn row_avx2(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
-        self.row_lanes(keys, out, scratch);
+    unsafe fn row_avx2(
+        &self,
+        keys: RowKeys<'_>,
+        out: &mut [u16],
+        scratch: &mut RowScratch,
+        ahead: Ahead,
+    ) {
+        self.row_lanes(keys, out, scratch, ahead);
     }
 
     /// Reads a row in three passes over it, each [`LANES`] pixels at a time
@@ -390,9 +405,17 @@ impl Readout {
     /// and the mean charges; the Poisson counts ([`PoissonRow`], whose
     /// undecided pixels are finished together across the row); the read
     /// noise and the ADC. Each pixel draws what the per-pixel model `pixel`
-    /// (in the tests) draws.
+    /// (in the tests) draws. The lines of `ahead` are asked for over the
+    /// last two passes, the arithmetic-bound ones (the first is a few
+    /// multiplications a pixel when the sensor has no fixed patterns).
     #[inline(always)]
-    fn row_lanes(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch) {
+    fn row_lanes(
+        &self,
+        keys: RowKeys<'_>,
+        out: &mut [u16],
+        scratch: &mut RowScratch,
+        mut ahead: Ahead,
+    ) {
         let RowScratch {
             rates,
             means,
@@ -415,8 +438,9 @@ impl Readout {
         for (x, s) in states.iter_mut().enumerate() {
             *s = SplitMix64::at(keys.temporal, x).state();
         }
-        poisson.fill(means, counts, states);
+        poisson.fill(means, counts, states, |x| ahead.upto(x, 2 * width));
         for x0 in (0..blocks).step_by(LANES) {
+            ahead.upto(width + x0, 2 * width);
             let at = x0..x0 + LANES;
             let mut electrons = [0.0; LANES];
             for (i, e) in electrons.iter_mut().enumerate() {
@@ -437,6 +461,7 @@ impl Readout {
             let electrons = counts[x].min(self.full_well) + offsets[x] + columns[x];
             out[x] = self.read(electrons, &mut SplitMix64::from_state(states[x]));
         }
+        ahead.upto(1, 1);
     }
 
     /// The mean charges of pixels `x0 .. x0 + LANES` of signal rates
@@ -799,17 +824,21 @@ mod tests {
         let w = 61;
         let rates: Vec<f64> = (0..w).map(|x| means[(x * 7) % means.len()]).collect();
         let columns: Vec<f64> = (0..w).map(|x| x as f64 * 0.1 - 3.0).collect();
+        // A next row to stream: asking for it must change nothing.
+        let next = vec![1.0f32; 41 * w];
         let mut scratch = RowScratch::new(w);
         let readout = Readout::new(&s);
         for y in 0..40 {
             let want = row_by_pixels(&s, y, &rates, &columns);
             scratch.rates.copy_from_slice(&rates);
             let mut got = vec![0u16; w];
-            readout.row_lanes(RowKeys::new(&s, y, &columns), &mut got, &mut scratch);
+            let keys = RowKeys::new(&s, y, &columns);
+            readout.row_lanes(keys, &mut got, &mut scratch, Ahead::new(&[]));
             assert_eq!(got, want, "row {y}");
             scratch.rates.copy_from_slice(&rates);
             let mut dispatched = vec![0u16; w];
-            readout.row(RowKeys::new(&s, y, &columns), &mut dispatched, &mut scratch);
+            let keys = RowKeys::new(&s, y, &columns);
+            readout.row(keys, &mut dispatched, &mut scratch, Ahead::new(&next));
             assert_eq!(dispatched, want, "row {y}");
         }
     }
