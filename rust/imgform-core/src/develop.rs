@@ -181,13 +181,23 @@ pub fn develop<T: Sample, U: Sample>(
 /// image bilinearly, taps outside it reading 0
 /// ([`LensCorrection::correct_geometry`] of the development, bit for bit).
 ///
+/// The resampling reads rows tens of pixels away from the one it writes
+/// (more at the corners), so the development goes to `developed` first,
+/// working memory of `out`'s length (its contents do not matter; unused
+/// without distortion and TCA). The caller provides it so that it can be
+/// memory the OS backs with huge pages, as NumPy asks for large arrays: a
+/// fresh `Vec` of a 24 MP 8-bit development took ~0.07 s of page faults
+/// on 4 KiB pages, a tenth of the corrected develop.
+///
 /// # Errors
-/// As [`develop`], and a correction made for another image size.
+/// As [`develop`], a correction made for another image size, and a
+/// `developed` of another length than `out`.
 pub fn develop_corrected<T: Sample, U: Resample>(
     raw: ImageView<'_, u16>,
     pattern: &CfaPattern,
     params: &DevelopParams,
     lens: &LensCorrection,
+    developed: &mut [U],
     out: &mut [U],
 ) -> Result<()> {
     let (w, h) = (raw.width(), raw.height());
@@ -202,11 +212,15 @@ pub fn develop_corrected<T: Sample, U: Resample>(
         return develop_devignetted::<T, U>(raw, pattern, params, gains.as_ref(), out);
     }
     check_out_len(out.len(), 3 * w * h, "develop")?;
-    // The resampling reads rows tens of pixels away from the one it writes
-    // (more at the corners), so it needs the development beside the output.
-    let mut developed = vec![U::default(); out.len()];
-    develop_devignetted::<T, U>(raw, pattern, params, gains.as_ref(), &mut developed)?;
-    let developed = ImageView::contiguous(&developed, w, h, 3)?;
+    if developed.len() != out.len() {
+        return Err(CoreError::Shape(format!(
+            "the working buffer must hold as many samples as the output ({}), got {}",
+            out.len(),
+            developed.len()
+        )));
+    }
+    develop_devignetted::<T, U>(raw, pattern, params, gains.as_ref(), developed)?;
+    let developed = ImageView::contiguous(developed, w, h, 3)?;
     lens.correct_geometry(&developed, Interpolation::Bilinear, 0.0, false, out)
 }
 
@@ -405,20 +419,44 @@ impl<T: Sample> Mosaic for Prepared<'_, T> {
         let w = self.width();
         (0..self.height())
             .into_par_iter()
-            .map_init(
-                || vec![0.0f32; w],
-                |row, y| {
-                    self.load(y, 0, row);
-                    row.iter()
-                        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-                            (lo.min(v), hi.max(v))
-                        })
-                },
-            )
+            .map_init(|| vec![0.0f32; w], |row, y| self.row_range(y, row))
             .reduce(
                 || (f32::INFINITY, f32::NEG_INFINITY),
                 |a, b| (a.0.min(b.0), a.1.max(b.1)),
             )
+    }
+}
+
+impl<T: Sample> Prepared<'_, T> {
+    /// The smallest and largest prepared value of row `y`, loaded into
+    /// `row`. Compiled for AVX2 where the CPU has it, as the demosaics that
+    /// load the same values are: this pass over the whole mosaic ran in
+    /// baseline code, two lanes wide, and with vignetting (a division per
+    /// photosite) it took 4 % of a corrected 24 MP develop's profile. The
+    /// operations, and so the bits, are the same.
+    fn row_range(&self, y: usize, row: &mut [f32]) -> (f32, f32) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 was detected just above.
+            return unsafe { self.row_range_avx2(y, row) };
+        }
+        self.row_range_any(y, row)
+    }
+
+    /// [`Prepared::row_range`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn row_range_avx2(&self, y: usize, row: &mut [f32]) -> (f32, f32) {
+        self.row_range_any(y, row)
+    }
+
+    #[inline(always)]
+    fn row_range_any(&self, y: usize, row: &mut [f32]) -> (f32, f32) {
+        self.load(y, 0, row);
+        row.iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            })
     }
 }
 
@@ -704,6 +742,28 @@ mod tests {
         assert!(err.contains("multiple of the 2x2"), "{err}");
     }
 
+    #[test]
+    fn the_avx2_range_of_a_devignetted_mosaic_is_the_baseline_one() {
+        // Vignetting gains push some photosites past white (clipped) and
+        // leave the darkest above 0.
+        let (w, h) = (301, 21);
+        let raw: Vec<u16> = (0..w * h)
+            .map(|i| ((i * 7919) % 3000 + 900) as u16)
+            .collect();
+        let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
+        let p = params(100.0, 1.0 / 3000.0, Tone::Linear);
+        let gains = lens(w, h, true, false).gain_rows();
+        let mosaic = Prepared::<u16>::new(view, &p, Some(&gains));
+        let (mut row, mut row_any) = (vec![0.0f32; w], vec![0.0f32; w]);
+        for y in 0..h {
+            let got = mosaic.row_range(y, &mut row);
+            assert_eq!(got, mosaic.row_range_any(y, &mut row_any), "row {y}");
+            assert_eq!(row, row_any, "row {y}");
+        }
+        let (lo, hi) = mosaic.range();
+        assert!(lo > 0.0 && hi == u16::FULL_SCALE, "{lo} {hi}");
+    }
+
     /// [`develop`] the long way: the prepared mosaic as an image, the
     /// demosaic into `T`, then the finish, each over the whole image.
     fn staged<T: Sample, U: Sample>(
@@ -794,11 +854,16 @@ mod tests {
             c.correct_geometry(&plain, Interpolation::Bilinear, 0.0, false, &mut want)
                 .unwrap();
             let mut got = vec![0u8; want.len()];
-            develop_corrected::<u16, u8>(view, &pat, &p, &c, &mut got).unwrap();
+            let mut working = vec![0u8; want.len()];
+            develop_corrected::<u16, u8>(view, &pat, &p, &c, &mut working, &mut got).unwrap();
             assert!(got == want, "{method:?}");
         }
         let other = lens(w, h + 2, false, true);
-        let err = develop_corrected::<u16, u8>(view, &pat, &p, &other, &mut vec![0; 3 * w * h]);
+        let mut working = vec![0u8; 3 * w * h];
+        let mut out = working.clone();
+        let err = develop_corrected::<u16, u8>(view, &pat, &p, &other, &mut working, &mut out);
+        assert!(matches!(err, Err(CoreError::Shape(_))));
+        let err = develop_corrected::<u16, u8>(view, &pat, &p, &c, &mut working[1..], &mut out);
         assert!(matches!(err, Err(CoreError::Shape(_))));
     }
 
@@ -814,7 +879,8 @@ mod tests {
         let p = params(100.0, 1.0 / 4000.0, Tone::Linear);
         let c = lens(w, h, true, false);
         let mut out = vec![0.0f32; 3 * w * h];
-        develop_corrected::<f32, f32>(view, &pat, &p, &c, &mut out).unwrap();
+        // Without distortion and TCA the working buffer is not used.
+        develop_corrected::<f32, f32>(view, &pat, &p, &c, &mut [], &mut out).unwrap();
         for (i, px) in out.chunks_exact(3).enumerate() {
             let (u, v) = (i % w, i / w);
             let want = 0.25 * c.gain(u as f64, v as f64);

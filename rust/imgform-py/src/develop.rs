@@ -1,11 +1,14 @@
 //! Bindings of `imgform_core::develop`.
 
+use imgform_core::cfa::CfaPattern;
 use imgform_core::demosaic::Method;
 use imgform_core::develop::{
     develop as develop_kernel, develop_corrected, develop_in_place, DevelopParams, Tone,
 };
 use imgform_core::image::{ImageView, Sample};
-use numpy::{Element, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use imgform_core::lens::LensCorrection;
+use imgform_core::remap::Resample;
+use numpy::{Element, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
@@ -30,6 +33,35 @@ where
         kernel(ImageView::contiguous(src, w, h, 1)?, out)
     })?;
     Ok(out.into_any())
+}
+
+/// [`run`] through a lens correction. The development before its geometry
+/// is resampled goes to a second array that NumPy allocates, like the
+/// output: NumPy asks the OS to back large arrays with huge pages, so their
+/// first writes fault far less often than a `Vec`'s (see
+/// `develop_corrected`).
+fn run_corrected<'py, T: Sample, U: Resample + Element>(
+    py: Python<'py>,
+    src: &[u16],
+    (h, w): (usize, usize),
+    (pattern, params): (&CfaPattern, &DevelopParams),
+    lens: &LensCorrection,
+) -> PyResult<Bound<'py, PyAny>> {
+    let len = if lens.corrects_geometry() {
+        3 * h * w
+    } else {
+        0
+    };
+    let working = PyArrayDyn::<U>::zeros(py, &[len][..], false);
+    let mut working = working
+        .try_readwrite()
+        .map_err(|e| PyValueError::new_err(format!("internal borrow error: {e}")))?;
+    let developed = working
+        .as_slice_mut()
+        .map_err(|e| PyValueError::new_err(format!("internal layout error: {e}")))?;
+    run(py, src, (h, w), |v, out| {
+        develop_corrected::<T, U>(v, pattern, params, lens, developed, out)
+    })
 }
 
 fn f32s(v: Vec<f64>) -> Vec<f32> {
@@ -98,20 +130,21 @@ fn develop<'py>(
     // 8-bit output keeps a 16-bit demosaic; 16-bit and float outputs are
     // demosaiced and finished in the output array itself unless a lens
     // correction resamples them.
-    match bps {
-        "8" => run(py, &src, (h, w), |v, out| match &lens {
-            Some(c) => develop_corrected::<u16, u8>(v, pat, p, c, out),
-            None => develop_kernel::<u16, u8>(v, pat, p, out),
+    let size = (h, w);
+    match (bps, &lens) {
+        ("8", Some(c)) => run_corrected::<u16, u8>(py, &src, size, (pat, p), c),
+        ("8", None) => run(py, &src, size, |v, out| {
+            develop_kernel::<u16, u8>(v, pat, p, out)
         }),
-        "16" => run(py, &src, (h, w), |v, out| match &lens {
-            Some(c) => develop_corrected::<u16, u16>(v, pat, p, c, out),
-            None => develop_in_place::<u16>(v, pat, p, out),
+        ("16", Some(c)) => run_corrected::<u16, u16>(py, &src, size, (pat, p), c),
+        ("16", None) => run(py, &src, size, |v, out| {
+            develop_in_place::<u16>(v, pat, p, out)
         }),
-        "float" => run(py, &src, (h, w), |v, out| match &lens {
-            Some(c) => develop_corrected::<f32, f32>(v, pat, p, c, out),
-            None => develop_in_place::<f32>(v, pat, p, out),
+        ("float", Some(c)) => run_corrected::<f32, f32>(py, &src, size, (pat, p), c),
+        ("float", None) => run(py, &src, size, |v, out| {
+            develop_in_place::<f32>(v, pat, p, out)
         }),
-        other => Err(PyValueError::new_err(format!(
+        (other, _) => Err(PyValueError::new_err(format!(
             "bps must be \"8\", \"16\" or \"float\", got {other:?}"
         ))),
     }
