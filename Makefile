@@ -73,7 +73,7 @@ WEIGHTS := $(addprefix rust/imgform-core/src/demosaic/,raisr_weights.bin fusion_
 # include_bytes! makes the weights part of the extension.
 $(BUILT): $(WEIGHTS)
 
-# The photographs the "raisr" demosaicer is trained on (licences in
+# The first 33 training photographs of the learned demosaicers (licences in
 # python/imgform_rs/training/photos.py), at pinned versions: the training
 # checks each file's SHA-256.
 TRAINING_DATA := out/training-data

@@ -31,7 +31,7 @@ needs_data = pytest.mark.skipif(
 
 
 def test_no_scikit_image_evaluation_image_is_trained_on():
-    trained = {*raisr_training.SKIMAGE_GREY, *raisr_training.SKIMAGE_RGB, *leung2011.GREY}
+    trained = {*raisr_training.SMALL, *leung2011.GREY}
     assert not trained & raisr_training.HELD_OUT
     # leung2011 also trains on the Hubble deep field, which no benchmark scores.
     assert "hubble_deep_field" not in raisr_training.EVALUATION_IMAGES

@@ -3,9 +3,9 @@
 ``training_images(name, data, seed)`` returns a list of float32 (H, W, 3) arrays in
 [0, 1]; the sets (:data:`SETS`):
 
-- ``"raisr"``: the 33 photographs the shipped raisr weights were trained on
-  (:data:`imgform_rs.training.photos.TRAINING`) as :func:`~imgform_rs.training.photos.load`
-  gives them, unaugmented;
+- ``"raisr"``: the first 33 photographs (:data:`imgform_rs.training.photos.TRAINING`),
+  which raisr's weights were trained on while it refined ``"rcd_menon"``, as
+  :func:`~imgform_rs.training.photos.load` gives them, unaugmented;
 - ``"photos"``: the 293 photographs of :data:`imgform_rs.training.catalogue.EXTENDED`,
   each augmented once by :func:`augment`;
 - ``"synthetic"``: saturated, weakly correlated images from

@@ -1,6 +1,8 @@
-//! The learned fusion of MLRI and the RCD / Menon mean
-//! ([`super::Method::Fusion`]), run so that neither base does more work
-//! than it does alone.
+//! The learned refinements of MLRI: the fusion of MLRI and the RCD / Menon
+//! mean ([`super::Method::Fusion`]) and RAISR's filters over MLRI alone
+//! ([`super::Method::Raisr`]), run so that no base does more work than it
+//! does alone. They differ only in what the filters see besides MLRI (a
+//! [`Secondary`]).
 //!
 //! MLRI streams down tiles as tall as the image with a halo of 30 pixels;
 //! the RCD / Menon mean and the filters work on planes of small tiles with
@@ -10,14 +12,13 @@
 //! MLRI streams down the tall tile as it does alone; its rows gather into
 //! chunks of [`CHUNK_ROWS`] output rows (2 more on each side for the
 //! filters' hash), and each chunk is refined in sub-tiles
-//! [`SUB_COLS`] wide, where the RCD / Menon mean and the filters
+//! [`SUB_COLS`] wide, where the RCD / Menon mean (if any) and the filters
 //! ([`Raisr`]) see the MLRI rows as a [`Given`] base. Every output pixel
 //! gets the same arithmetic on the same values as in any other cut, so the
 //! bits do not depend on the tiling nor on the thread count.
 
-use super::ensemble::Ensemble;
 use super::mlri::{Buffers, Mlri};
-use super::raisr::{self, Against, Given, Raisr};
+use super::raisr::{self, Given, Raisr, Secondary};
 use super::ring::{cache_aligned, ALIGN_PAD};
 use super::tiled::{Emit, Load, StreamKernel, Tile, TileKernel};
 
@@ -29,26 +30,28 @@ const CHUNK_ROWS: usize = 64;
 /// whose planes stay in cache.
 const SUB_COLS: usize = 384;
 
-/// The refinement: filters over MLRI's rows, seeing the RCD / Menon mean.
-type Refine = Raisr<Given, Against<Ensemble>>;
-/// The halo of a sub-tile: the RCD / Menon mean's plus the filters' reach.
-const SUB_HALO: usize = <Refine as TileKernel>::HALO;
 /// MLRI rows (and columns) the filters read beyond their output: the
 /// 3 x 3 sums of the central differences of the structure tensor's hash.
 const REACH: usize = 2;
 
-pub(super) struct Fusion {
+/// MLRI refined by filters that also see `S`.
+pub(super) struct Fusion<S> {
     pub(super) mlri: Mlri,
-    pub(super) refine: Refine,
+    pub(super) refine: Raisr<Given, S>,
 }
 
-pub(super) struct State {
+impl<S: Secondary> Fusion<S> {
+    /// The halo of a sub-tile: the secondary's plus the filters' reach.
+    const SUB_HALO: usize = <Raisr<Given, S> as TileKernel>::HALO;
+}
+
+pub(super) struct State<S: Secondary> {
     mlri: Buffers,
-    chunk: Chunk,
+    chunk: Chunk<S>,
 }
 
 /// The buffers of one chunk and of its sub-tiles.
-struct Chunk {
+struct Chunk<S: Secondary> {
     /// MLRI's rows of the chunk, from [`REACH`] rows above its first output
     /// row to as many below its last (tall-tile columns).
     base: [Vec<f32>; 3],
@@ -60,11 +63,11 @@ struct Chunk {
     out: [Vec<f32>; 3],
     /// One sub-tile's raw plane.
     sub_raw: Vec<f32>,
-    refine: raisr::State<[Vec<f32>; 3], <Ensemble as TileKernel>::State>,
+    refine: raisr::State<[Vec<f32>; 3], S::State>,
 }
 
-impl StreamKernel for Fusion {
-    type State = State;
+impl<S: Secondary> StreamKernel for Fusion<S> {
+    type State = State<S>;
     const HALO: usize = <Mlri as StreamKernel>::HALO + REACH;
     const ROWS: usize = <Mlri as StreamKernel>::ROWS;
     const COLS: usize = <Mlri as StreamKernel>::COLS;
@@ -74,16 +77,16 @@ impl StreamKernel for Fusion {
         <Mlri as StreamKernel>::rows(height, across, threads)
     }
 
-    fn state(&self, stride: usize, rows: usize) -> State {
-        let sub_stride = SUB_COLS + 2 * SUB_HALO;
-        let sub_len = sub_stride * (CHUNK_ROWS + 2 * SUB_HALO);
+    fn state(&self, stride: usize, rows: usize) -> State<S> {
+        let sub_stride = SUB_COLS + 2 * Self::SUB_HALO;
+        let sub_len = sub_stride * (CHUNK_ROWS + 2 * Self::SUB_HALO);
         let planes = |rows: usize| [0; 3].map(|_| vec![0.0f32; stride * rows]);
         State {
             mlri: self.mlri.state(stride, rows),
             chunk: Chunk {
                 base: planes(CHUNK_ROWS + 2 * REACH),
                 filled: 0,
-                raw: vec![0.0; stride * (CHUNK_ROWS + 2 * SUB_HALO)],
+                raw: vec![0.0; stride * (CHUNK_ROWS + 2 * Self::SUB_HALO)],
                 out: planes(CHUNK_ROWS),
                 sub_raw: vec![0.0; sub_len + ALIGN_PAD],
                 refine: TileKernel::state(&self.refine, sub_stride, sub_len),
@@ -92,7 +95,7 @@ impl StreamKernel for Fusion {
     }
 
     #[inline(always)]
-    fn stream<E: Emit, L: Load>(&self, st: &mut State, t: &Tile, raw: &L, out: &mut E) {
+    fn stream<E: Emit, L: Load>(&self, st: &mut State<S>, t: &Tile, raw: &L, out: &mut E) {
         let State { mlri, chunk } = st;
         chunk.filled = 0;
         let mut chunks = Chunks {
@@ -111,9 +114,9 @@ impl StreamKernel for Fusion {
 }
 
 /// Gathers MLRI's rows and refines each chunk once it is complete.
-struct Chunks<'a, L, E> {
-    refine: &'a Refine,
-    chunk: &'a mut Chunk,
+struct Chunks<'a, S: Secondary, L, E> {
+    refine: &'a Raisr<Given, S>,
+    chunk: &'a mut Chunk<S>,
     t: &'a Tile,
     raw: &'a L,
     out: &'a mut E,
@@ -121,7 +124,7 @@ struct Chunks<'a, L, E> {
     next: usize,
 }
 
-impl<L: Load, E: Emit> Emit for Chunks<'_, L, E> {
+impl<S: Secondary, L: Load, E: Emit> Emit for Chunks<'_, S, L, E> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, rows: [&[f32]; 3]) {
         let c = &mut *self.chunk;
@@ -137,7 +140,10 @@ impl<L: Load, E: Emit> Emit for Chunks<'_, L, E> {
     }
 }
 
-impl<L: Load, E: Emit> Chunks<'_, L, E> {
+impl<S: Secondary, L: Load, E: Emit> Chunks<'_, S, L, E> {
+    /// The halo of a sub-tile ([`Fusion::SUB_HALO`]).
+    const SUB_HALO: usize = Fusion::<S>::SUB_HALO;
+
     /// Refines and emits the chunk's output rows (those MLRI has given with
     /// their [`REACH`] rows below), then keeps the rows the next chunk's
     /// hash reads above it.
@@ -148,7 +154,7 @@ impl<L: Load, E: Emit> Chunks<'_, L, E> {
         };
         let stride = self.t.stride;
         self.load_raw(n);
-        let halo = <Fusion as StreamKernel>::HALO;
+        let halo = <Fusion<S> as StreamKernel>::HALO;
         let mut x0 = halo;
         while x0 < stride - halo {
             let cols = SUB_COLS.min(stride - halo - x0);
@@ -173,9 +179,9 @@ impl<L: Load, E: Emit> Chunks<'_, L, E> {
     #[inline(always)]
     fn load_raw(&mut self, n: usize) {
         let stride = self.t.stride;
-        let raw = &mut self.chunk.raw[..stride * (n + 2 * SUB_HALO)];
+        let raw = &mut self.chunk.raw[..stride * (n + 2 * Self::SUB_HALO)];
         for (r, row) in raw.chunks_exact_mut(stride).enumerate() {
-            self.raw.load(self.next - SUB_HALO + r, row);
+            self.raw.load(self.next - Self::SUB_HALO + r, row);
         }
     }
 
@@ -186,18 +192,21 @@ impl<L: Load, E: Emit> Chunks<'_, L, E> {
     fn sub_tile(&mut self, n: usize, x0: usize, cols: usize) {
         let (stride, c) = (self.t.stride, &mut *self.chunk);
         let sub = Tile {
-            stride: cols + 2 * SUB_HALO,
-            rows: n + 2 * SUB_HALO,
-            y0: self.t.y0 + (self.next - SUB_HALO) as isize,
+            stride: cols + 2 * Self::SUB_HALO,
+            rows: n + 2 * Self::SUB_HALO,
+            y0: self.t.y0 + (self.next - Self::SUB_HALO) as isize,
         };
         let sub_raw = &mut cache_aligned(&mut c.sub_raw)[..sub.stride * sub.rows];
         let whole = Rect {
             rows: sub.rows,
             cols: sub.stride,
         };
-        whole.copy((sub_raw, sub.stride, 0), (&c.raw, stride, x0 - SUB_HALO));
+        whole.copy(
+            (sub_raw, sub.stride, 0),
+            (&c.raw, stride, x0 - Self::SUB_HALO),
+        );
         // The filters read MLRI `REACH` rows and columns around the output.
-        let (top, reach) = (SUB_HALO - REACH, Rect::around(n, cols, REACH));
+        let (top, reach) = (Self::SUB_HALO - REACH, Rect::around(n, cols, REACH));
         for (dst, src) in c.refine.given().iter_mut().zip(&c.base) {
             let at = top * sub.stride + top;
             reach.copy((dst, sub.stride, at), (src, stride, x0 - REACH));
@@ -205,7 +214,7 @@ impl<L: Load, E: Emit> Chunks<'_, L, E> {
         let planes = TileKernel::run(self.refine, &mut c.refine, &sub, sub_raw);
         let inner = Rect::around(n, cols, 0);
         for (dst, src) in c.out.iter_mut().zip(planes) {
-            let at = SUB_HALO * sub.stride + SUB_HALO;
+            let at = Self::SUB_HALO * sub.stride + Self::SUB_HALO;
             inner.copy((dst, stride, x0), (src, sub.stride, at));
         }
     }

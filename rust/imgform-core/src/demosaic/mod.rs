@@ -100,8 +100,8 @@ pub enum Method {
     /// differences; red and blue follow from the full green the same way.
     /// Outputs are clamped to the input's range.
     Mlri,
-    /// A learned refinement of [`Method::RcdMenon`] in the manner of
-    /// Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
+    /// A learned refinement of [`Method::Mlri`] in the manner of Romano,
+    /// Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
     /// Resolution", IEEE TCI 2017: per CFA position and structure-tensor
     /// class, a least-squares linear filter predicts the residual of the
     /// missing colours. Not flip-symmetric (the filters are learned).
@@ -222,8 +222,10 @@ impl Method {
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
             Method::Mlri => <mlri::Mlri as tiled::StreamKernel>::HALO,
-            Method::Raisr => <raisr::Raisr<ensemble::Ensemble> as TileKernel>::HALO,
-            Method::Fusion => <fusion::Fusion as tiled::StreamKernel>::HALO,
+            Method::Raisr => <fusion::Fusion<raisr::Alone> as tiled::StreamKernel>::HALO,
+            Method::Fusion => {
+                <fusion::Fusion<raisr::Against<ensemble::Ensemble>> as tiled::StreamKernel>::HALO
+            }
             Method::Markesteijn => markesteijn::HALO,
         }
     }
@@ -595,51 +597,42 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
-            let base = rcd_menon(phase, T::FULL_SCALE);
-            let k =
-                learned::<T, _, _>(base, raisr::Alone, raisr::Weights::raisr(), raw, phase, isa);
+            let k = learned::<T, _>(raisr::Alone, raisr::Weights::raisr(), raw, phase, isa);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Fusion => {
             let second = raisr::Against(rcd_menon(phase, T::FULL_SCALE));
-            let k = fusion::Fusion {
-                mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
-                refine: learned::<T, _, _>(
-                    raisr::Given,
-                    second,
-                    raisr::Weights::fusion(),
-                    raw,
-                    phase,
-                    isa,
-                ),
-            };
+            let k = learned::<T, _>(second, raisr::Weights::fusion(), raw, phase, isa);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
     }
 }
 
-/// A learned method's kernel: `base` refined by `weights`, seeing `second`.
-fn learned<T: Sample, B, S>(
-    base: B,
+/// A learned method's kernel: MLRI refined by `weights`, seeing `second`.
+fn learned<T: Sample, S>(
     second: S,
     weights: &'static raisr::Weights,
     raw: &impl Mosaic,
     phase: Phase,
     isa: Isa,
-) -> raisr::Raisr<B, S> {
-    raisr::Raisr {
-        base,
+) -> fusion::Fusion<S> {
+    let refine = raisr::Raisr {
+        base: raisr::Given,
         second,
         phase,
         inv_scale: 1.0 / T::FULL_SCALE,
         bounds: raw.range(),
         weights,
         isa,
+    };
+    fusion::Fusion {
+        mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
+        refine,
     }
 }
 
-/// The mean of RCD and Menon 2007 ([`Method::RcdMenon`]), also the base of
-/// the learned methods.
+/// The mean of RCD and Menon 2007 ([`Method::RcdMenon`]), which the
+/// fusion's filters also see.
 fn rcd_menon(phase: Phase, full_scale: f32) -> ensemble::Ensemble {
     ensemble::Ensemble {
         rcd: Rcd::new(phase, full_scale),

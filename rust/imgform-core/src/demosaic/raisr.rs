@@ -3,8 +3,8 @@
 //! Super Resolution", IEEE Transactions on Computational Imaging 3(1), 2017.
 //!
 //! RAISR learns, per class of local structure, a least-squares linear filter
-//! from a cheap upscaler's output to the truth. Here the cheap estimate is
-//! the RCD / Menon 2007 mean and the filters predict its residual: at every
+//! from a cheap upscaler's output to the truth. Here the estimate is MLRI's
+//! ([`super::mlri`]) and the filters predict its residual: at every
 //! pixel, the two colours the photosite did not see get a correction that is
 //! a linear function of 26 features of the base output around the pixel.
 //! The filter is chosen by the pixel's CFA position (red or blue row, chroma
@@ -131,7 +131,7 @@ impl Weights {
         })
     }
 
-    /// The shipped filter bank of the RCD / Menon refinement.
+    /// The shipped filter bank of the refinement of MLRI alone.
     pub(crate) fn raisr() -> &'static Weights {
         static WEIGHTS: OnceLock<Weights> = OnceLock::new();
         Self::shipped(&WEIGHTS, include_bytes!("raisr_weights.bin"), WINDOWS)
