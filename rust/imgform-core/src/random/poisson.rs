@@ -150,9 +150,13 @@ pub(crate) struct PoissonRow {
 impl PoissonRow {
     /// `counts[x]`: a Poisson variate of mean `lam[x]` drawn by the
     /// generator whose state is `states[x]`, left in `states[x]` past the
-    /// variate's draws (for the draws that follow it). `progress(x)` is
-    /// called as the first round passes site `x`, so that a caller can
-    /// interleave work of its own (the sensor streams its next row).
+    /// variate's draws (for the draws that follow it).
+    ///
+    /// `progress(done)` is called as the work advances, so that a caller
+    /// can interleave work of its own (the sensor integrates its next row);
+    /// `done` runs up to `2 * lam.len()`: the first round's sites count
+    /// for the first half, the first exact round's (about as long, though
+    /// only a quarter of the sites get there) for the second.
     #[inline(always)]
     pub(crate) fn fill(
         &mut self,
@@ -161,20 +165,25 @@ impl PoissonRow {
         states: &mut [u64],
         mut progress: impl FnMut(usize),
     ) {
-        self.undecided.resize(lam.len(), 0);
+        let n = lam.len();
+        self.undecided.resize(n, 0);
         self.len = 0;
-        let blocks = lam.len() / LANES * LANES;
+        let blocks = n / LANES * LANES;
         for x0 in (0..blocks).step_by(LANES) {
             self.first_round(x0, lam, counts, states);
             progress(x0 + LANES);
         }
-        for x in blocks..lam.len() {
+        for x in blocks..n {
             let mut g = SplitMix64(states[x]);
             counts[x] = g.poisson(lam[x]);
             states[x] = g.0;
         }
+        let first = self.len;
+        self.exact_rounds(lam, counts, states, |tested| {
+            progress(n + n * tested / first);
+        });
         while self.len > 0 {
-            self.exact_rounds(lam, counts, states);
+            self.exact_rounds(lam, counts, states, |_| {});
         }
     }
 
@@ -218,8 +227,15 @@ impl PoissonRow {
     /// One full PTRS round for every undecided site, [`EXACT_LANES`] at a time
     /// (the last group padded with its own last site, whose duplicates
     /// compute the same values); the sites it rejects stay undecided.
+    /// `progress(tested)` follows each group with the sites tested so far.
     #[inline(always)]
-    fn exact_rounds(&mut self, lam: &[f64], counts: &mut [f64], states: &mut [u64]) {
+    fn exact_rounds(
+        &mut self,
+        lam: &[f64],
+        counts: &mut [f64],
+        states: &mut [u64],
+        mut progress: impl FnMut(usize),
+    ) {
         let mut kept = 0;
         for start in (0..self.len).step_by(EXACT_LANES) {
             let n = EXACT_LANES.min(self.len - start);
@@ -239,6 +255,7 @@ impl PoissonRow {
                 self.undecided[kept] = x;
                 kept += usize::from(!accepted.0[i]);
             }
+            progress(start + n);
         }
         self.len = kept;
     }

@@ -8,6 +8,7 @@
 use super::{all_valid, bands_first_bad, dot};
 use crate::error::{CoreError, Result};
 use crate::invalid;
+use crate::parallel::ROWS_PER_TASK;
 
 /// Checks a `(channels, grid_len)` response table: finite and >= 0 (a
 /// transmittance or quantum efficiency cannot be negative).
@@ -74,7 +75,7 @@ pub fn integrate(
             out.len()
         )));
     }
-    let bad = bands_first_bad(out, width * channels, |y0, rows| {
+    let bad = bands_first_bad(out, width * channels, ROWS_PER_TASK, |y0, rows| {
         let src = &spectra[y0 * width * grid_len..];
         let mut first_bad = None;
         for (i, (px, o)) in src

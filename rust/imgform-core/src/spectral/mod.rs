@@ -25,13 +25,17 @@ use rayon::prelude::*;
 
 pub(crate) use crate::cpu::has_avx2_fma;
 pub(crate) use crate::error::{all_valid, is_valid_sample};
-use crate::parallel::ROWS_PER_TASK;
 
-/// Runs `kernel(first_row, rows)` over bands of [`ROWS_PER_TASK`] rows of
-/// `out` (rows of `row_len` elements) in parallel. Each band returns the
-/// index of its first bad input, if any; the smallest over all bands is
-/// returned, so error messages name the same pixel for any thread count.
-fn bands_first_bad<T, F>(out: &mut [T], row_len: usize, kernel: F) -> Option<usize>
+/// Runs `kernel(first_row, rows)` over bands of `band_rows` rows of `out`
+/// (rows of `row_len` elements) in parallel. Each band returns the index of
+/// its first bad input, if any; the smallest over all bands is returned, so
+/// error messages name the same pixel for any thread count.
+fn bands_first_bad<T, F>(
+    out: &mut [T],
+    row_len: usize,
+    band_rows: usize,
+    kernel: F,
+) -> Option<usize>
 where
     T: Send,
     F: Fn(usize, &mut [T]) -> Option<usize> + Sync,
@@ -39,9 +43,9 @@ where
     if row_len == 0 {
         return None;
     }
-    out.par_chunks_mut(row_len * ROWS_PER_TASK)
+    out.par_chunks_mut(row_len * band_rows)
         .enumerate()
-        .filter_map(|(band, rows)| kernel(band * ROWS_PER_TASK, rows))
+        .filter_map(|(band, rows)| kernel(band * band_rows, rows))
         .min()
 }
 
@@ -83,7 +87,7 @@ mod tests {
     #[test]
     fn the_first_bad_band_is_reported_whatever_the_order() {
         let mut out = vec![0u8; 5 * 100];
-        let bad = bands_first_bad(&mut out, 5, |y0, _| (y0 >= 40).then_some(y0 * 5 + 3));
+        let bad = bands_first_bad(&mut out, 5, 8, |y0, _| (y0 >= 40).then_some(y0 * 5 + 3));
         assert_eq!(bad, Some(40 * 5 + 3));
     }
 }

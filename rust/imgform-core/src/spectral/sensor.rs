@@ -25,14 +25,21 @@
 //! where the CPU has it; every pixel still draws exactly what its own
 //! scalar generator would, so the frame is the same on any CPU.
 
-use super::ahead::Ahead;
+use super::ahead::{Ahead, RowRates};
+use super::cfa_rates::{self, colors_from, Responses};
 use super::falloff::Falloff;
 use super::integrate::{bad_pixel, check_response};
-use super::{bands_first_bad, cfa_rates, has_avx2_fma, is_valid_sample};
+use super::{bands_first_bad, has_avx2_fma, is_valid_sample};
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::error::{CoreError, Result};
 use crate::invalid;
 use crate::random::{ziggurat, Lanes, PoissonRow, SplitMix64, Ziggurat, LANES};
+
+/// Rows per parallel task. Each band's first row is read without noise to
+/// hide behind ([`Ahead`]), so bands are longer than the library's usual
+/// eight rows: 1/32 of the input read on its own, and still over a hundred
+/// tasks for a 24 MP frame to balance between the cores.
+const ROWS_PER_BAND: usize = 32;
 
 /// Mixed into the pattern seed for the column offsets, so that they are not
 /// the row-0 pixel offsets in disguise.
@@ -178,50 +185,50 @@ impl Sensor {
 
     /// Reads a `height x width` frame from `input`, whose rows are
     /// `input.len() / height` values each (the caller checked the length).
-    /// `rates(y, src, row)` fills `row` with the mean rates (e-/s) of row
-    /// `y`'s pixels from its input `src` and returns the column of its first
-    /// bad input, if any; the row is dimmed by `falloff`, if any, and the
-    /// sensor reads it.
+    /// `rates` (a [`RowRates`] kernel) turns a row's input into its mean
+    /// rates (e-/s); the row is dimmed by `falloff`, if any, and the sensor
+    /// reads it.
     ///
     /// Working a row at a time keeps the input's loop (a dot product per
     /// pixel) apart from the noise's, so each stays simple enough to
-    /// optimise, while the row of rates stays in cache between the two. The
-    /// noise loops stream the band's next row of input into cache
-    /// ([`Ahead`]), so the memory bus is busy while the core computes.
-    fn read_frame<F>(
+    /// optimise, while a row of rates stays in cache between the two. The
+    /// next row is integrated while the current one's noise is drawn
+    /// ([`Ahead`]), so the memory bus is busy while the core computes; only
+    /// the first row of a band of [`ROWS_PER_BAND`] is read on its own.
+    fn read_frame<F: RowRates>(
         &self,
         (width, height): (usize, usize),
         falloff: Option<&Falloff>,
         input: &[f32],
         out: &mut [u16],
         rates: F,
-    ) -> Result<()>
-    where
-        F: Fn(usize, &[f32], &mut [f64]) -> Option<usize> + Sync,
-    {
+    ) -> Result<()> {
         self.validate()?;
         check_out_len(out.len(), width * height, "the sensor")?;
         let row_len = input.len() / height.max(1);
         let columns = self.column_offsets(width);
         let readout = Readout::new(self);
-        let bad = bands_first_bad(out, width, |y0, rows| {
-            let mut first_bad = None;
+        let bad = bands_first_bad(out, width, ROWS_PER_BAND, |y0, rows| {
             let mut scratch = RowScratch::new(width);
-            // The band's input; its last row streams nothing ahead (the next
-            // band may be another thread's).
+            let mut next = vec![0.0; width];
+            // The band's input; its last row integrates nothing ahead (the
+            // next band may be another thread's).
             let band = &input[y0 * row_len..][..rows.len() / width * row_len];
-            let mut src_rows = band.chunks_exact(row_len).peekable();
+            let mut src_rows = band.chunks_exact(row_len);
+            let mut first_bad =
+                Ahead::new(y0, src_rows.next(), &mut scratch.rates, &rates).finish();
             for (dy, row) in rows.chunks_exact_mut(width).enumerate() {
                 let y = y0 + dy;
-                let src = src_rows.next().unwrap_or(&[]);
-                if let Some(x) = rates(y, src, &mut scratch.rates) {
-                    first_bad = first_bad.or(Some(y * width + x));
-                }
                 if let Some(f) = falloff {
                     f.apply_row(y, &mut scratch.rates);
                 }
-                let ahead = Ahead::new(src_rows.peek().copied().unwrap_or(&[]));
-                readout.row(RowKeys::new(self, y, &columns), row, &mut scratch, ahead);
+                let mut ahead = Ahead::new(y + 1, src_rows.next(), &mut next, &rates);
+                let keys = RowKeys::new(self, y, &columns);
+                readout.row(keys, row, &mut scratch, |done, total| {
+                    ahead.upto(done, total)
+                });
+                first_bad = first_bad.or(ahead.finish());
+                std::mem::swap(&mut scratch.rates, &mut next);
             }
             first_bad
         });
@@ -244,7 +251,7 @@ impl Sensor {
         out: &mut [u16],
     ) -> Result<()> {
         check_input_len("rates", rates.len(), width * height)?;
-        self.read_frame((width, height), None, rates, out, |_, src, row| {
+        self.read_frame((width, height), None, rates, out, |_, _, src, row| {
             for (r, &v) in row.iter_mut().zip(src) {
                 *r = f64::from(v);
             }
@@ -285,11 +292,9 @@ impl Sensor {
                 spectra.len()
             )));
         }
-        // f32 keeps the dot product at memory speed; its rounding is far
-        // below the shot noise (see `cfa_rates`).
-        let response: Vec<f32> = response.iter().map(|&v| v as f32).collect();
-        self.read_frame((width, height), falloff, spectra, out, |y, src, row| {
-            cfa_rates::row(src, pattern.row(y), &response, row)
+        let responses = Responses::new(response, grid_len);
+        self.read_frame((width, height), falloff, spectra, out, |y, x0, src, row| {
+            cfa_rates::row(src, colors_from(pattern.row(y), x0), &responses, row)
         })
     }
 
@@ -317,9 +322,9 @@ impl Sensor {
     ) -> Result<()> {
         check_response(matrix, 3, 3)?;
         check_input_len("rgb", rgb.len(), 3 * width * height)?;
-        self.read_frame((width, height), falloff, rgb, out, |y, src, row| {
+        self.read_frame((width, height), falloff, rgb, out, |y, x0, src, row| {
             let mut first_bad = None;
-            let pixels = src.chunks_exact(3).zip(pattern.row(y).iter().cycle());
+            let pixels = src.chunks_exact(3).zip(colors_from(pattern.row(y), x0));
             for (x, (r, (px, &c))) in row.iter_mut().zip(pixels).enumerate() {
                 let m = &matrix[3 * usize::from(c)..][..3];
                 let [red, green, blue] = [px[0], px[1], px[2]].map(|v| f64::from(v.max(0.0)));
@@ -372,15 +377,22 @@ impl Readout {
 
     /// Reads the row of `keys`, its mean rates (e-/s) in `scratch.rates`,
     /// into `out`, through the widest vector unit the CPU has (the same
-    /// bits either way), streaming `ahead` into cache meanwhile.
-    fn row(&self, keys: RowKeys<'_>, out: &mut [u16], scratch: &mut RowScratch, ahead: Ahead) {
+    /// bits either way), reporting its progress to `progress` (see
+    /// [`Self::row_lanes`]).
+    fn row(
+        &self,
+        keys: RowKeys<'_>,
+        out: &mut [u16],
+        scratch: &mut RowScratch,
+        progress: impl FnMut(usize, usize),
+    ) {
         #[cfg(target_arch = "x86_64")]
         if has_avx2_fma() {
             // SAFETY: AVX2 and FMA support was detected just above.
-            unsafe { self.row_avx2(keys, out, scratch, ahead) };
+            unsafe { self.row_avx2(keys, out, scratch, progress) };
             return;
         }
-        self.row_lanes(keys, out, scratch, ahead);
+        self.row_lanes(keys, out, scratch, progress);
     }
 
     /// [`Self::row_lanes`] compiled for AVX2 (and FMA, which the arithmetic
@@ -395,9 +407,9 @@ impl Readout {
         keys: RowKeys<'_>,
         out: &mut [u16],
         scratch: &mut RowScratch,
-        ahead: Ahead,
+        progress: impl FnMut(usize, usize),
     ) {
-        self.row_lanes(keys, out, scratch, ahead);
+        self.row_lanes(keys, out, scratch, progress);
     }
 
     /// Reads a row in three passes over it, each [`LANES`] pixels at a time
@@ -405,16 +417,19 @@ impl Readout {
     /// and the mean charges; the Poisson counts ([`PoissonRow`], whose
     /// undecided pixels are finished together across the row); the read
     /// noise and the ADC. Each pixel draws what the per-pixel model `pixel`
-    /// (in the tests) draws. The lines of `ahead` are asked for over the
-    /// last two passes, the arithmetic-bound ones (the first is a few
-    /// multiplications a pixel when the sensor has no fixed patterns).
+    /// (in the tests) draws. `progress(done, total)` is called as the last
+    /// two passes, the arithmetic-bound ones, advance: the Poisson pass
+    /// counts for two thirds of the row's work (its first round and its
+    /// exact rounds each about as long as the read-noise pass), the read
+    /// noise for the last third. The first pass is a few multiplications a
+    /// pixel when the sensor has no fixed patterns.
     #[inline(always)]
     fn row_lanes(
         &self,
         keys: RowKeys<'_>,
         out: &mut [u16],
         scratch: &mut RowScratch,
-        mut ahead: Ahead,
+        mut progress: impl FnMut(usize, usize),
     ) {
         let RowScratch {
             rates,
@@ -438,9 +453,9 @@ impl Readout {
         for (x, s) in states.iter_mut().enumerate() {
             *s = SplitMix64::at(keys.temporal, x).state();
         }
-        poisson.fill(means, counts, states, |x| ahead.upto(x, 2 * width));
+        poisson.fill(means, counts, states, |done| progress(done, 3 * width));
         for x0 in (0..blocks).step_by(LANES) {
-            ahead.upto(width + x0, 2 * width);
+            progress(2 * width + x0, 3 * width);
             let at = x0..x0 + LANES;
             let mut electrons = [0.0; LANES];
             for (i, e) in electrons.iter_mut().enumerate() {
@@ -461,7 +476,6 @@ impl Readout {
             let electrons = counts[x].min(self.full_well) + offsets[x] + columns[x];
             out[x] = self.read(electrons, &mut SplitMix64::from_state(states[x]));
         }
-        ahead.upto(1, 1);
     }
 
     /// The mean charges of pixels `x0 .. x0 + LANES` of signal rates
@@ -824,8 +838,8 @@ mod tests {
         let w = 61;
         let rates: Vec<f64> = (0..w).map(|x| means[(x * 7) % means.len()]).collect();
         let columns: Vec<f64> = (0..w).map(|x| x as f64 * 0.1 - 3.0).collect();
-        // A next row to stream: asking for it must change nothing.
-        let next = vec![1.0f32; 41 * w];
+        // Work interleaved with the read-out must change nothing.
+        let mut calls = 0;
         let mut scratch = RowScratch::new(w);
         let readout = Readout::new(&s);
         for y in 0..40 {
@@ -833,14 +847,18 @@ mod tests {
             scratch.rates.copy_from_slice(&rates);
             let mut got = vec![0u16; w];
             let keys = RowKeys::new(&s, y, &columns);
-            readout.row_lanes(keys, &mut got, &mut scratch, Ahead::new(&[]));
+            readout.row_lanes(keys, &mut got, &mut scratch, |_, _| {});
             assert_eq!(got, want, "row {y}");
             scratch.rates.copy_from_slice(&rates);
             let mut dispatched = vec![0u16; w];
             let keys = RowKeys::new(&s, y, &columns);
-            readout.row(keys, &mut dispatched, &mut scratch, Ahead::new(&next));
+            readout.row(keys, &mut dispatched, &mut scratch, |done, total| {
+                assert!(done <= total && total == 3 * w);
+                calls += 1;
+            });
             assert_eq!(dispatched, want, "row {y}");
         }
+        assert!(calls > 0);
     }
 
     #[test]
