@@ -1,8 +1,8 @@
 """The extended photograph set: several hundred openly licensed photographs.
 
-Today's raisr set (:data:`imgform_rs.training.photos.TRAINING`, 33 photographs) is
-kept unchanged so that ``make weights`` still reproduces the shipped weights bit for
-bit; :data:`EXTENDED` adds to it the photographs of five more Debian packages, and
+The first training set (:data:`imgform_rs.training.photos.TRAINING`, 33 photographs)
+is kept unchanged as its first part; :data:`EXTENDED`, which ``"raisr"`` and
+``"fusion"`` train on, adds to it the photographs of five more Debian packages, and
 :data:`EXTENDED_HELD_OUT` holds out six of them (with today's three) as a check on
 unseen photographs. ``make training-data`` fetches every package at a pinned version
 and :func:`imgform_rs.training.photos.load` checks each file's SHA-256 prefix.
