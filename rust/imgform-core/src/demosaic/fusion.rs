@@ -1,8 +1,6 @@
-//! The learned refinements of MLRI: the fusion of MLRI and the RCD / Menon
-//! mean ([`super::Method::Fusion`]) and RAISR's filters over MLRI alone
-//! ([`super::Method::Raisr`]), run so that no base does more work than it
-//! does alone. They differ only in what the filters see besides MLRI (a
-//! [`Secondary`]).
+//! The learned fusion of MLRI and the RCD / Menon mean
+//! ([`super::Method::Fusion`]): RAISR's filters over MLRI that also see the
+//! second base, run so that no base does more work than it does alone.
 //!
 //! MLRI streams down tiles as tall as the image with a halo of 30 pixels;
 //! the RCD / Menon mean and the filters work on planes of small tiles with
@@ -12,13 +10,15 @@
 //! MLRI streams down the tall tile as it does alone; its rows gather into
 //! chunks of [`CHUNK_ROWS`] output rows (2 more on each side for the
 //! filters' hash), and each chunk is refined in sub-tiles
-//! [`SUB_COLS`] wide, where the RCD / Menon mean (if any) and the filters
+//! [`SUB_COLS`] wide, where the RCD / Menon mean and the filters
 //! ([`Raisr`]) see the MLRI rows as a [`Given`] base. Every output pixel
 //! gets the same arithmetic on the same values as in any other cut, so the
-//! bits do not depend on the tiling nor on the thread count.
+//! bits do not depend on the tiling nor on the thread count. (The filters
+//! over MLRI alone need no second base's planes: they refine MLRI's rows as
+//! they stream out, [`super::refined`].)
 
 use super::mlri::{Buffers, Mlri};
-use super::raisr::{self, Given, Raisr, Secondary};
+use super::raisr::{self, Given, Raisr, Secondary, REACH};
 use super::ring::{cache_aligned, ALIGN_PAD};
 use super::tiled::{Emit, Load, StreamKernel, Tile, TileKernel};
 
@@ -29,10 +29,6 @@ const CHUNK_ROWS: usize = 64;
 /// Output columns per sub-tile: the RCD / Menon mean's own tile width,
 /// whose planes stay in cache.
 const SUB_COLS: usize = 384;
-
-/// MLRI rows (and columns) the filters read beyond their output: the
-/// 3 x 3 sums of the central differences of the structure tensor's hash.
-const REACH: usize = 2;
 
 /// MLRI refined by filters that also see `S`.
 pub(super) struct Fusion<S> {

@@ -34,6 +34,7 @@ mod mlri;
 mod nearest;
 mod raisr;
 mod rcd;
+mod refined;
 mod ring;
 mod tiled;
 mod xtrans;
@@ -108,9 +109,8 @@ pub enum Method {
     /// Outputs are clamped to the input's range.
     Raisr,
     /// A learned adaptive fusion of [`Method::Mlri`] and [`Method::RcdMenon`]:
-    /// the refinement of [`Method::Raisr`] applied to MLRI, its filters also
-    /// seeing the RCD / Menon mean's difference from MLRI over the 3x3
-    /// window. MLRI's residual interpolation wins where the colour channels
+    /// filters as [`Method::Raisr`]'s over MLRI that also see the RCD /
+    /// Menon mean's difference from MLRI over the 3x3 window. MLRI's residual interpolation wins where the colour channels
     /// are weakly correlated, RCD / Menon's colour differences where they
     /// are strongly correlated; per class of local structure the filters
     /// learn how far to trust either. Not flip-symmetric. Outputs are
@@ -222,7 +222,7 @@ impl Method {
             Method::Ahd => <ahd::Ahd as TileKernel>::HALO,
             Method::Leung2011 => <leung2011::Leung2011 as TileKernel>::HALO,
             Method::Mlri => <mlri::Mlri as tiled::StreamKernel>::HALO,
-            Method::Raisr => <fusion::Fusion<raisr::Alone> as tiled::StreamKernel>::HALO,
+            Method::Raisr => <refined::Refined as tiled::StreamKernel>::HALO,
             Method::Fusion => {
                 <fusion::Fusion<raisr::Against<ensemble::Ensemble>> as tiled::StreamKernel>::HALO
             }
@@ -597,37 +597,40 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
-            let k = learned::<T, _>(raisr::Alone, raisr::Weights::raisr(), raw, phase, isa);
+            let k = refined::Refined {
+                mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
+                filters: filters::<T>(raisr::Weights::raisr(), raw, phase, isa),
+            };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Fusion => {
-            let second = raisr::Against(rcd_menon(phase, T::FULL_SCALE));
-            let k = learned::<T, _>(second, raisr::Weights::fusion(), raw, phase, isa);
+            let refine = raisr::Raisr {
+                base: raisr::Given,
+                second: raisr::Against(rcd_menon(phase, T::FULL_SCALE)),
+                filters: filters::<T>(raisr::Weights::fusion(), raw, phase, isa),
+            };
+            let k = fusion::Fusion {
+                mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
+                refine,
+            };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
     }
 }
 
-/// A learned method's kernel: MLRI refined by `weights`, seeing `second`.
-fn learned<T: Sample, S>(
-    second: S,
+/// A learned method's filter bank, with the mosaic's scale and range.
+fn filters<T: Sample>(
     weights: &'static raisr::Weights,
     raw: &impl Mosaic,
     phase: Phase,
     isa: Isa,
-) -> fusion::Fusion<S> {
-    let refine = raisr::Raisr {
-        base: raisr::Given,
-        second,
+) -> raisr::Filters {
+    raisr::Filters {
         phase,
         inv_scale: 1.0 / T::FULL_SCALE,
         bounds: raw.range(),
         weights,
         isa,
-    };
-    fusion::Fusion {
-        mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
-        refine,
     }
 }
 

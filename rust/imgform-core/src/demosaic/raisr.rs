@@ -30,7 +30,7 @@
 //! [`Weights::parse`] reads.
 
 use super::tiled::{Tile, TileKernel};
-use super::{Isa, Phase};
+use super::{Isa, Phase, RowKind};
 use std::sync::OnceLock;
 
 /// Features per pixel of one base: 8 neighbours x 3 colours, plus 2 centre
@@ -250,11 +250,11 @@ fn angle_bin(a: f32, b: f32) -> usize {
     2 * quadrant + usize::from(upper)
 }
 
-/// The base kernel refined by the filter bank, which may also see a
-/// second base ([`Against`]; [`Alone`] when not).
-pub(super) struct Raisr<B, S = Alone> {
-    pub(super) base: B,
-    pub(super) second: S,
+/// The filter bank with what applying it needs: the hash's scale and the
+/// clamping bounds. Its methods work a row at a time, so the same code
+/// refines the planes of a tile ([`Raisr`]) and MLRI's rows as they stream
+/// out ([`super::refined`]).
+pub(super) struct Filters {
     pub(super) phase: Phase,
     /// `1 / FULL_SCALE` of the sample type, so the hash sees [0, 1] data.
     pub(super) inv_scale: f32,
@@ -266,45 +266,38 @@ pub(super) struct Raisr<B, S = Alone> {
     pub(super) isa: Isa,
 }
 
+/// The base kernel refined by the filter bank, which may also see a
+/// second base ([`Against`]).
+pub(super) struct Raisr<B, S> {
+    pub(super) base: B,
+    pub(super) second: S,
+    pub(super) filters: Filters,
+}
+
 pub(super) struct State<B, S> {
     base: B,
     second: S,
     /// The second base minus the (clamped) first, clamped as the first.
     diff: [Vec<f32>; 3],
-    gx: Vec<f32>,
-    gy: Vec<f32>,
+    /// One row of the gradients of green.
+    grad: [Vec<f32>; 2],
     /// Horizontal 3-sums of the gradient products; the 3x3 sums of the
     /// structure tensor add three of them vertically.
-    hxx: Vec<f32>,
-    hxy: Vec<f32>,
-    hyy: Vec<f32>,
+    sums: [Vec<f32>; 3],
     /// The class of each column of the current row.
     class: Vec<u32>,
     clamped: [Vec<f32>; 3],
     out: [Vec<f32>; 3],
 }
 
-/// What the filters see besides the base: nothing, or a second base.
+/// What the filters see besides the base.
 pub(super) trait Secondary: Sync {
     type State;
-    /// The second base's halo (0 for none).
+    /// The second base's halo.
     const HALO: usize;
     fn state(&self, stride: usize, len: usize) -> Self::State;
-    /// The second base's planes over the tile, if there is one.
-    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> Option<[&'s [f32]; 3]>;
-}
-
-/// No second base: the filters refine the first alone.
-pub(super) struct Alone;
-
-impl Secondary for Alone {
-    type State = ();
-    const HALO: usize = 0;
-    fn state(&self, _: usize, _: usize) {}
-    #[inline(always)]
-    fn run<'s>(&self, _: &'s mut (), _: &Tile, _: &[f32]) -> Option<[&'s [f32]; 3]> {
-        None
-    }
+    /// The second base's planes over the tile.
+    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3];
 }
 
 /// A second base, whose difference from the first the filters see.
@@ -317,8 +310,8 @@ impl<K: TileKernel> Secondary for Against<K> {
         self.0.state(stride, len)
     }
     #[inline(always)]
-    fn run<'s>(&self, st: &'s mut K::State, t: &Tile, raw: &[f32]) -> Option<[&'s [f32]; 3]> {
-        Some(self.0.run(st, t, raw))
+    fn run<'s>(&self, st: &'s mut K::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3] {
+        self.0.run(st, t, raw)
     }
 }
 
@@ -387,6 +380,23 @@ fn apply<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (f32, 
 #[inline]
 fn apply_avx2<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (f32, f32) {
     use std::arch::x86_64::*;
+    let acc = lanes_avx2(taps, rows, x);
+    let h = _mm_hadd_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
+    let h = _mm_hadd_ps(h, h);
+    (_mm_cvtss_f32(h), _mm_cvtss_f32(_mm_movehdup_ps(h)))
+}
+
+/// The eight lanes of [`apply`] before the sums of its halves: the first
+/// correction's four partial sums, then the second's.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lanes_avx2<const N: usize>(
+    taps: &Taps<N>,
+    rows: &[&[f32]; N],
+    x: usize,
+) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
     let mut acc = [_mm256_setzero_ps(); 3];
     // Loops of constant trip counts, with window `9 * block + 3 * r + p`
     // going to accumulator `r` (as `k / 3 % 3` in [`apply`]): unrolled with
@@ -407,29 +417,51 @@ fn apply_avx2<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (
             }
         }
     }
-    let acc = _mm256_add_ps(_mm256_add_ps(acc[0], acc[1]), acc[2]);
-    let h = _mm_hadd_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
-    let h = _mm_hadd_ps(h, h);
-    (_mm_cvtss_f32(h), _mm_cvtss_f32(_mm_movehdup_ps(h)))
+    _mm256_add_ps(_mm256_add_ps(acc[0], acc[1]), acc[2])
+}
+
+/// [`apply_avx2`] for the eight pixels from column `x`, each with its own
+/// class: the halves' sums of all eight come from six horizontal adds
+/// (two levels of pairs, as in [`apply`]) instead of sixteen, and the
+/// corrections as two vectors, the first's of the eight pixels and the
+/// second's.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn apply8_avx2<const N: usize>(
+    weights: &Weights,
+    class: &[u32],
+    rows: &[&[f32]; N],
+    x: usize,
+) -> [std::arch::x86_64::__m256; 2] {
+    use std::arch::x86_64::*;
+    let a: [__m256; 8] =
+        std::array::from_fn(|i| lanes_avx2(weights.filter::<N>(class[x + i]), rows, x + i));
+    // Per 128-bit half: pairs of lanes of pixels (0, 1), then their sums
+    // for pixels 0..4 (first correction, low half; second, high half).
+    let pairs = [0, 2, 4, 6].map(|i| _mm256_hadd_ps(a[i], a[i + 1]));
+    let low = _mm256_hadd_ps(pairs[0], pairs[1]);
+    let high = _mm256_hadd_ps(pairs[2], pairs[3]);
+    [
+        _mm256_permute2f128_ps::<0x20>(low, high),
+        _mm256_permute2f128_ps::<0x31>(low, high),
+    ]
 }
 
 impl<B: TileKernel, S: Secondary> TileKernel for Raisr<B, S> {
     type State = State<B::State, S::State>;
-    /// The bases' halo plus the 2 pixels the hash reaches (1 for the 3x3
-    /// sums, 1 for the central differences).
-    const HALO: usize = if B::HALO > S::HALO { B::HALO } else { S::HALO } + 2;
+    /// The bases' halo plus the 2 pixels the hash reaches ([`REACH`]).
+    const HALO: usize = if B::HALO > S::HALO { B::HALO } else { S::HALO } + REACH;
 
     fn state(&self, stride: usize, len: usize) -> Self::State {
         let plane = || vec![0.0f32; len];
+        let row = || vec![0.0f32; stride];
         State {
             base: self.base.state(stride, len),
             second: self.second.state(stride, len),
             diff: [plane(), plane(), plane()],
-            gx: plane(),
-            gy: plane(),
-            hxx: plane(),
-            hxy: plane(),
-            hyy: plane(),
+            grad: [row(), row()],
+            sums: [plane(), plane(), plane()],
             class: vec![0; stride],
             clamped: [plane(), plane(), plane()],
             out: [plane(), plane(), plane()],
@@ -444,59 +476,58 @@ impl<B: TileKernel, S: Secondary> TileKernel for Raisr<B, S> {
             base,
             second,
             diff,
-            gx,
-            gy,
-            hxx,
-            hxy,
-            hyy,
+            grad,
+            sums,
             class,
             clamped,
             out,
         } = st;
-        let (lo, hi) = self.bounds;
+        let f = &self.filters;
         let len = t.stride * t.rows;
         for (c, p) in clamped.iter_mut().zip(self.base.run(base, t, raw)) {
-            for (c, p) in c[..len].iter_mut().zip(&p[..len]) {
-                *c = p.max(lo).min(hi);
-            }
+            f.clamp(&p[..len], &mut c[..len]);
         }
         let second = self.second.run(second, t, raw);
-        if let Some(planes) = second {
-            for ((d, p), c) in diff.iter_mut().zip(planes).zip(&*clamped) {
-                for ((d, p), c) in d[..len].iter_mut().zip(&p[..len]).zip(&c[..len]) {
-                    *d = p.max(lo).min(hi) - c;
-                }
+        for ((d, p), c) in diff.iter_mut().zip(second).zip(&*clamped) {
+            let (lo, hi) = f.bounds;
+            for ((d, p), c) in d[..len].iter_mut().zip(&p[..len]).zip(&c[..len]) {
+                *d = p.max(lo).min(hi) - c;
             }
         }
         let planes = [&clamped[0][..], &clamped[1][..], &clamped[2][..]];
         let halo = Self::HALO;
-        self.tensor(t, planes[1], [gx, gy], [hxx, hxy, hyy]);
+        let row = |ty: usize| ty * t.stride..(ty + 1) * t.stride;
+        let (green, s) = (planes[1], halo - 1);
+        for ty in s..t.rows - s {
+            let g = [ty - 1, ty, ty + 1].map(|r| &green[row(r)]);
+            f.tensor_row(g, s, grad, sums.each_mut().map(|p| &mut p[row(ty)]));
+        }
+        let class = &mut class[..t.stride];
         for ty in halo..t.rows - halo {
-            self.classes(t, ty, [&**hxx, &**hxy, &**hyy], class);
+            let tensor = sums
+                .each_ref()
+                .map(|p| [ty - 1, ty, ty + 1].map(|r| &p[row(r)]));
+            let kind = t.kind(f.phase, ty);
+            f.classes_row(kind, halo, tensor, class);
             let first = window_rows(planes, t.stride, ty);
-            let row = ty * t.stride..(ty + 1) * t.stride;
             let [o_own, o_green, o_other] = &mut *out;
             let mut dst = [
-                &mut o_own[row.clone()],
-                &mut o_green[row.clone()],
-                &mut o_other[row],
+                &mut o_own[row(ty)],
+                &mut o_green[row(ty)],
+                &mut o_other[row(ty)],
             ];
             for (d, s) in dst.iter_mut().zip(&first[3..6]) {
                 d.copy_from_slice(s);
             }
-            if second.is_some() {
-                let d = window_rows([&diff[0][..], &diff[1][..], &diff[2][..]], t.stride, ty);
-                let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|k| {
-                    if k < WINDOWS {
-                        first[k]
-                    } else {
-                        d[k - WINDOWS]
-                    }
-                });
-                self.correct(t, ty, class, dst, &both);
-            } else {
-                self.correct(t, ty, class, dst, &first);
-            }
+            let d = window_rows([&diff[0][..], &diff[1][..], &diff[2][..]], t.stride, ty);
+            let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|k| {
+                if k < WINDOWS {
+                    first[k]
+                } else {
+                    d[k - WINDOWS]
+                }
+            });
+            f.correct_row(kind, halo, class, dst, &both);
         }
         let [own, green, other] = out;
         [own, green, other]
@@ -513,57 +544,76 @@ fn window_rows(planes: [&[f32]; 3], stride: usize, ty: usize) -> [&[f32]; WINDOW
     })
 }
 
-impl<B: TileKernel, S: Secondary> Raisr<B, S> {
-    /// Gradients of green (central differences, scaled to [0, 1] data) over
-    /// the output plus one pixel, and the horizontal 3-sums of their
-    /// products over the output columns (rows plus one).
+/// Pixels the hash reaches beyond the output: 1 for the 3x3 sums of the
+/// structure tensor, 1 for the central differences under them.
+pub(super) const REACH: usize = 2;
+
+impl Filters {
+    /// `src` clamped to the mosaic's range, into `dst`.
     #[inline(always)]
-    fn tensor(&self, t: &Tile, g: &[f32], grad: [&mut Vec<f32>; 2], sums: [&mut Vec<f32>; 3]) {
-        let s = Self::HALO - 1;
-        let k = 0.5 * self.inv_scale;
-        let [gx, gy] = grad;
-        let [hxx, hxy, hyy] = sums;
-        for ty in s..t.rows - s {
-            let sp = t.span(ty, s);
-            let (e, w, n, so) = (
-                sp.at(g, 0, 1),
-                sp.at(g, 0, -1),
-                sp.at(g, -1, 0),
-                sp.at(g, 1, 0),
-            );
-            for ((d, e), w) in sp.out(gx).iter_mut().zip(e).zip(w) {
-                *d = (e - w) * k;
-            }
-            for ((d, n), so) in sp.out(gy).iter_mut().zip(n).zip(so) {
-                *d = (so - n) * k;
-            }
-            let sp = t.span(ty, s + 1);
-            let [x0, x1, x2] = [-1, 0, 1].map(|dx| sp.at(gx, 0, dx));
-            let [y0, y1, y2] = [-1, 0, 1].map(|dx| sp.at(gy, 0, dx));
-            let r = sp.range();
-            for (i, ((xx, xy), yy)) in hxx[r.clone()]
-                .iter_mut()
-                .zip(&mut hxy[r.clone()])
-                .zip(&mut hyy[r])
-                .enumerate()
-            {
-                *xx = (x0[i] * x0[i] + x1[i] * x1[i]) + x2[i] * x2[i];
-                *xy = (x0[i] * y0[i] + x1[i] * y1[i]) + x2[i] * y2[i];
-                *yy = (y0[i] * y0[i] + y1[i] * y1[i]) + y2[i] * y2[i];
-            }
+    pub(super) fn clamp(&self, src: &[f32], dst: &mut [f32]) {
+        let (lo, hi) = self.bounds;
+        for (d, s) in dst.iter_mut().zip(src) {
+            *d = s.max(lo).min(hi);
         }
     }
 
-    /// The class of every output column of row `ty`: the 3x3 sums of the
-    /// structure tensor (three horizontal sums added vertically), hashed.
+    /// The horizontal 3-sums of the gradient products of a row of green
+    /// `g` (with the rows above and below), over its columns `s + 1 ..
+    /// len - s - 1`: the gradients (central differences, scaled to [0, 1]
+    /// data) over `s .. len - s` go through `grad`.
     #[inline(always)]
-    fn classes(&self, t: &Tile, ty: usize, sums: [&[f32]; 3], class: &mut [u32]) {
-        let halo = Self::HALO;
-        let kind = t.kind(self.phase, ty);
+    pub(super) fn tensor_row(
+        &self,
+        [up, g, down]: [&[f32]; 3],
+        s: usize,
+        [gx, gy]: &mut [Vec<f32>; 2],
+        [hxx, hxy, hyy]: [&mut [f32]; 3],
+    ) {
+        let k = 0.5 * self.inv_scale;
+        let n = g.len() - 2 * s;
+        let (e, w) = (&g[s + 1..s + 1 + n], &g[s - 1..s - 1 + n]);
+        for ((d, e), w) in gx[s..s + n].iter_mut().zip(e).zip(w) {
+            *d = (e - w) * k;
+        }
+        for ((d, n), so) in gy[s..s + n]
+            .iter_mut()
+            .zip(&up[s..s + n])
+            .zip(&down[s..s + n])
+        {
+            *d = (so - n) * k;
+        }
+        let n = n - 2;
+        let [x0, x1, x2] = [0, 1, 2].map(|dx| &gx[s + dx..s + dx + n]);
+        let [y0, y1, y2] = [0, 1, 2].map(|dx| &gy[s + dx..s + dx + n]);
+        let r = s + 1..s + 1 + n;
+        for (i, ((xx, xy), yy)) in hxx[r.clone()]
+            .iter_mut()
+            .zip(&mut hxy[r.clone()])
+            .zip(&mut hyy[r])
+            .enumerate()
+        {
+            *xx = (x0[i] * x0[i] + x1[i] * x1[i]) + x2[i] * x2[i];
+            *xy = (x0[i] * y0[i] + x1[i] * y1[i]) + x2[i] * y2[i];
+            *yy = (y0[i] * y0[i] + y1[i] * y1[i]) + y2[i] * y2[i];
+        }
+    }
+
+    /// The class of every column `halo .. len - halo` of a row of `kind`:
+    /// the 3x3 sums of the structure tensor (the rows above, at and below
+    /// of the horizontal sums of [`Filters::tensor_row`], added), hashed.
+    #[inline(always)]
+    pub(super) fn classes_row(
+        &self,
+        kind: RowKind,
+        halo: usize,
+        sums: [[&[f32]; 3]; 3],
+        class: &mut [u32],
+    ) {
         let blue = usize::from(kind.blue);
-        let sp = t.span(ty, halo);
-        let [xx, xy, yy] = sums.map(|h| [-1, 0, 1].map(|dy| sp.at(h, dy, 0)));
-        for (i, c) in class[halo..t.stride - halo].iter_mut().enumerate() {
+        let end = class.len() - halo;
+        let [xx, xy, yy] = sums.map(|rows| rows.map(|r| &r[halo..end]));
+        for (i, c) in class[halo..end].iter_mut().enumerate() {
             let add3 = |p: &[&[f32]; 3]| (p[0][i] + p[1][i]) + p[2][i];
             let chroma = usize::from((halo + i) & 1 == kind.chroma_parity);
             *c = self
@@ -573,38 +623,90 @@ impl<B: TileKernel, S: Secondary> Raisr<B, S> {
     }
 
     /// Adds the corrections of the filters (of the class of each column)
-    /// to the missing colours of the output columns of row `ty`: the first
-    /// is green at a chroma site, the own chroma at a green site.
+    /// to the missing colours of the columns `halo .. len - halo` of a row
+    /// of `kind`: the first is green at a chroma site, the own chroma at a
+    /// green site.
     #[inline(always)]
-    fn correct<const N: usize>(
+    pub(super) fn correct_row<const N: usize>(
         &self,
-        t: &Tile,
-        ty: usize,
+        kind: RowKind,
+        halo: usize,
         class: &[u32],
         [own, green, other]: [&mut [f32]; 3],
         rows: &[&[f32]; N],
     ) {
-        let halo = Self::HALO;
-        let chroma_parity = t.kind(self.phase, ty).chroma_parity;
-        for x in halo..t.stride - halo {
+        let end = class.len() - halo;
+        let mut x = halo;
+        #[cfg(target_arch = "x86_64")]
+        if self.isa != Isa::Baseline {
+            while x + 8 <= end {
+                // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on
+                // CPUs with AVX2.
+                unsafe { add8_avx2(self.weights, kind, class, [own, green, other], rows, x) };
+                x += 8;
+            }
+        }
+        for x in x..end {
             let taps = self.weights.filter::<N>(class[x]);
             // A branch per pixel that always goes the same way: calling
             // `apply_avx2` directly here lets it inline into the AVX2 tile
             // loop, which a closure chosen per row prevented.
             let (d0, d1) = match self.isa {
                 Isa::Baseline => apply(taps, rows, x),
-                // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
-                // with AVX2.
+                // SAFETY: as above.
                 #[cfg(target_arch = "x86_64")]
                 Isa::Avx2 | Isa::Avx512 => unsafe { apply_avx2(taps, rows, x) },
             };
-            if x & 1 == chroma_parity {
+            if x & 1 == kind.chroma_parity {
                 green[x] += d0;
             } else {
                 own[x] += d0;
             }
             other[x] += d1;
         }
+    }
+}
+
+/// [`Filters::correct_row`] for the eight pixels from column `x`: the
+/// first correction goes to green or the own chroma by a blend on the
+/// columns' parity, so each colour gets the same sums as pixel by pixel.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn add8_avx2<const N: usize>(
+    weights: &Weights,
+    kind: RowKind,
+    class: &[u32],
+    [own, green, other]: [&mut [f32]; 3],
+    rows: &[&[f32]; N],
+    x: usize,
+) {
+    use std::arch::x86_64::*;
+    let [d0, d1] = apply8_avx2(weights, class, rows, x);
+    // Lanes of chroma sites: every other one, starting at the first if
+    // `x` has the chroma parity.
+    let chroma = if x & 1 == kind.chroma_parity {
+        _mm256_castsi256_ps(_mm256_setr_epi32(-1, 0, -1, 0, -1, 0, -1, 0))
+    } else {
+        _mm256_castsi256_ps(_mm256_setr_epi32(0, -1, 0, -1, 0, -1, 0, -1))
+    };
+    let (own, green, other) = (
+        &mut own[x..x + 8],
+        &mut green[x..x + 8],
+        &mut other[x..x + 8],
+    );
+    // SAFETY: each slice holds the 8 floats loaded and stored (unaligned).
+    unsafe {
+        let (o, g, t) = (
+            _mm256_loadu_ps(own.as_ptr()),
+            _mm256_loadu_ps(green.as_ptr()),
+            _mm256_loadu_ps(other.as_ptr()),
+        );
+        let g = _mm256_blendv_ps(g, _mm256_add_ps(g, d0), chroma);
+        let o = _mm256_blendv_ps(_mm256_add_ps(o, d0), o, chroma);
+        _mm256_storeu_ps(own.as_mut_ptr(), o);
+        _mm256_storeu_ps(green.as_mut_ptr(), g);
+        _mm256_storeu_ps(other.as_mut_ptr(), _mm256_add_ps(t, d1));
     }
 }
 
