@@ -40,6 +40,8 @@ class Timing:
     name: str
     best: float
     median: float
+    # Every timed run, in order (the warm-up left out).
+    times: list[float]
 
     def rate(self, items: float) -> float:
         """Items per second at the best time."""
@@ -70,7 +72,7 @@ def measure_rounds(calls: dict[str, tuple[Callable[[], object], int]]) -> dict[s
                     times[name].append(time.perf_counter() - start)
     finally:
         gc.enable()
-    return {name: Timing(name, min(t), statistics.median(t)) for name, t in times.items()}
+    return {name: Timing(name, min(t), statistics.median(t), t) for name, t in times.items()}
 
 
 def table(headers: list[str], rows: list[list[str]]) -> str:

@@ -2,24 +2,35 @@
 //! row of a spectral image: each site integrates its spectrum against the
 //! one response of its filter's channel.
 //!
-//! A 24 MP image of 41 samples is 3.9 GB of float32, so this kernel is
-//! bound by reading it once: the dot product is in f32 with fused
-//! multiply-adds over eight lanes (one AVX2 register, written with
-//! intrinsics: the compiler does not vectorise a loop of runtime length
-//! into one register's lanes), and the check of the samples rides along in
-//! the same registers. Once the read runs behind the sensor's noise (see
-//! `ahead`), the kernel's own instructions are what is left of its cost,
-//! so the last `L % 8` samples take one load of the pixel's last eight
-//! rather than a loop of their own. The samples and responses are >= 0, so no term cancels
-//! another, and the f32 result is within `(ceil(L / 8) + 4) 2^-24` relative
-//! of the exact sum (for 41 samples: 6 roundings along a lane, 3 in the
-//! final tree, 1 of the response to f32): 6e-7. At the 20 000 e- of a full well that is 0.01 e-,
-//! four orders of magnitude below the shot noise of 141 e-.
+//! A 24 MP image of 41 samples is 3.9 GB of float32. Once the read runs
+//! behind the sensor's noise (see `ahead`), what is left of this kernel's
+//! cost is its own instructions, so they are few. The dot product is in
+//! f32 with fused multiply-adds over eight lanes (one AVX2 register,
+//! written with intrinsics: the compiler does not vectorise a loop of
+//! runtime length into one register's lanes), and eight pixels run side
+//! by side, so that their independent chains fill the pipeline where one
+//! pixel's would wait on each multiply-add's latency, and their lane sums
+//! share the shuffles of one transposition. The last `L % 8` samples of a
+//! pixel take one masked load, and the check of the samples costs one OR
+//! a register: it only has to be cheap when every sample is valid (see
+//! [`group_avx2`]); a group that fails it is checked again sample by
+//! sample. The samples and responses are >= 0, so no term cancels
+//! another, and the f32 result is within `(ceil(L / 8) + 4) 2^-24`
+//! relative of the exact sum (for 41 samples: 6 roundings along a lane, 3
+//! in the final tree, 1 of the response to f32): 6e-7. At the 20 000 e- of
+//! a full well that is 0.01 e-, four orders of magnitude below the shot
+//! noise of 141 e-.
 
 use super::{all_valid, has_avx2_fma};
 
 /// Lanes of the dot product: eight f32 fill an AVX2 register.
 const DOT_LANES: usize = 8;
+
+/// Pixels whose dot products [`group_avx2`] runs side by side: eight
+/// accumulators are eight registers of the sixteen, and their lane sums
+/// make exactly one register of results.
+#[cfg(target_arch = "x86_64")]
+const GROUP: usize = 8;
 
 /// The lanes' starting values: the products of the last `len % 8` terms
 /// (lane `j` takes the `j`-th of them), zero in the other lanes.
@@ -49,8 +60,8 @@ fn lane_sum(acc: [f32; DOT_LANES]) -> f32 {
 /// `j` starts from [`tail_products`] and accumulates the terms `8 c + j`
 /// of the full chunks `c` in order with fused multiply-adds, then
 /// [`lane_sum`] adds the lanes. The order depends only on the length, so
-/// [`dot_avx2`] and this scalar form (software `fma`, slower but correctly
-/// rounded too) give the same bits.
+/// [`group_avx2`] and this scalar form (software `fma`, slower but
+/// correctly rounded too) give the same bits.
 #[inline(always)]
 fn dot_checked(x: &[f32], w: &[f32]) -> (f32, bool) {
     let mut acc = tail_products(x, w);
@@ -62,13 +73,14 @@ fn dot_checked(x: &[f32], w: &[f32]) -> (f32, bool) {
     (lane_sum(acc), all_valid(x))
 }
 
-/// The three channels' responses `(3, L)` in f32, and each channel's last
-/// `L % 8` weights laid out for [`dot_avx2`]'s tail: in the last lanes of
-/// eight, after zeros, to meet the pixel's last eight samples.
+/// The three channels' responses `(3, L)` in f32, and for [`group_avx2`]'s
+/// masked tail each channel's last `L % 8` weights in lanes `0 .. L % 8`
+/// (zeros after), with the mask of those lanes.
 pub(super) struct Responses {
     weights: Vec<f32>,
     grid_len: usize,
     tails: [[f32; DOT_LANES]; 3],
+    tail_lanes: [i32; DOT_LANES],
 }
 
 impl Responses {
@@ -80,12 +92,15 @@ impl Responses {
         let tail = grid_len % DOT_LANES;
         let mut tails = [[0.0; DOT_LANES]; 3];
         for (t, w) in tails.iter_mut().zip(weights.chunks_exact(grid_len)) {
-            t[DOT_LANES - tail..].copy_from_slice(&w[grid_len - tail..]);
+            t[..tail].copy_from_slice(&w[grid_len - tail..]);
         }
+        let mut tail_lanes = [0; DOT_LANES];
+        tail_lanes[..tail].fill(-1);
         Self {
             weights,
             grid_len,
             tails,
+            tail_lanes,
         }
     }
 
@@ -97,125 +112,243 @@ impl Responses {
     }
 }
 
-/// [`dot_checked`] with the multiply-adds and checks in one AVX2 register
-/// each (a sample is valid when `0 <= v <= f32::MAX`, which NaN fails, as
-/// [`all_valid`] has it). The tail's products come from the pixel's last
-/// eight samples times `tail` (the channel's [`Responses::tails`]), kept in
-/// the tail's lanes and rotated to lanes `0 .. L % 8`, where
-/// [`tail_products`] puts them; the samples before the tail are checked
-/// twice, which changes nothing.
-///
-/// # Safety
-/// The CPU must support AVX2 and FMA, and `x.len() >= 8`.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn dot_avx2(x: &[f32], w: &[f32], tail: &[f32; DOT_LANES]) -> (f32, bool) {
-    use std::arch::x86_64::*;
-    let load = |chunk: &[f32]| {
-        let lanes: &[f32; DOT_LANES] = chunk.try_into().expect("a chunk of eight");
-        // SAFETY: `lanes` is eight readable floats (an unaligned load).
-        unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
-    };
-    let (zero, max) = (_mm256_setzero_ps(), _mm256_set1_ps(f32::MAX));
-    let in_range = |v| {
-        _mm256_and_ps(
-            _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero),
-            _mm256_cmp_ps::<_CMP_LE_OQ>(v, max),
-        )
-    };
-    let n = x.len();
-    let last = load(&x[n - DOT_LANES..]);
-    // Lane j takes lane (j + 8 - t) % 8; the lanes from t on are cleared
-    // (an AND, so that they are +0 as in `tail_products`, never -0).
-    let t = (n % DOT_LANES) as i32;
-    let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    let from = _mm256_and_si256(
-        _mm256_add_epi32(lane, _mm256_set1_epi32(8 - t)),
-        _mm256_set1_epi32(7),
-    );
-    let kept = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(t), lane));
-    let products = _mm256_mul_ps(last, load(tail));
-    let mut acc = _mm256_and_ps(_mm256_permutevar8x32_ps(products, from), kept);
-    let mut valid = in_range(last);
-    for (xc, wc) in x.chunks_exact(DOT_LANES).zip(w.chunks_exact(DOT_LANES)) {
-        let v = load(xc);
-        acc = _mm256_fmadd_ps(v, load(wc), acc);
-        valid = _mm256_and_ps(valid, in_range(v));
-    }
-    let mut lanes = [0.0f32; DOT_LANES];
-    // SAFETY: `lanes` is eight writable floats (an unaligned store).
-    unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), acc) };
-    (lane_sum(lanes), _mm256_movemask_ps(valid) == 0xFF)
-}
-
 /// The CFA channels of a row's pixels from column `x0` on: `colors`, the
 /// channels of one period of the row, repeated from the phase of `x0`.
 pub(super) fn colors_from(colors: &[u8], x0: usize) -> impl Iterator<Item = &u8> + Clone {
     colors.iter().cycle().skip(x0 % colors.len())
 }
 
-/// Fills `rates` with the rate of each site of a run of a row: `src` holds
-/// the run's spectra (`L` samples per pixel), `colors` the CFA channel of
-/// each of its pixels ([`colors_from`]), `dot(samples, c)` the checked dot
-/// product with channel `c`'s response ([`dot_checked`] or [`dot_avx2`]).
-/// Returns the offset of the first pixel with a negative or non-finite
-/// sample.
+/// Fills `rates[from..]` with the rate of each of those sites of a run of
+/// a row, one [`dot_checked`] each (see [`row`] for the arguments), and
+/// returns the offset of the first of them with bad input.
 #[inline(always)]
-fn row_with<'c>(
-    dot: impl Fn(&[f32], u8) -> (f32, bool),
+fn pixels_from(
+    from: usize,
     src: &[f32],
-    colors: impl Iterator<Item = &'c u8>,
-    grid_len: usize,
+    (colors, x0): (&[u8], usize),
+    responses: &Responses,
     rates: &mut [f64],
 ) -> Option<usize> {
+    let len = responses.grid_len;
+    let pixels = src[from * len..]
+        .chunks_exact(len)
+        .zip(colors_from(colors, x0 + from));
     let mut first_bad = None;
-    let pixels = src.chunks_exact(grid_len).zip(colors);
-    for (x, (r, (px, &c))) in rates.iter_mut().zip(pixels).enumerate() {
-        let (rate, valid) = dot(px, c);
+    for (x, (r, (px, &c))) in rates[from..].iter_mut().zip(pixels).enumerate() {
+        let (rate, valid) = dot_checked(px, responses.channel(c));
         *r = f64::from(rate);
         if !valid {
-            first_bad = first_bad.or(Some(x));
+            first_bad = first_bad.or(Some(from + x));
         }
     }
     first_bad
 }
 
-/// [`row_with`] [`dot_avx2`].
+/// [`lane_sum`] of [`GROUP`] accumulators at once, pixel `p`'s sum in
+/// lane `p`: the halves of each register added (`acc[j] + acc[j + 4]`),
+/// then the pairs `(0, 2)` and `(1, 3)` of the quads, then those two: the
+/// same additions in the same order, transposed: fourteen shuffles and
+/// seven additions for the eight pixels, where one pixel at a time took
+/// six dependent steps of its own.
 ///
 /// # Safety
-/// The CPU must support AVX2 and FMA, and the grid have at least 8 samples.
+/// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn row_avx2<'c>(
+#[inline(always)]
+unsafe fn lane_sums(acc: [std::arch::x86_64::__m256; GROUP]) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    // Pixels p and p + 4's quads, in the low and high halves.
+    let quads = |p: usize| {
+        _mm256_add_ps(
+            _mm256_permute2f128_ps::<0x20>(acc[p], acc[p + 4]),
+            _mm256_permute2f128_ps::<0x31>(acc[p], acc[p + 4]),
+        )
+    };
+    // Two registers of quads `a, b` -> `[a0 + a2, a1 + a3, b0 + b2, b1 + b3]`
+    // in each half.
+    let pairs = |a, b| {
+        _mm256_add_ps(
+            _mm256_shuffle_ps::<0b01_00_01_00>(a, b),
+            _mm256_shuffle_ps::<0b11_10_11_10>(a, b),
+        )
+    };
+    let low = pairs(quads(0), quads(1));
+    let high = pairs(quads(2), quads(3));
+    _mm256_add_ps(
+        _mm256_shuffle_ps::<0b10_00_10_00>(low, high),
+        _mm256_shuffle_ps::<0b11_01_11_01>(low, high),
+    )
+}
+
+/// The rates of [`GROUP`] pixels `x` (`len` samples each, `len` the
+/// responses' grid length) of channels `channels` into `rates`: each is
+/// [`dot_checked`]'s sum, bit for bit. Returns `false` when a pixel may
+/// have a bad sample, so that the caller checks them one by one.
+///
+/// The check costs one OR a register: a sample is bad when negative, NaN
+/// or infinite, and the sign bits ORed over every sample catch the
+/// negatives (and -0, a valid sample the caller's recheck lets through),
+/// while a NaN or infinite sample makes its pixel's sum NaN or infinite
+/// (the weights being finite and >= 0), which one compare of the sums
+/// catches; a sum that overflows from valid samples also fails, and is
+/// cleared by the recheck too.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn group_avx2(
+    x: &[f32],
+    len: usize,
+    channels: [u8; GROUP],
+    responses: &Responses,
+    rates: &mut [f64],
+) -> bool {
+    use std::arch::x86_64::*;
+    let pixels: [*const f32; GROUP] = std::array::from_fn(|p| x[p * len..][..len].as_ptr());
+    let weights: [*const f32; GROUP] =
+        std::array::from_fn(|p| responses.channel(channels[p])[..len].as_ptr());
+    let rates = &mut rates[..GROUP];
+    let whole = len / DOT_LANES * DOT_LANES;
+    let zero = _mm256_setzero_ps();
+    let mut acc = [zero; GROUP];
+    // Two registers of sign bits, so that the ORs are two chains.
+    let mut signs = [zero; 2];
+    if whole < len {
+        let lanes = _mm256_loadu_si256(responses.tail_lanes.as_ptr().cast());
+        for (p, a) in acc.iter_mut().enumerate() {
+            // SAFETY: the mask enables lanes `0 .. len - whole` only,
+            // samples `whole .. len` of pixel `p`: inside `x` (a masked
+            // lane is neither read nor able to fault).
+            let tail = unsafe { _mm256_maskload_ps(pixels[p].add(whole), lanes) };
+            let w = &responses.tails[usize::from(channels[p])];
+            // SAFETY: `w` is eight readable floats (an unaligned load).
+            *a = _mm256_mul_ps(tail, unsafe { _mm256_loadu_ps(w.as_ptr()) });
+            signs[p % 2] = _mm256_or_ps(signs[p % 2], tail);
+        }
+    }
+    for k in (0..whole).step_by(DOT_LANES) {
+        for (p, a) in acc.iter_mut().enumerate() {
+            // SAFETY: `k + 8 <= whole <= len`, and `pixels[p]` and
+            // `weights[p]` start `len` readable floats (sliced above).
+            let (v, w) = unsafe {
+                (
+                    _mm256_loadu_ps(pixels[p].add(k)),
+                    _mm256_loadu_ps(weights[p].add(k)),
+                )
+            };
+            *a = _mm256_fmadd_ps(v, w, *a);
+            signs[p % 2] = _mm256_or_ps(signs[p % 2], v);
+        }
+    }
+    let sums = lane_sums(acc);
+    let finite = _mm256_cmp_ps::<_CMP_LE_OQ>(sums, _mm256_set1_ps(f32::MAX));
+    let fine = _mm256_andnot_ps(_mm256_or_ps(signs[0], signs[1]), finite);
+    let (low, high) = rates.split_at_mut(GROUP / 2);
+    // SAFETY: `low` and `high` are four writable f64 each.
+    unsafe {
+        _mm256_storeu_pd(
+            low.as_mut_ptr(),
+            _mm256_cvtps_pd(_mm256_castps256_ps128(sums)),
+        );
+        _mm256_storeu_pd(
+            high.as_mut_ptr(),
+            _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(sums)),
+        );
+    }
+    _mm256_movemask_ps(fine) == 0xFF
+}
+
+/// [`row`] by [`group_avx2`], `len` the grid length (a constant where the
+/// caller specialises on it), the last `rates.len() % 8` pixels by
+/// [`pixels_from`].
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn groups_avx2(
+    len: usize,
     src: &[f32],
-    colors: impl Iterator<Item = &'c u8>,
+    (colors, x0): (&[u8], usize),
     responses: &Responses,
     rates: &mut [f64],
 ) -> Option<usize> {
-    // SAFETY: the caller vouches for AVX2, FMA and the grid's length.
-    let dot = |x: &[f32], c| unsafe {
-        dot_avx2(x, responses.channel(c), &responses.tails[usize::from(c)])
-    };
-    row_with(dot, src, colors, responses.grid_len, rates)
+    let mut phase = x0 % colors.len();
+    let mut first_bad = None;
+    let groups = src
+        .chunks_exact(GROUP * len)
+        .zip(rates.chunks_exact_mut(GROUP));
+    for (g, (x, r)) in groups.enumerate() {
+        // The period walked without a division per pixel.
+        let channels = std::array::from_fn(|_| {
+            let c = colors[phase];
+            phase = if phase + 1 == colors.len() {
+                0
+            } else {
+                phase + 1
+            };
+            c
+        });
+        // SAFETY: the caller vouches for AVX2 and FMA.
+        if !unsafe { group_avx2(x, len, channels, responses, r) } && first_bad.is_none() {
+            let bad = x.chunks_exact(len).position(|px| !all_valid(px));
+            first_bad = bad.map(|p| g * GROUP + p);
+        }
+    }
+    let rest = pixels_from(
+        rates.len() / GROUP * GROUP,
+        src,
+        (colors, x0),
+        responses,
+        rates,
+    );
+    first_bad.or(rest)
 }
 
-/// The rates of a run of a row (see [`row_with`]) through the widest
-/// vector unit the CPU has; the same bits either way.
-pub(super) fn row<'c>(
+/// [`groups_avx2`] for this grid's length, compiled apart for the default
+/// grids' 41 and 81 samples (380-780 nm every 10 and 5 nm): with the
+/// length a constant, the chunk loop unrolls and every load's offset is an
+/// immediate.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn row_avx2(
     src: &[f32],
-    colors: impl Iterator<Item = &'c u8>,
+    colors: (&[u8], usize),
+    responses: &Responses,
+    rates: &mut [f64],
+) -> Option<usize> {
+    // SAFETY: the caller vouches for AVX2 and FMA.
+    unsafe {
+        match responses.grid_len {
+            41 => groups_avx2(41, src, colors, responses, rates),
+            81 => groups_avx2(81, src, colors, responses, rates),
+            len => groups_avx2(len, src, colors, responses, rates),
+        }
+    }
+}
+
+/// Fills `rates` with the rate of each site of a run of a row: `src` holds
+/// the run's spectra (`L` samples per pixel), `colors` the CFA channels of
+/// one period of the row and the run's first column (see [`colors_from`]).
+/// Returns the offset of the first pixel with a negative or non-finite
+/// sample. The widest vector unit the CPU has does the work; the same bits
+/// either way.
+pub(super) fn row(
+    src: &[f32],
+    colors: (&[u8], usize),
     responses: &Responses,
     rates: &mut [f64],
 ) -> Option<usize> {
     #[cfg(target_arch = "x86_64")]
-    if has_avx2_fma() && responses.grid_len >= DOT_LANES {
-        // SAFETY: AVX2 and FMA support was detected just above, and the
-        // grid is long enough.
+    if has_avx2_fma() {
+        // SAFETY: AVX2 and FMA support was detected just above.
         return unsafe { row_avx2(src, colors, responses, rates) };
     }
-    let dot = |x: &[f32], c| dot_checked(x, responses.channel(c));
-    row_with(dot, src, colors, responses.grid_len, rates)
+    pixels_from(0, src, colors, responses, rates)
 }
 
 #[cfg(test)]
@@ -228,6 +361,15 @@ mod tests {
             .map(|i| 0.1 + ((i * 7919) % 1000) as f32 / 333.0)
             .collect()
     }
+
+    /// Responses of `l` samples, different in each channel.
+    fn responses(l: usize) -> Responses {
+        let response: Vec<f64> = (0..3 * l).map(|i| (i % 13) as f64 * 0.37).collect();
+        Responses::new(&response, l)
+    }
+
+    /// A run of X-Trans-like channels, period 6.
+    const COLORS: [u8; 6] = [1, 0, 2, 1, 1, 2];
 
     #[test]
     fn the_f32_dot_is_within_its_bound_of_the_exact_sum() {
@@ -245,80 +387,74 @@ mod tests {
         }
     }
 
-    /// [`dot_avx2`] of `x` with the response of channel 0 of `responses`.
-    fn dot_wide(x: &[f32], responses: &Responses) -> (f32, bool) {
-        // SAFETY: the callers checked AVX2 and FMA support, and pass at
-        // least eight samples.
-        unsafe { dot_avx2(x, responses.channel(0), &responses.tails[0]) }
+    /// [`row`]'s rates and verdict through AVX2 and pixel by pixel.
+    fn both_ways(src: &[f32], x0: usize, r: &Responses) -> [(Vec<u64>, Option<usize>); 2] {
+        let w = src.len() / r.grid_len;
+        let (mut scalar, mut wide) = (vec![0.0; w], vec![0.0; w]);
+        let scalar_bad = pixels_from(0, src, (&COLORS, x0), r, &mut scalar);
+        // SAFETY: the callers checked AVX2 and FMA support.
+        let wide_bad = unsafe { row_avx2(src, (&COLORS, x0), r, &mut wide) };
+        let bits = |v: Vec<f64>| v.into_iter().map(f64::to_bits).collect();
+        [(bits(scalar), scalar_bad), (bits(wide), wide_bad)]
     }
 
     #[test]
-    fn the_avx2_dot_gives_the_scalar_bits_and_verdict() {
+    fn the_avx2_groups_give_the_scalar_bits_for_every_length_and_phase() {
         if !has_avx2_fma() {
             return;
         }
-        let x = spectra(3, 41);
-        let w: Vec<f64> = (0..x.len()).map(|i| 1.0 / (i as f64 + 1.7)).collect();
-        for l in [8, 9, 15, 16, 17, 41, 81] {
-            for start in [0, 1, 5] {
-                let x = &x[start..start + l];
-                let w: Vec<f64> = w[start..]
-                    .iter()
-                    .take(l)
-                    .cycle()
-                    .take(3 * l)
-                    .copied()
-                    .collect();
-                let responses = Responses::new(&w, l);
-                let (wide, valid) = dot_wide(x, &responses);
-                let (scalar, scalar_valid) = dot_checked(x, responses.channel(0));
-                assert_eq!(wide.to_bits(), scalar.to_bits(), "{l} from {start}");
-                assert!(valid && scalar_valid);
+        // Lengths with and without whole chunks and tails, both
+        // specialised ones; 37 pixels: four groups and five alone.
+        for l in [1, 5, 7, 8, 9, 16, 17, 41, 81] {
+            let r = responses(l);
+            let src = spectra(37, l);
+            for x0 in [0, 1, 5] {
+                let [scalar, wide] = both_ways(&src, x0, &r);
+                assert_eq!(scalar, wide, "{l} samples from column {x0}");
+                assert_eq!(wide.1, None);
             }
         }
-        // Each bad value in a full chunk and in the tail; -0 is a valid 0.
-        let responses = Responses::new(&w[..3 * 41], 41);
-        for (bad, at) in [(-1.0, 3), (f32::NAN, 17), (f32::INFINITY, 40), (-1e-30, 40)] {
-            let mut x = spectra(1, 41);
-            x[at] = bad;
-            assert!(!dot_wide(&x, &responses).1, "{bad} at {at}");
-            assert!(!dot_checked(&x, responses.channel(0)).1);
-        }
-        let mut x = spectra(1, 41);
-        x[9] = -0.0;
-        x[40] = -0.0;
-        let (wide, valid) = dot_wide(&x, &responses);
-        assert!(valid);
-        assert_eq!(
-            wide.to_bits(),
-            dot_checked(&x, responses.channel(0)).0.to_bits()
-        );
+        // Column 4 is channel 1 (COLORS[4]), against the f64 sum.
+        let (l, r) = (41, responses(41));
+        let src = spectra(37, l);
+        let mut rates = vec![0.0; 37];
+        row(&src, (&COLORS, 0), &r, &mut rates);
+        let want: f64 = src[4 * l..5 * l]
+            .iter()
+            .zip(r.channel(1))
+            .map(|(a, b)| f64::from(*a) * f64::from(*b))
+            .sum();
+        assert!((rates[4] / want - 1.0).abs() < 1e-6);
     }
 
     #[test]
-    fn the_avx2_row_gives_the_scalar_bits() {
+    fn every_kind_of_bad_sample_is_caught_where_it_is() {
         if !has_avx2_fma() {
             return;
         }
-        let (w, l) = (37, 41);
-        let src = spectra(w, l);
-        let response: Vec<f64> = (0..3 * l).map(|i| (i % 13) as f64 * 0.37).collect();
-        let responses = Responses::new(&response, l);
-        let colors = [1u8, 0, 2];
-        let (mut scalar, mut wide) = (vec![0.0; w], vec![0.0; w]);
-        let dot = |x: &[f32], c| dot_checked(x, responses.channel(c));
-        row_with(dot, &src, colors_from(&colors, 0), l, &mut scalar);
-        // SAFETY: AVX2 and FMA support was checked above; 41 >= 8 samples.
-        unsafe { row_avx2(&src, colors_from(&colors, 0), &responses, &mut wide) };
-        assert_eq!(scalar, wide);
-        // Column 4 is channel 0 (4 % 3 = 1 -> colors[1]).
-        let px = &src[4 * l..5 * l];
-        let want: f64 = px
-            .iter()
-            .zip(&response[..l])
-            .map(|(a, b)| f64::from(*a) * b)
-            .sum();
-        assert!((scalar[4] / want - 1.0).abs() < 1e-5);
+        // Bad values in a whole chunk and in the tail, in a group and
+        // among the last pixels; -0 is a valid 0, and so are samples whose
+        // sum overflows f32 (the recheck clears both).
+        let bad = [-1.0, -1e-30, f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        for l in [5, 17, 41] {
+            let r = responses(l);
+            for (value, at) in bad.iter().flat_map(|&v| [(v, 3), (v, l - 1)]) {
+                for pixel in [2, 9, 34] {
+                    let mut src = spectra(37, l);
+                    src[pixel * l + at] = value;
+                    src[35 * l] = -2.0;
+                    let [scalar, wide] = both_ways(&src, 1, &r);
+                    assert_eq!(wide.1, Some(pixel), "{value} in {pixel} at {at} of {l}");
+                    assert_eq!(scalar, wide);
+                }
+            }
+            let mut src = spectra(37, l);
+            src[3 * l + l - 1] = -0.0;
+            src[4 * l..5 * l].fill(f32::MAX);
+            let [scalar, wide] = both_ways(&src, 0, &r);
+            assert_eq!(wide.1, None, "{l}");
+            assert_eq!(scalar, wide);
+        }
     }
 
     #[test]
@@ -330,7 +466,7 @@ mod tests {
             src[8 * l] = f32::NAN;
             let mut rates = vec![0.0; w];
             let responses = Responses::new(&vec![1.0; 3 * l], l);
-            let bad = row(&src, colors_from(&[0], 0), &responses, &mut rates);
+            let bad = row(&src, (&[0], 0), &responses, &mut rates);
             assert_eq!(bad, Some(6), "{l} samples");
         }
     }

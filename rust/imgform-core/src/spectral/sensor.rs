@@ -294,7 +294,7 @@ impl Sensor {
         }
         let responses = Responses::new(response, grid_len);
         self.read_frame((width, height), falloff, spectra, out, |y, x0, src, row| {
-            cfa_rates::row(src, colors_from(pattern.row(y), x0), &responses, row)
+            cfa_rates::row(src, (pattern.row(y), x0), &responses, row)
         })
     }
 
