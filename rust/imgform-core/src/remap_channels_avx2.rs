@@ -206,7 +206,7 @@ pub(in crate::remap) unsafe fn channel_row_u16(
 /// channel's left and right taps are 12 bytes apart, so one 16-byte load
 /// per lane fetches both. Four registers of two loads each are then
 /// sorted in two rounds of shuffles; half the loads of two 4-byte
-/// [`gather`]s, and no inserts of single lanes.
+/// [`gather_at`]s, and no inserts of single lanes.
 ///
 /// # Safety
 /// AVX2; every `base + offset .. + 16` lies inside one buffer.
