@@ -44,6 +44,8 @@ struct Geometry {
     /// One more than the largest byte offset of a window's lower-left tap
     /// whose loads stay inside the buffer.
     reach: i32,
+    /// Steps per prefetch (see [`Geometry::prefetch`]).
+    prefetch_every: usize,
 }
 
 impl Geometry {
@@ -66,7 +68,18 @@ impl Geometry {
             taps,
             last: (w as i32 - taps + 1, h as i32 - taps + 1),
             reach: len - read as i32 + 1,
+            prefetch_every: 1,
         })
+    }
+
+    /// The same geometry, prefetching for every `steps`-th step only: a
+    /// step whose eight samples advance a few bytes through the source
+    /// would otherwise ask for the same cache line several times over.
+    fn prefetching_every(self, steps: usize) -> Self {
+        Self {
+            prefetch_every: steps.max(1),
+            ..self
+        }
     }
 }
 
@@ -108,60 +121,63 @@ struct Step {
 /// Loads the positions of pixels `8k .. 8k + 8` of a map row and decides
 /// whether the vector path may take them.
 ///
+/// Always inlined into the AVX2 kernels rather than a `target_feature`
+/// function of its own, like [`walk`].
+///
 /// # Safety
 /// AVX2; `xy` holds at least 16 values from `xy`.
-#[target_feature(enable = "avx2")]
+#[inline(always)]
 unsafe fn step(xy: *const i32, g: &Geometry) -> Option<Step> {
-    // SAFETY: the caller guarantees 16 readable values.
-    let (a, b) = unsafe {
-        (
+    // SAFETY: the caller guarantees AVX2 and 16 readable values.
+    unsafe {
+        let (a, b) = (
             _mm256_loadu_si256(xy.cast()),
             _mm256_loadu_si256(xy.add(LANES).cast()),
-        )
-    };
-    // x0 y0 x1 y1 .. -> x0 x1 x2 x3 y0 y1 y2 y3 per register, then join.
-    let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
-    let (a, b) = (
-        _mm256_permutevar8x32_epi32(a, split),
-        _mm256_permutevar8x32_epi32(b, split),
-    );
-    let sx = _mm256_permute2x128_si256(a, b, 0x20);
-    let sy = _mm256_permute2x128_si256(a, b, 0x31);
-    // The arithmetic shift is floor; NOWHERE lands far outside. The first
-    // tap is one left of and above floor(position) for 4 taps.
-    let lead = _mm256_set1_epi32(g.taps / 2 - 1);
-    let ix = _mm256_sub_epi32(_mm256_srai_epi32(sx, FRAC_BITS as i32), lead);
-    let iy = _mm256_sub_epi32(_mm256_srai_epi32(sy, FRAC_BITS as i32), lead);
-    let top = _mm256_add_epi32(
-        _mm256_mullo_epi32(iy, _mm256_set1_epi32(g.stride)),
-        _mm256_mullo_epi32(ix, _mm256_set1_epi32(g.pixel)),
-    );
-    let below = _mm256_add_epi32(top, _mm256_set1_epi32((g.taps - 1) * g.stride));
-    let minus_one = _mm256_set1_epi32(-1);
-    // Offsets of pixels outside wrap around, but they are excluded by the
-    // index tests, which come first in meaning (all are and-ed).
-    let inside = _mm256_and_si256(
-        _mm256_and_si256(
+        );
+        // x0 y0 x1 y1 .. -> x0 x1 x2 x3 y0 y1 y2 y3 per register, then join.
+        let split = _mm256_setr_epi32(0, 2, 4, 6, 1, 3, 5, 7);
+        let (a, b) = (
+            _mm256_permutevar8x32_epi32(a, split),
+            _mm256_permutevar8x32_epi32(b, split),
+        );
+        let sx = _mm256_permute2x128_si256(a, b, 0x20);
+        let sy = _mm256_permute2x128_si256(a, b, 0x31);
+        // The arithmetic shift is floor; NOWHERE lands far outside. The first
+        // tap is one left of and above floor(position) for 4 taps.
+        let lead = _mm256_set1_epi32(g.taps / 2 - 1);
+        let ix = _mm256_sub_epi32(_mm256_srai_epi32(sx, FRAC_BITS as i32), lead);
+        let iy = _mm256_sub_epi32(_mm256_srai_epi32(sy, FRAC_BITS as i32), lead);
+        let top = _mm256_add_epi32(
+            _mm256_mullo_epi32(iy, _mm256_set1_epi32(g.stride)),
+            _mm256_mullo_epi32(ix, _mm256_set1_epi32(g.pixel)),
+        );
+        let below = _mm256_add_epi32(top, _mm256_set1_epi32((g.taps - 1) * g.stride));
+        let minus_one = _mm256_set1_epi32(-1);
+        // Offsets of pixels outside wrap around, but they are excluded by the
+        // index tests, which come first in meaning (all are and-ed).
+        let inside = _mm256_and_si256(
             _mm256_and_si256(
-                _mm256_cmpgt_epi32(ix, minus_one),
-                _mm256_cmpgt_epi32(_mm256_set1_epi32(g.last.0), ix),
+                _mm256_and_si256(
+                    _mm256_cmpgt_epi32(ix, minus_one),
+                    _mm256_cmpgt_epi32(_mm256_set1_epi32(g.last.0), ix),
+                ),
+                _mm256_and_si256(
+                    _mm256_cmpgt_epi32(iy, minus_one),
+                    _mm256_cmpgt_epi32(_mm256_set1_epi32(g.last.1), iy),
+                ),
             ),
-            _mm256_and_si256(
-                _mm256_cmpgt_epi32(iy, minus_one),
-                _mm256_cmpgt_epi32(_mm256_set1_epi32(g.last.1), iy),
-            ),
-        ),
-        _mm256_cmpgt_epi32(_mm256_set1_epi32(g.reach), below),
-    );
-    if _mm256_movemask_epi8(inside) != -1 {
-        return None;
+            _mm256_cmpgt_epi32(_mm256_set1_epi32(g.reach), below),
+        );
+        if _mm256_movemask_epi8(inside) != -1 {
+            return None;
+        }
+        let mask = _mm256_set1_epi32((1 << FRAC_BITS) - 1);
+        Some(Step {
+            top,
+            fx: _mm256_and_si256(sx, mask),
+            fy: _mm256_and_si256(sy, mask),
+        })
     }
-    let mask = _mm256_set1_epi32((1 << FRAC_BITS) - 1);
-    Some(Step {
-        top,
-        fx: _mm256_and_si256(sx, mask),
-        fy: _mm256_and_si256(sy, mask),
-    })
 }
 
 /// Horizontal bilinear weights as 16-bit pairs `(256 - fx) | fx << 16`,
@@ -211,14 +227,41 @@ fn round_sum(sum: __m256i) -> __m256i {
 /// overlaps across steps).
 ///
 /// # Safety
-/// AVX2; every `offset .. offset + 4` lies inside the buffer at `base`.
-#[target_feature(enable = "avx2")]
+/// AVX2; every `offset .. offset + 4` lies inside the buffer at `base`
+/// (so no offset is negative).
+#[inline(always)]
 unsafe fn gather(base: *const u8, offsets: __m256i) -> __m256i {
-    let mut o = [0i32; 8];
-    // SAFETY: `o` holds 8 lanes; the caller guarantees the reads are in bounds.
+    // SAFETY: the caller's guarantees are `gather_at`'s.
+    unsafe { gather_at(base, &lane_offsets(offsets)) }
+}
+
+/// The eight byte offsets of a step as `usize`s, for the scalar loads of
+/// [`gather_at`]. Taken out once per step, so that the loads of both
+/// window rows (and several loads per row) share them: extracting the
+/// lanes of a vector again for each row was a fifth of a kernel's
+/// instructions.
+///
+/// # Safety
+/// AVX2; no offset is negative (they are zero-extended, which costs no
+/// instruction, unlike a sign extension per lane).
+#[inline(always)]
+unsafe fn lane_offsets(offsets: __m256i) -> [usize; LANES] {
+    let mut o = [0u32; LANES];
+    // SAFETY: `o` holds 8 lanes; the caller guarantees AVX2.
+    unsafe { _mm256_storeu_si256(o.as_mut_ptr().cast(), offsets) };
+    o.map(|v| v as usize)
+}
+
+/// [`gather`] at offsets taken out by [`lane_offsets`], from `base`: the
+/// source's first byte, or a row further down for a window's lower taps.
+///
+/// # Safety
+/// AVX2; every `base + offset .. + 4` lies inside one buffer.
+#[inline(always)]
+unsafe fn gather_at(base: *const u8, o: &[usize; LANES]) -> __m256i {
+    // SAFETY: the caller guarantees AVX2 and that the reads are in bounds.
     unsafe {
-        _mm256_storeu_si256(o.as_mut_ptr().cast(), offsets);
-        let r = |i: usize| base.add(o[i] as usize).cast::<i32>().read_unaligned();
+        let r = |i: usize| base.wrapping_add(o[i]).cast::<i32>().read_unaligned();
         _mm256_setr_epi32(r(0), r(1), r(2), r(3), r(4), r(5), r(6), r(7))
     }
 }
@@ -243,10 +286,15 @@ unsafe fn gather8(base: *const u8, offsets: __m128i) -> __m256i {
 /// and `pixel(x, px)` for the others and for the tail, `px` being the `nc`
 /// samples of pixel `x` at `out`.
 ///
+/// Always inlined into the AVX2 kernels (which have the instruction set)
+/// rather than a `target_feature` function of its own: LLVM once stopped
+/// inlining it into the per-channel kernels, and the kernel body became a
+/// closure called through memory per step.
+///
 /// # Safety
 /// AVX2; `out` is valid for `nc · xy.len() / 2` samples, and `f(k, _)`
 /// writes only those of pixels `8k .. 8k + 8` (so the two never overlap).
-#[target_feature(enable = "avx2")]
+#[inline(always)]
 unsafe fn walk<T>(
     xy: &[i32],
     g: &Geometry,
@@ -264,7 +312,9 @@ unsafe fn walk<T>(
     let n = xy.len() / 2;
     let steps = n / LANES;
     for k in 0..steps {
-        g.prefetch(xy, LANES * (k + AHEAD));
+        if k % g.prefetch_every == 0 {
+            g.prefetch(xy, LANES * (k + AHEAD));
+        }
         // SAFETY: step k reads xy[16k .. 16k + 16], inside since k < n / 8.
         match unsafe { step(xy.as_ptr().add(2 * LANES * k), g) } {
             Some(s) => f(k, s),

@@ -15,8 +15,8 @@
 use std::arch::x86_64::*;
 
 use super::{
-    gather, round_sum, store_gray_u8, store_u16, vertical_sum, walk, weight_pairs, Geometry, Step,
-    LANES,
+    gather_at, lane_offsets, round_sum, store_gray_u8, store_u16, vertical_sum, walk, weight_pairs,
+    Geometry, Step, LANES,
 };
 
 /// The channel of each lane of step `k` is `(8k + lane) % 3`; `8k % 3`
@@ -74,11 +74,18 @@ fn u32_to_f32(v: __m256i) -> __m256 {
     _mm256_add_ps(_mm256_mul_ps(high, _mm256_set1_ps(65536.0)), low)
 }
 
+/// Bytes of source row that the steps between two prefetches may cross:
+/// half a cache line, so that each line is asked for at least once ahead
+/// of its loads even where the distortion stretches the source a little.
+const PREFETCH_BYTES: usize = 32;
+
 /// The geometry of an RGB source of `T` samples for per-channel taps:
 /// `read` bytes from a window's first tap without its channel offset.
+/// A step's eight samples advance about eight samples through the source,
+/// so it prefetches every [`PREFETCH_BYTES`] of them.
 fn geometry<T>(src: &[T], stride: usize, size: (usize, usize), read: usize) -> Option<Geometry> {
     let bytes = std::mem::size_of::<T>();
-    Geometry::new(
+    let g = Geometry::new(
         src.as_ptr().cast(),
         std::mem::size_of_val(src),
         bytes * stride,
@@ -86,7 +93,14 @@ fn geometry<T>(src: &[T], stride: usize, size: (usize, usize), read: usize) -> O
         2,
         size,
         read,
-    )
+    )?;
+    Some(g.prefetching_every(PREFETCH_BYTES / (LANES * bytes)))
+}
+
+/// The first byte of the source row below the one at `base`: the lower
+/// taps are read at the upper ones' offsets from there.
+fn below(base: *const u8, g: &Geometry) -> *const u8 {
+    base.wrapping_add(g.stride as usize)
 }
 
 /// u8 RGB: per lane one 4-byte read at the left tap, whose first and last
@@ -112,15 +126,16 @@ pub(in crate::remap) unsafe fn channel_row_u8(
         0, -1, 3, -1, 4, -1, 7, -1, 8, -1, 11, -1, 12, -1, 15, -1, 0, -1, 3, -1, 4, -1, 7, -1, 8,
         -1, 11, -1, 12, -1, 15, -1,
     );
-    let stride_v = _mm256_set1_epi32(g.stride);
+    let lower = below(base, &g);
     let body = |k: usize, s: Step| {
-        let top = _mm256_add_epi32(s.top, channel_bytes(k, 1));
+        // SAFETY: `step` admitted only windows inside `src`: no offset is negative.
+        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channel_bytes(k, 1))) };
         let wx = weight_pairs(s.fx);
         // SAFETY: `step` admitted only windows whose reads end inside `src`.
-        let line = |at: __m256i| unsafe {
-            _mm256_madd_epi16(_mm256_shuffle_epi8(gather(base, at), pairs), wx)
+        let line = |row: *const u8| unsafe {
+            _mm256_madd_epi16(_mm256_shuffle_epi8(gather_at(row, &at), pairs), wx)
         };
-        let sum = vertical_sum(line(top), line(_mm256_add_epi32(top, stride_v)), s.fy);
+        let sum = vertical_sum(line(base), line(lower), s.fy);
         let v = if gains.is_empty() {
             round_sum(sum)
         } else {
@@ -156,23 +171,21 @@ pub(in crate::remap) unsafe fn channel_row_u16(
         return false;
     };
     let (base, dst) = (src.as_ptr().cast::<u8>(), out.as_mut_ptr());
-    let (stride_v, right, low) = (
-        _mm256_set1_epi32(g.stride),
-        _mm256_set1_epi32(6),
-        _mm256_set1_epi32(0xffff),
-    );
+    let (lower, low) = (below(base, &g), _mm256_set1_epi32(0xffff));
     let body = |k: usize, s: Step| {
-        let top = _mm256_add_epi32(s.top, channel_bytes(k, 2));
-        let line = |at: __m256i| {
-            // SAFETY: `step` admitted only windows whose reads end inside `src`.
-            let (l, r) = unsafe { (gather(base, at), gather(base, _mm256_add_epi32(at, right))) };
+        // SAFETY: `step` admitted only windows inside `src`: no offset is negative.
+        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channel_bytes(k, 2))) };
+        let line = |row: *const u8| {
+            // SAFETY: `step` admitted only windows whose reads end inside
+            // `src`; the right tap is a pixel (6 bytes) on.
+            let (l, r) = unsafe { (gather_at(row, &at), gather_at(row.wrapping_add(6), &at)) };
             let (l, r) = (_mm256_and_si256(l, low), _mm256_and_si256(r, low));
             _mm256_add_epi32(
                 _mm256_slli_epi32(l, 8),
                 _mm256_mullo_epi32(_mm256_sub_epi32(r, l), s.fx),
             )
         };
-        let sum = vertical_sum(line(top), line(_mm256_add_epi32(top, stride_v)), s.fy);
+        let sum = vertical_sum(line(base), line(lower), s.fy);
         let v = if gains.is_empty() {
             round_sum(sum)
         } else {
@@ -193,17 +206,15 @@ pub(in crate::remap) unsafe fn channel_row_u16(
 /// channel's left and right taps are 12 bytes apart, so one 16-byte load
 /// per lane fetches both. Four registers of two loads each are then
 /// sorted in two rounds of shuffles; half the loads of two 4-byte
-/// [`gather`]s, and no inserts of single lanes.
+/// [`gather_at`]s, and no inserts of single lanes.
 ///
 /// # Safety
-/// AVX2; every `offset .. offset + 16` lies inside the buffer at `base`.
+/// AVX2; every `base + offset .. + 16` lies inside one buffer.
 #[target_feature(enable = "avx2")]
-unsafe fn gather_ends(base: *const u8, offsets: __m256i) -> (__m256, __m256) {
-    let mut o = [0i32; LANES];
-    // SAFETY: `o` holds 8 lanes; the caller guarantees the reads are in bounds.
+unsafe fn gather_ends(base: *const u8, o: &[usize; LANES]) -> (__m256, __m256) {
+    // SAFETY: the caller guarantees the reads are in bounds.
     unsafe {
-        _mm256_storeu_si256(o.as_mut_ptr().cast(), offsets);
-        let read = |i: usize| _mm_loadu_ps(base.add(o[i] as usize).cast());
+        let read = |i: usize| _mm_loadu_ps(base.wrapping_add(o[i]).cast());
         // Lanes i and i + 4 in one register, so that the 128-bit halves
         // below stay those of lanes 0-3 and 4-7.
         let pair = |i: usize| _mm256_insertf128_ps(_mm256_castps128_ps256(read(i)), read(i + 4), 1);
@@ -236,7 +247,7 @@ pub(in crate::remap) unsafe fn channel_row_f32(
         return false;
     };
     let (base, dst) = (src.as_ptr().cast::<u8>(), out.as_mut_ptr());
-    let stride_v = _mm256_set1_epi32(g.stride);
+    let lower = below(base, &g);
     let (zero, one, unit) = (
         _mm256_setzero_ps(),
         _mm256_set1_ps(1.0),
@@ -253,18 +264,15 @@ pub(in crate::remap) unsafe fn channel_row_f32(
         )
     };
     let body = |k: usize, s: Step| {
-        let top = _mm256_add_epi32(s.top, channel_bytes(k, 4));
+        // SAFETY: `step` admitted only windows inside `src`: no offset is negative.
+        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channel_bytes(k, 4))) };
         let wx = weights(s.fx);
-        let line = |at: __m256i| {
+        let line = |row: *const u8| {
             // SAFETY: `step` admitted only windows whose reads end inside `src`.
-            let (l, r) = unsafe { gather_ends(base, at) };
+            let (l, r) = unsafe { gather_ends(row, &at) };
             blend(wx, l, r)
         };
-        let mut v = blend(
-            weights(s.fy),
-            line(top),
-            line(_mm256_add_epi32(top, stride_v)),
-        );
+        let mut v = blend(weights(s.fy), line(base), line(lower));
         if !gains.is_empty() {
             // SAFETY: the row has a gain per sample.
             v = _mm256_mul_ps(v, unsafe { gain_lanes(gains, k, 1.0) });
