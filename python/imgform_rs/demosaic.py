@@ -82,11 +82,12 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"fusion"`` on each subset. On the seven (astronaut 37.56, coffee 36.47, chelsea
   42.42, rocket 33.04, immunohistochemistry 43.49, retina 51.06, motorcycle_left
   35.25) it gains most on fine texture and loses a little on the synthetic rocket
-  and the motorcycle's saturated paint. It runs as ``"fusion"`` does without the
-  second base: ``"mlri"`` streams down tall tiles, and its rows are refined in
-  chunks of 64 rows and sub-tiles 384 columns wide: 28 MP/s at 24 MP on two cores,
-  2.2x the time of ``"mlri"`` (``benchmarks/demosaic.py``, 2026-11-28), and 10 % of
-  the output in extra memory.
+  and the motorcycle's saturated paint. ``"mlri"`` streams down tall tiles, and
+  each row it hands over completes the refinement of the row two above it (rings of
+  four rows of ``"mlri"`` and three of the hash's sums; the same bits as refining
+  whole planes): 33 MP/s at 24 MP on two cores, 1.7x the time of ``"mlri"`` and
+  2.1x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-11-28), and 4 % of the output
+  in extra memory.
 - ``"fusion"``: a learned adaptive fusion of ``"mlri"`` and ``"rcd_menon"``. No
   single classical method leads everywhere: residual interpolation wins where the
   colour channels are weakly correlated (saturated colours), colour differences where
