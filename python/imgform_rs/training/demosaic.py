@@ -36,6 +36,7 @@ method, trained on                                          held out
 ``"mlri"`` alone (no training)                              36.62
 ``"raisr"`` over ``"rcd_menon"``, the first 33 photographs  36.55
 ``"raisr"`` over ``"mlri"``, the 293 photographs            37.31
+``"raisr_fast"`` over ``"mlri"``, the 293 photographs       37.14
 ``"fusion"``, the first 33 photographs and the textures     37.01
 ``"fusion"``, the 293 photographs                           **37.43**
 ``"fusion"``, the 293 photographs and 192 synthetic         35.99
