@@ -24,7 +24,7 @@
 //! in `raisr_fast_weights.bin` (the layout of [`File::read`], with one
 //! strength and one coherence bin and no thresholds).
 
-use super::raisr::{add1, taps, Bank, File, Filters, FEATURES, POSITIONS, WINDOWS};
+use super::raisr::{add1, taps, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
 use super::{Isa, RowKind};
 use std::ops::Range;
 use std::sync::OnceLock;
@@ -106,15 +106,13 @@ fn orientation(a: f32, c: f32) -> u32 {
 
 impl Bank for Oriented {
     #[inline(always)]
-    fn refine_row(
-        f: &Filters<Self>,
-        kind: RowKind,
-        halo: usize,
-        sums: [[&[f32]; 3]; 3],
-        class: &mut [u32],
-        mut dst: [&mut [f32]; 3],
-        windows: &[&[f32]; WINDOWS],
-    ) {
+    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], mut dst: [&mut [f32]; 3]) {
+        let Row {
+            kind,
+            halo,
+            sums,
+            windows,
+        } = row;
         f.classes_row(kind, halo, sums, class, |position, xx, xy, yy| {
             2 * orientation(xx - yy, 2.0 * xy) + (position & 1) as u32
         });
@@ -246,21 +244,16 @@ mod tests {
 
     #[test]
     fn the_shipped_weights_parse_and_malformed_ones_are_refused() {
-        let bank = Oriented::shipped();
-        assert!(bank
-            .tables
-            .iter()
-            .flatten()
-            .flatten()
-            .flatten()
-            .all(|v| v.is_finite()));
-        assert!(bank
-            .tables
-            .iter()
-            .flatten()
-            .flatten()
-            .flatten()
-            .any(|&v| v != 0.0));
+        let taps = || {
+            Oriented::shipped()
+                .tables
+                .iter()
+                .flatten()
+                .flatten()
+                .flatten()
+        };
+        assert!(taps().all(|v| v.is_finite()));
+        assert!(taps().any(|&v| v != 0.0));
         let bytes = include_bytes!("raisr_fast_weights.bin");
         assert!(Oriented::parse(&bytes[..bytes.len() - 4]).is_none());
         // RAISR's bank has the full hash's bins.

@@ -293,37 +293,30 @@ pub(super) struct Filters<B: 'static = Weights> {
     pub(super) isa: Isa,
 }
 
+/// What refining a row reads: the row's kind, the columns it leaves at
+/// each end, the structure tensor's horizontal sums on the rows above, at
+/// and below it (see [`Filters::tensor_row`]) and the base's windows.
+pub(super) struct Row<'a> {
+    pub(super) kind: RowKind,
+    pub(super) halo: usize,
+    pub(super) sums: [[&'a [f32]; 3]; 3],
+    pub(super) windows: &'a [&'a [f32]; WINDOWS],
+}
+
 /// A filter bank that refines rows: how it classes a row's pixels from the
 /// structure tensor's 3x3 sums and corrects them from the base's windows.
 pub(super) trait Bank: Sync + Sized + 'static {
-    /// Adds the corrections of the columns `halo .. len - halo` of a row of
-    /// `kind` to `dst` (own chroma, green, other chroma), `sums` being the
-    /// tensor's horizontal sums on the rows above, at and below it (see
-    /// [`Filters::tensor_row`]) and `class` room for a class per column.
-    fn refine_row(
-        f: &Filters<Self>,
-        kind: RowKind,
-        halo: usize,
-        sums: [[&[f32]; 3]; 3],
-        class: &mut [u32],
-        dst: [&mut [f32]; 3],
-        windows: &[&[f32]; WINDOWS],
-    );
+    /// Adds the corrections of the columns `halo .. len - halo` of `row`
+    /// to `dst` (own chroma, green, other chroma), `class` being room for a
+    /// class per column.
+    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]);
 }
 
 impl Bank for Weights {
     #[inline(always)]
-    fn refine_row(
-        f: &Filters<Self>,
-        kind: RowKind,
-        halo: usize,
-        sums: [[&[f32]; 3]; 3],
-        class: &mut [u32],
-        dst: [&mut [f32]; 3],
-        windows: &[&[f32]; WINDOWS],
-    ) {
-        f.hash_row(kind, halo, sums, class);
-        f.correct_row(kind, halo, class, dst, windows);
+    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]) {
+        f.hash_row(row.kind, row.halo, row.sums, class);
+        f.correct_row(row.kind, row.halo, class, dst, row.windows);
     }
 }
 

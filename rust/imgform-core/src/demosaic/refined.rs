@@ -13,7 +13,7 @@
 //! per pixel is the planes' ([`Filters`]), so the bits are the same.
 
 use super::mlri::{Buffers, Mlri};
-use super::raisr::{Bank, Filters, REACH};
+use super::raisr::{Bank, Filters, Row, REACH};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -146,7 +146,13 @@ impl<B: Bank, E: Emit> Rows<'_, B, E> {
         }
         let [own, green, other] = &mut self.row;
         let dst = [own, green, other].map(|r| &mut **r);
-        B::refine_row(f, kind, halo, sums, self.class, dst, &windows);
+        let row = Row {
+            kind,
+            halo,
+            sums,
+            windows: &windows,
+        };
+        B::refine_row(f, row, self.class, dst);
         let [own, green, other] = &self.row;
         self.out.emit(y, [own, green, other]);
     }
