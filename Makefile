@@ -105,9 +105,9 @@ $(TRAINING_DATA)/.fetched-extended: $(TRAINING_DATA)/.fetched
 training-data: $(TRAINING_DATA)/.fetched-extended ## fetch the training photographs (Debian + PyPI)
 
 .PHONY: weights
-weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "fusion") and check the shipped weights bit for bit
+weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "raisr_fast", "fusion") and check the shipped weights bit for bit
 	mkdir -p out
-	for m in raisr fusion; do \
+	for m in raisr raisr_fast fusion; do \
 		$(PY) -m imgform_rs.training.demosaic --method $$m --out out/$${m}_weights.bin && \
 		cmp out/$${m}_weights.bin rust/imgform-core/src/demosaic/$${m}_weights.bin && \
 		echo "$$m weights reproduced bit for bit" || exit 1; \

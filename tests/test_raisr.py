@@ -1,6 +1,6 @@
-"""The learned demosaicers ("raisr" and "fusion"): properties the shared demosaic tests
-don't cover (they are not flip-symmetric), agreement with their training script,
-reproducible training."""
+"""The learned demosaicers ("raisr", "raisr_fast" and "fusion"): properties the shared
+demosaic tests don't cover (they are not flip-symmetric), agreement with their training
+script, reproducible training."""
 
 from pathlib import Path
 
@@ -14,7 +14,7 @@ import imgform_rs as ig
 
 KERNELS = Path(__file__).parents[1] / "rust/imgform-core/src/demosaic"
 WEIGHTS = KERNELS / "raisr_weights.bin"
-LEARNED = ["raisr", "fusion"]
+LEARNED = ["raisr", "raisr_fast", "fusion"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(LEARNED))
@@ -48,10 +48,14 @@ def test_the_kernel_applies_the_filters_the_training_script_fitted(method):
     mosaic = np.ascontiguousarray((truth * ig.channel_masks(truth.shape[:2], "RGGB")).sum(-1))
     out = ig.demosaic(mosaic.astype(np.float32), "RGGB", method)
     blob = (KERNELS / f"{method}_weights.bin").read_bytes()
-    nf = int(np.frombuffer(blob, "<u4", 1, 20)[0])
-    strength = np.frombuffer(blob, "<f4", tr.STRENGTHS - 1, 24)
-    filters = np.frombuffer(blob, "<f4", offset=40).reshape(-1, 2, nf)
-    cls = tr.classes(*tr.hash_inputs(base, position), strength)
+    _, strengths, coherences, nf = (int(n) for n in np.frombuffer(blob, "<u4", 4, 8))
+    thresholds = strengths - 1 + coherences - 1
+    filters = np.frombuffer(blob, "<f4", offset=24 + 4 * thresholds).reshape(-1, 2, nf)
+    if method in tr.ORIENTED:
+        cls = tr.oriented_classes(*tr.hash_inputs(base, position))
+    else:
+        strength = np.frombuffer(blob, "<f4", strengths - 1, 24)
+        cls = tr.classes(*tr.hash_inputs(base, position), strength)
     feats, _ = tr.samples(truth, bases, position)
     want = np.einsum("nf,nkf->nk", feats, filters[cls])
     blue, chroma = tr.interior(position >= 2, 0), tr.interior(position % 2 == 1, 0)

@@ -1,5 +1,6 @@
 """Training of the learned demosaicers' filter banks: ``"raisr"`` (rebuilds
-``raisr_weights.bin``) and ``"fusion"`` (``fusion_weights.bin``).
+``raisr_weights.bin``), ``"raisr_fast"`` (``raisr_fast_weights.bin``) and ``"fusion"``
+(``fusion_weights.bin``).
 
 RAISR (Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
 Resolution", IEEE Transactions on Computational Imaging 3(1), 2017) learns, per
@@ -10,12 +11,17 @@ missing colours. The classes, the features and the hash are those of
 ``rust/imgform-core/src/demosaic/raisr.rs``, reproduced here operation for
 operation in float32 so that a pixel falls in the same class in both.
 
+``"raisr_fast"`` keeps the features and drops most of the hash: its 16 classes are
+the CFA position and the quadrant of the tensor's doubled orientation
+(:func:`orientation`, as in ``rust/imgform-core/src/demosaic/oriented.rs``), few
+enough for the kernel to filter eight pixels side by side.
+
 ``"fusion"`` is the same machinery with two bases: the filters refine
 ``demosaic(..., "mlri")`` and also see ``"rcd_menon"``'s difference from it over the
 3x3 window (27 more features), so that per class they learn how far to trust either
 (``Method::Fusion`` in ``rust/imgform-core/src/demosaic/mod.rs``).
 
-Both train on the extended photographs (:func:`imgform_rs.training.sets.training_images`,
+All three train on the extended photographs (:func:`imgform_rs.training.sets.training_images`,
 set ``"photos"``: 293 openly licensed photographs, each cropped, flipped or turned and
 re-exposed once at random), never on the benchmark's images nor the validation
 subsets. Every image is quantised to 8 bits, mosaicked RGGB (the four CFA positions
@@ -30,6 +36,7 @@ method, trained on                                          held out
 ``"mlri"`` alone (no training)                              36.62
 ``"raisr"`` over ``"rcd_menon"``, the first 33 photographs  36.55
 ``"raisr"`` over ``"mlri"``, the 293 photographs            37.31
+``"raisr_fast"`` over ``"mlri"``, the 293 photographs       37.14
 ``"fusion"``, the first 33 photographs and the textures     37.01
 ``"fusion"``, the 293 photographs                           **37.43**
 ``"fusion"``, the 293 photographs and 192 synthetic         35.99
@@ -40,7 +47,7 @@ correlated channels) made the filters worse on photographs than none, as procedu
 textures (dead leaves, coloured zone plates, sinusoidal "fabrics") did before: their
 near-Nyquist aliasing dominates the squared error.
 
-Run ``python -m imgform_rs.training.demosaic [--method raisr|fusion] [--out PATH]
+Run ``python -m imgform_rs.training.demosaic [--method raisr|raisr_fast|fusion] [--out PATH]
 [--data DIR] [--small]`` (``--small``: two scikit-image images coloured by a smooth
 random field, no download; for the tests).
 """
@@ -61,10 +68,14 @@ FEATURES = 26
 #: Features of a second base: its difference from the first, 3 colours x 3x3.
 SECOND_FEATURES = 27
 #: The bases of each learned method: the one refined, then the one compared.
-BASES = {"raisr": ("mlri",), "fusion": ("mlri", "rcd_menon")}
+BASES = {"raisr": ("mlri",), "raisr_fast": ("mlri",), "fusion": ("mlri", "rcd_menon")}
+#: The methods whose filters are chosen by CFA position and orientation alone.
+ORIENTED = {"raisr_fast"}
 #: The training set of both (:func:`imgform_rs.training.sets.training_images`).
 TRAINING_SET = "photos"
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3
+#: Orientation bins of the oriented methods: quadrants of the doubled angle.
+ORIENTATIONS = 4
 POSITIONS = 4
 CLASSES = POSITIONS * ANGLES * STRENGTHS * COHERENCES
 STRENGTH_QUANTILES = (0.5, 0.85)
@@ -152,6 +163,14 @@ def angle_bin(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         [(v > u) * 1, 2 + (v < -u), 4 + (-v > -u)],
         6 + (-v < u),
     )
+
+
+def orientation(a: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Quadrant of the doubled orientation ``atan2(c, a)`` centred on 0, 90, 180
+    and 270 degrees (horizontal, diagonal, vertical, anti-diagonal gradients), as
+    ``orientation`` in oriented.rs; a flat tensor falls in the first."""
+    size = np.abs(c)
+    return np.select([a >= size, -a >= size, c > 0], [0, 2, 1], 3)
 
 
 def tensor(green: np.ndarray):
@@ -248,6 +267,13 @@ def classes(sums, position, strength: np.ndarray) -> np.ndarray:
     return ((position * ANGLES + a) * STRENGTHS + s) * COHERENCES + c
 
 
+def oriented_classes(sums, position) -> np.ndarray:
+    """Class index of each sample of an oriented method, as ``Oriented`` in
+    oriented.rs: CFA position, then orientation."""
+    sxx, sxy, syy = sums
+    return position * ORIENTATIONS + orientation(sxx - syy, np.float32(2) * sxy)
+
+
 def strength_thresholds(images, bases: tuple[str, ...]) -> np.ndarray:
     """The strength bin bounds: quantiles of the largest eigenvalue, as float32."""
     l1 = []
@@ -257,28 +283,29 @@ def strength_thresholds(images, bases: tuple[str, ...]) -> np.ndarray:
     return np.quantile(np.concatenate(l1).astype(np.float64), STRENGTH_QUANTILES).astype(np.float32)
 
 
-def solve(images, bases: tuple[str, ...], strength: np.ndarray) -> np.ndarray:
-    """Least-squares filters per class, (CLASSES, 2, features) float32. The images
-    are demosaicked again here rather than kept from :func:`strength_thresholds`:
-    several hundred images' bases would not fit in memory."""
+def solve(images, bases: tuple[str, ...], classify, nclasses: int) -> np.ndarray:
+    """Least-squares filters per class, (nclasses, 2, features) float32, the class
+    of each sample being ``classify(sums, position)``. The images are demosaicked
+    again here rather than kept from :func:`strength_thresholds`: several hundred
+    images' bases would not fit in memory."""
     nf = FEATURES + SECOND_FEATURES * (len(bases) - 1)
-    xtx = np.zeros((CLASSES, nf, nf))
-    xty = np.zeros((CLASSES, nf, 2))
-    count = np.zeros(CLASSES, dtype=np.int64)
+    xtx = np.zeros((nclasses, nf, nf))
+    xty = np.zeros((nclasses, nf, 2))
+    count = np.zeros(nclasses, dtype=np.int64)
     for rgb in images:
         truth, bases_out, position = prepare(rgb, bases)
-        cls = classes(*hash_inputs(bases_out[0], position), strength)
+        cls = classify(*hash_inputs(bases_out[0], position))
         feats, target = samples(truth, bases_out, position)
         # Sorted once, so each class's samples are one contiguous block.
         order = np.argsort(cls, kind="stable")
         feats, target = feats[order].astype(np.float64), target[order].astype(np.float64)
-        bounds = np.searchsorted(cls[order], np.arange(CLASSES + 1))
+        bounds = np.searchsorted(cls[order], np.arange(nclasses + 1))
         for k in np.flatnonzero(np.diff(bounds)):
             x, y = feats[bounds[k] : bounds[k + 1]], target[bounds[k] : bounds[k + 1]]
             xtx[k] += x.T @ x
             xty[k] += x.T @ y
             count[k] += len(x)
-    filters = np.zeros((CLASSES, 2, nf), dtype=np.float32)
+    filters = np.zeros((nclasses, 2, nf), dtype=np.float32)
     for k in np.flatnonzero(count >= MIN_SAMPLES):
         ridge = RIDGE * np.trace(xtx[k]) / nf + 1e-12
         w = np.linalg.solve(xtx[k] + ridge * np.eye(nf), xty[k])
@@ -286,11 +313,11 @@ def solve(images, bases: tuple[str, ...], strength: np.ndarray) -> np.ndarray:
     return filters
 
 
-def encode(strength: np.ndarray, filters: np.ndarray) -> bytes:
-    """The weights file (layout documented at ``Weights::parse`` in raisr.rs)."""
+def encode(bins: tuple[int, int, int], thresholds: np.ndarray, filters: np.ndarray) -> bytes:
+    """The weights file (layout documented at ``Weights::parse`` in raisr.rs):
+    angle, strength and coherence bin counts, thresholds, filters."""
     nf = filters.shape[2]
-    header = b"IGRAISR1" + struct.pack("<4I", ANGLES, STRENGTHS, COHERENCES, nf)
-    thresholds = np.concatenate([strength, np.float32(COHERENCE_THRESHOLDS)])
+    header = b"IGRAISR1" + struct.pack("<4I", *bins, nf)
     return header + thresholds.astype("<f4").tobytes() + filters.astype("<f4").tobytes()
 
 
@@ -309,8 +336,13 @@ def train(method: str = "raisr", small: bool = False, data: Path = DEFAULT_DATA)
     quick subset)."""
     images = views(small, data)
     bases = BASES[method]
+    if method in ORIENTED:
+        filters = solve(images, bases, oriented_classes, POSITIONS * ORIENTATIONS)
+        return encode((ORIENTATIONS, 1, 1), np.zeros(0, np.float32), filters)
     strength = strength_thresholds(images, bases)
-    return encode(strength, solve(images, bases, strength))
+    filters = solve(images, bases, lambda s, p: classes(s, p, strength), CLASSES)
+    thresholds = np.concatenate([strength, np.float32(COHERENCE_THRESHOLDS)])
+    return encode((ANGLES, STRENGTHS, COHERENCES), thresholds, filters)
 
 
 def main() -> None:

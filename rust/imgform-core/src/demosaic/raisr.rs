@@ -41,7 +41,7 @@ pub(crate) const FEATURES: usize = 26;
 /// at each pixel of the 3x3 window.
 const SECOND_FEATURES: usize = 27;
 /// Tap windows (a plane on a row, 4 columns) per base: 3 planes x 3 rows.
-const WINDOWS: usize = 9;
+pub(super) const WINDOWS: usize = 9;
 /// Angle bins of the structure tensor's orientation (fixed by [`angle_bin`]).
 const ANGLES: usize = 8;
 /// Strength and coherence bins: fixed, so the thresholds are arrays and the
@@ -49,7 +49,7 @@ const ANGLES: usize = 8;
 const STRENGTHS: usize = 3;
 const COHERENCES: usize = 3;
 /// CFA positions: (blue row, chroma site) pairs.
-const POSITIONS: usize = 4;
+pub(super) const POSITIONS: usize = 4;
 /// Header magic of the weights file.
 const MAGIC: &[u8; 8] = b"IGRAISR1";
 
@@ -63,7 +63,7 @@ type Taps<const N: usize> = [Window; N];
 /// The taps of one window: lanes 0..4 give the first missing colour, lanes
 /// 4..8 the second. The fourth column's tap is zero: it only makes a
 /// window one 4-wide load, which both halves of an 8-wide multiply share.
-type Window = [f32; 8];
+pub(super) type Window = [f32; 8];
 
 /// The trained filter bank, as taps, and its hashing thresholds.
 pub(crate) struct Weights {
@@ -78,33 +78,59 @@ pub(crate) struct Weights {
     taps: Vec<Window>,
 }
 
-impl Weights {
+/// A weights file's contents: its bin counts (angle, strength, coherence),
+/// its feature count and its numbers (thresholds, then filters).
+pub(super) struct File {
+    pub(super) bins: [usize; 3],
+    pub(super) features: usize,
+    pub(super) numbers: Vec<f32>,
+}
+
+impl File {
     /// Reads the little-endian layout: the 8-byte magic `IGRAISR1`; `u32`
-    /// counts of angle, strength and coherence bins and of features
-    /// ([`FEATURES`] for one base, [`SECOND_FEATURES`] more for two); the
-    /// strength then coherence thresholds (`f32`, one fewer than bins); the
-    /// filters (`f32`), indexed `[position][angle][strength][coherence]
-    /// [missing colour][feature]`, position being `2 * blue_row + chroma_site`.
-    ///
-    /// Returns `None` for a malformed file.
-    pub(crate) fn parse(bytes: &[u8]) -> Option<Weights> {
+    /// counts of angle, strength and coherence bins and of features; then
+    /// `f32`s. Returns `None` for a malformed file.
+    pub(super) fn read(bytes: &[u8]) -> Option<File> {
         let body = bytes.strip_prefix(MAGIC)?;
+        if body.len() % 4 != 0 {
+            return None;
+        }
         let mut words = body.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
         let mut count = || words.next().map(|w| u32::from_le_bytes(w) as usize);
         let counts = [count()?, count()?, count()?, count()?];
-        let features = counts[3];
+        Some(File {
+            bins: [counts[0], counts[1], counts[2]],
+            features: counts[3],
+            numbers: words.map(f32::from_le_bytes).collect(),
+        })
+    }
+}
+
+impl Weights {
+    /// Reads a [`File`] of [`ANGLES`], [`STRENGTHS`] and [`COHERENCES`]
+    /// bins and [`FEATURES`] features for one base, [`SECOND_FEATURES`]
+    /// more for two, whose numbers are the strength then coherence
+    /// thresholds (one fewer than bins) and the filters, indexed
+    /// `[position][angle][strength][coherence][missing colour][feature]`,
+    /// position being `2 * blue_row + chroma_site`.
+    ///
+    /// Returns `None` for a malformed file.
+    pub(crate) fn parse(bytes: &[u8]) -> Option<Weights> {
+        let File {
+            bins,
+            features,
+            numbers: rest,
+        } = File::read(bytes)?;
         let windows = match features {
             FEATURES => WINDOWS,
             f if f == FEATURES + SECOND_FEATURES => 2 * WINDOWS,
             _ => return None,
         };
-        if counts[..3] != [ANGLES, STRENGTHS, COHERENCES] {
-            return None;
-        }
-        let rest: Vec<f32> = words.map(f32::from_le_bytes).collect();
         let nfilters = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
         let thresholds = STRENGTHS - 1 + COHERENCES - 1;
-        if body.len() % 4 != 0 || rest.len() != thresholds + nfilters * 2 * features {
+        if bins != [ANGLES, STRENGTHS, COHERENCES]
+            || rest.len() != thresholds + nfilters * 2 * features
+        {
             return None;
         }
         let (strength, rest) = rest.split_at(STRENGTHS - 1);
@@ -183,7 +209,7 @@ fn plane_of(j: usize, dy: isize) -> usize {
 /// `f[26 + 3m + j]`, its difference in colour `j` at the `m`-th pixel of
 /// the 3x3 window (row by row), is a tap on the difference planes. The sums
 /// are the same linear map, evaluated with fewer operations.
-fn taps((first, second): (&[f32], &[f32]), windows: usize) -> Vec<Window> {
+pub(super) fn taps((first, second): (&[f32], &[f32]), windows: usize) -> Vec<Window> {
     let mut t = vec![[0.0f32; 8]; windows];
     for (half, w) in [first, second].into_iter().enumerate() {
         let mut add = |base: usize, dy: isize, dx: isize, j: usize, v: f32| {
@@ -251,20 +277,47 @@ fn angle_bin(a: f32, b: f32) -> usize {
     2 * quadrant + usize::from(upper)
 }
 
-/// The filter bank with what applying it needs: the hash's scale and the
+/// A filter bank with what applying it needs: the hash's scale and the
 /// clamping bounds. Its methods work a row at a time, so the same code
 /// refines the planes of a tile ([`Raisr`]) and MLRI's rows as they stream
 /// out ([`super::refined`]).
-pub(super) struct Filters {
+pub(super) struct Filters<B: 'static = Weights> {
     pub(super) phase: Phase,
     /// `1 / FULL_SCALE` of the sample type, so the hash sees [0, 1] data.
     pub(super) inv_scale: f32,
     /// The mosaic's smallest and largest sample: the base is clamped to
     /// them before the features are taken, as the training script sees it.
     pub(super) bounds: (f32, f32),
-    pub(super) weights: &'static Weights,
+    pub(super) bank: &'static B,
     /// Whether the filters run in AVX ([`apply_avx2`]) or scalar code.
     pub(super) isa: Isa,
+}
+
+/// What refining a row reads: the row's kind, the columns it leaves at
+/// each end, the structure tensor's horizontal sums on the rows above, at
+/// and below it (see [`Filters::tensor_row`]) and the base's windows.
+pub(super) struct Row<'a> {
+    pub(super) kind: RowKind,
+    pub(super) halo: usize,
+    pub(super) sums: [[&'a [f32]; 3]; 3],
+    pub(super) windows: &'a [&'a [f32]; WINDOWS],
+}
+
+/// A filter bank that refines rows: how it classes a row's pixels from the
+/// structure tensor's 3x3 sums and corrects them from the base's windows.
+pub(super) trait Bank: Sync + Sized + 'static {
+    /// Adds the corrections of the columns `halo .. len - halo` of `row`
+    /// to `dst` (own chroma, green, other chroma), `class` being room for a
+    /// class per column.
+    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]);
+}
+
+impl Bank for Weights {
+    #[inline(always)]
+    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]) {
+        f.hash_row(row.kind, row.halo, row.sums, class);
+        f.correct_row(row.kind, row.halo, class, dst, row.windows);
+    }
 }
 
 /// The base kernel refined by the filter bank, which may also see a
@@ -513,7 +566,7 @@ impl<B: TileKernel, S: Secondary> TileKernel for Raisr<B, S> {
                 .each_ref()
                 .map(|p| [ty - 1, ty, ty + 1].map(|r| &p[row(r)]));
             let kind = t.kind(f.phase, ty);
-            f.classes_row(kind, halo, tensor, class);
+            f.hash_row(kind, halo, tensor, class);
             let first = window_rows(planes, t.stride, ty);
             let [o_own, o_green, o_other] = &mut *out;
             let mut dst = [
@@ -553,7 +606,7 @@ fn window_rows(planes: [&[f32]; 3], stride: usize, ty: usize) -> [&[f32]; WINDOW
 /// structure tensor, 1 for the central differences under them.
 pub(super) const REACH: usize = 2;
 
-impl Filters {
+impl<B> Filters<B> {
     /// `src` clamped to the mosaic's range, into `dst`.
     #[inline(always)]
     pub(super) fn clamp(&self, src: &[f32], dst: &mut [f32]) {
@@ -605,8 +658,9 @@ impl Filters {
     }
 
     /// The class of every column `halo .. len - halo` of a row of `kind`:
-    /// the 3x3 sums of the structure tensor (the rows above, at and below
-    /// of the horizontal sums of [`Filters::tensor_row`], added), hashed.
+    /// `hash` of its CFA position and the 3x3 sums of the structure tensor
+    /// (the rows above, at and below of the horizontal sums of
+    /// [`Filters::tensor_row`], added).
     #[inline(always)]
     pub(super) fn classes_row(
         &self,
@@ -614,6 +668,7 @@ impl Filters {
         halo: usize,
         sums: [[&[f32]; 3]; 3],
         class: &mut [u32],
+        hash: impl Fn(usize, f32, f32, f32) -> u32,
     ) {
         let blue = usize::from(kind.blue);
         let end = class.len() - halo;
@@ -621,10 +676,25 @@ impl Filters {
         for (i, c) in class[halo..end].iter_mut().enumerate() {
             let add3 = |p: &[&[f32]; 3]| (p[0][i] + p[1][i]) + p[2][i];
             let chroma = usize::from((halo + i) & 1 == kind.chroma_parity);
-            *c = self
-                .weights
-                .class(2 * blue + chroma, add3(&xx), add3(&xy), add3(&yy)) as u32;
+            *c = hash(2 * blue + chroma, add3(&xx), add3(&xy), add3(&yy));
         }
+    }
+}
+
+impl Filters<Weights> {
+    /// [`Filters::classes_row`] by the full hash, [`Weights::class`].
+    #[inline(always)]
+    pub(super) fn hash_row(
+        &self,
+        kind: RowKind,
+        halo: usize,
+        sums: [[&[f32]; 3]; 3],
+        class: &mut [u32],
+    ) {
+        let weights = self.bank;
+        self.classes_row(kind, halo, sums, class, |position, xx, xy, yy| {
+            weights.class(position, xx, xy, yy) as u32
+        });
     }
 
     /// Adds the corrections of the filters (of the class of each column)
@@ -647,26 +717,74 @@ impl Filters {
             let dst = [&mut *own, &mut *green, &mut *other];
             // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
             // with AVX2.
-            x = unsafe { add_avx2(self.weights, kind, class, dst, rows, halo..end) };
+            x = unsafe { add_avx2(self.bank, kind, class, dst, rows, halo..end) };
         }
-        for x in x..end {
-            let taps = self.weights.filter::<N>(class[x]);
+        for (x, &c) in class[..end].iter().enumerate().skip(x) {
+            let taps = self.bank.filter::<N>(c);
             // A branch per pixel that always goes the same way: calling
             // `apply_avx2` directly here lets it inline into the AVX2 tile
             // loop, which a closure chosen per row prevented.
-            let (d0, d1) = match self.isa {
+            let d = match self.isa {
                 Isa::Baseline => apply(taps, rows, x),
                 // SAFETY: as above.
                 #[cfg(target_arch = "x86_64")]
                 Isa::Avx2 | Isa::Avx512 => unsafe { apply_avx2(taps, rows, x) },
             };
-            if x & 1 == kind.chroma_parity {
-                green[x] += d0;
-            } else {
-                own[x] += d0;
-            }
-            other[x] += d1;
+            add1(kind, [&mut *own, &mut *green, &mut *other], x, d);
         }
+    }
+}
+
+/// Adds the two corrections `(d0, d1)` of column `x` of a row of `kind`:
+/// the first to green at a chroma site and to the own chroma at a green
+/// site, the second to the other chroma.
+#[inline(always)]
+pub(super) fn add1(kind: RowKind, [own, green, other]: [&mut [f32]; 3], x: usize, d: (f32, f32)) {
+    if x & 1 == kind.chroma_parity {
+        green[x] += d.0;
+    } else {
+        own[x] += d.0;
+    }
+    other[x] += d.1;
+}
+
+/// [`add1`] for the eight columns from `x`, the corrections as vectors: the
+/// first goes to green or the own chroma by a blend on the columns' parity.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn add8_avx2(
+    kind: RowKind,
+    [own, green, other]: [&mut [f32]; 3],
+    x: usize,
+    [d0, d1]: [std::arch::x86_64::__m256; 2],
+) {
+    use std::arch::x86_64::*;
+    // Lanes of chroma sites: every other one, from the first when column
+    // `x` is one (lane 0 is the low half of each 64-bit pair).
+    let lanes: i64 = if x & 1 == kind.chroma_parity {
+        0xffff_ffff
+    } else {
+        -1 << 32
+    };
+    let chroma = _mm256_castsi256_ps(_mm256_set1_epi64x(lanes));
+    let (o, g, t) = (
+        &mut own[x..x + 8],
+        &mut green[x..x + 8],
+        &mut other[x..x + 8],
+    );
+    // SAFETY: each slice holds the 8 floats loaded and stored (unaligned).
+    unsafe {
+        let (vo, vg, vt) = (
+            _mm256_loadu_ps(o.as_ptr()),
+            _mm256_loadu_ps(g.as_ptr()),
+            _mm256_loadu_ps(t.as_ptr()),
+        );
+        let vg = _mm256_blendv_ps(vg, _mm256_add_ps(vg, d0), chroma);
+        let vo = _mm256_blendv_ps(_mm256_add_ps(vo, d0), vo, chroma);
+        _mm256_storeu_ps(o.as_mut_ptr(), vo);
+        _mm256_storeu_ps(g.as_mut_ptr(), vg);
+        _mm256_storeu_ps(t.as_mut_ptr(), _mm256_add_ps(vt, d1));
     }
 }
 
@@ -687,39 +805,10 @@ fn add_avx2<const N: usize>(
     rows: &[&[f32]; N],
     cols: Range<usize>,
 ) -> usize {
-    use std::arch::x86_64::*;
-    // Lanes of chroma sites: every other one, from the first when column
-    // `x` is one (lane 0 is the low half of each 64-bit pair).
-    let chroma = |x: usize| {
-        let lanes: i64 = if x & 1 == kind.chroma_parity {
-            0xffff_ffff
-        } else {
-            -1 << 32
-        };
-        _mm256_castsi256_ps(_mm256_set1_epi64x(lanes))
-    };
     let mut x = cols.start;
     while x + 8 <= cols.end {
-        let [d0, d1] = apply8_avx2(weights, class, rows, x);
-        let chroma = chroma(x);
-        let (o, g, t) = (
-            &mut own[x..x + 8],
-            &mut green[x..x + 8],
-            &mut other[x..x + 8],
-        );
-        // SAFETY: each slice holds the 8 floats loaded and stored (unaligned).
-        unsafe {
-            let (vo, vg, vt) = (
-                _mm256_loadu_ps(o.as_ptr()),
-                _mm256_loadu_ps(g.as_ptr()),
-                _mm256_loadu_ps(t.as_ptr()),
-            );
-            let vg = _mm256_blendv_ps(vg, _mm256_add_ps(vg, d0), chroma);
-            let vo = _mm256_blendv_ps(_mm256_add_ps(vo, d0), vo, chroma);
-            _mm256_storeu_ps(o.as_mut_ptr(), vo);
-            _mm256_storeu_ps(g.as_mut_ptr(), vg);
-            _mm256_storeu_ps(t.as_mut_ptr(), _mm256_add_ps(vt, d1));
-        }
+        let d = apply8_avx2(weights, class, rows, x);
+        add8_avx2(kind, [&mut *own, &mut *green, &mut *other], x, d);
         x += 8;
     }
     x

@@ -1,4 +1,5 @@
-//! RAISR's filters over MLRI alone ([`super::Method::Raisr`]), applied to
+//! RAISR's filters over MLRI alone ([`super::Method::Raisr`], and with the
+//! hash of orientation alone [`super::Method::RaisrFast`]), applied to
 //! MLRI's rows as they stream out of its tile.
 //!
 //! The filters and their hash read MLRI two rows above and below an output
@@ -12,14 +13,14 @@
 //! per pixel is the planes' ([`Filters`]), so the bits are the same.
 
 use super::mlri::{Buffers, Mlri};
-use super::raisr::{Filters, REACH};
+use super::raisr::{Bank, Filters, Row, REACH};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
-/// MLRI refined by the filter bank of [`Filters::weights`].
-pub(super) struct Refined {
+/// MLRI refined by the filter bank of [`Filters::bank`].
+pub(super) struct Refined<B: 'static> {
     pub(super) mlri: Mlri,
-    pub(super) filters: Filters,
+    pub(super) filters: Filters<B>,
 }
 
 /// Rows MLRI's output is kept for: the output row's three, and the row
@@ -42,7 +43,7 @@ pub(super) struct State {
     out: [Vec<f32>; 3],
 }
 
-impl StreamKernel for Refined {
+impl<B: Bank> StreamKernel for Refined<B> {
     type State = State;
     const HALO: usize = <Mlri as StreamKernel>::HALO + REACH;
     const ROWS: usize = <Mlri as StreamKernel>::ROWS;
@@ -78,7 +79,7 @@ impl StreamKernel for Refined {
         for ring in base.iter_mut().chain(sums.iter_mut()) {
             ring.fit(t.stride);
         }
-        let mut rows = Rows {
+        let mut rows = Rows::<B, E> {
             filters: &self.filters,
             t,
             base,
@@ -96,8 +97,8 @@ impl StreamKernel for Refined {
 
 /// Takes MLRI's rows and hands on each output row once the row two below
 /// it has come.
-struct Rows<'a, E> {
-    filters: &'a Filters,
+struct Rows<'a, B: 'static, E> {
+    filters: &'a Filters<B>,
     t: &'a Tile,
     base: &'a mut [Ring; 3],
     sums: &'a mut [Ring; 3],
@@ -107,7 +108,7 @@ struct Rows<'a, E> {
     out: &'a mut E,
 }
 
-impl<E: Emit> Emit for Rows<'_, E> {
+impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, rows: [&[f32]; 3]) {
         let f = self.filters;
@@ -129,29 +130,29 @@ impl<E: Emit> Emit for Rows<'_, E> {
     }
 }
 
-impl<E: Emit> Rows<'_, E> {
+impl<B: Bank, E: Emit> Rows<'_, B, E> {
     /// Refines tile row `y` and hands it on.
     #[inline(always)]
     fn refine(&mut self, y: usize) {
-        let (f, halo) = (self.filters, Refined::HALO);
+        let (f, halo) = (self.filters, Refined::<B>::HALO);
         let kind = self.t.kind(f.phase, y);
         let sums = self
             .sums
             .each_ref()
             .map(|s| [y - 1, y, y + 1].map(|r| s.row(r)));
-        f.classes_row(kind, halo, sums, self.class);
         let windows: [&[f32]; 9] = std::array::from_fn(|k| self.base[k % 3].row(y + k / 3 - 1));
         for (d, s) in self.row.iter_mut().zip(&windows[3..6]) {
             d.copy_from_slice(s);
         }
         let [own, green, other] = &mut self.row;
-        f.correct_row(
+        let dst = [own, green, other].map(|r| &mut **r);
+        let row = Row {
             kind,
             halo,
-            self.class,
-            [own, green, other].map(|r| &mut **r),
-            &windows,
-        );
+            sums,
+            windows: &windows,
+        };
+        B::refine_row(f, row, self.class, dst);
         let [own, green, other] = &self.row;
         self.out.emit(y, [own, green, other]);
     }

@@ -1,0 +1,320 @@
+//! RAISR's filters over MLRI with a hash of orientation alone
+//! ([`super::Method::RaisrFast`]).
+//!
+//! The full hash ([`super::raisr`]) picks one of 288 filters per pixel from
+//! the structure tensor's angle, strength and coherence. A filter chosen
+//! pixel by pixel has to be fetched pixel by pixel, and 288 filters' taps
+//! (83 KB) do not stay in the first-level cache: that refinement costs
+//! about 70 % of MLRI's own time. Most of what it gains comes from the CFA
+//! position and the edge's orientation (in a NumPy model trained on the
+//! same photographs, four orientations kept all but 0.1-0.2 dB of the
+//! eight-angle, nine-shape hash on the validation subsets), and sixteen
+//! filters allow another way to apply them. Along a row the CFA position
+//! alternates between two and the orientation takes four values, so each
+//! tap has just 8 values across a row's classes: one 8-float table, from
+//! which a single permute gives the tap of each of eight pixels. Eight
+//! pixels are then filtered side by side like a convolution, with no
+//! per-pixel fetch, and the tables of a row (1.7 KB) stay in cache.
+//!
+//! The features, the taps' windows and the training are RAISR's
+//! ([`super::raisr::taps`]); only the class differs: the quadrant of the
+//! doubled orientation of the 3x3 structure tensor of MLRI's green
+//! ([`orientation`]). The filters are trained by
+//! `python -m imgform_rs.training.demosaic --method raisr_fast` and shipped
+//! in `raisr_fast_weights.bin` (the layout of [`File::read`], with one
+//! strength and one coherence bin and no thresholds).
+
+use super::raisr::{add1, taps, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
+use super::{Isa, RowKind};
+use std::ops::Range;
+use std::sync::OnceLock;
+
+/// Orientation bins: quadrants of the doubled angle ([`orientation`]).
+const ORIENTATIONS: usize = 4;
+/// Taps per missing colour: 3 columns of each window.
+const TAPS: usize = 3 * WINDOWS;
+
+/// One tap of every class of a row: entry `2 * orientation + chroma_site`.
+type Table = [f32; 8];
+
+/// The filter bank of the orientation hash, as tap tables.
+pub(super) struct Oriented {
+    /// Per row kind (red row, blue row), per tap `3 * window + column` (the
+    /// columns of [`super::raisr`]'s windows, left to right), per missing
+    /// colour, the tap of each class.
+    tables: [[[Table; 2]; TAPS]; 2],
+}
+
+impl Oriented {
+    /// Reads a [`File`] of [`ORIENTATIONS`] angle bins, one strength and
+    /// one coherence bin, and [`FEATURES`] features, whose numbers are the
+    /// filters indexed `[position][orientation][missing colour][feature]`.
+    ///
+    /// Returns `None` for a malformed file.
+    pub(super) fn parse(bytes: &[u8]) -> Option<Oriented> {
+        let file = File::read(bytes)?;
+        let size = POSITIONS * ORIENTATIONS * 2 * FEATURES;
+        if file.bins != [ORIENTATIONS, 1, 1] || file.features != FEATURES {
+            return None;
+        }
+        if file.numbers.len() != size {
+            return None;
+        }
+        let mut tables = [[[[0.0; 8]; 2]; TAPS]; 2];
+        for (class, filter) in file.numbers.chunks_exact(2 * FEATURES).enumerate() {
+            let (position, orientation) = (class / ORIENTATIONS, class % ORIENTATIONS);
+            let (blue, lane) = (position / 2, 2 * orientation + position % 2);
+            // The fourth column of each window is zero: it is not a tap.
+            for (k, window) in taps(filter.split_at(FEATURES), WINDOWS).iter().enumerate() {
+                for (dx, tap) in tables[blue][3 * k..3 * k + 3].iter_mut().enumerate() {
+                    tap[0][lane] = window[dx];
+                    tap[1][lane] = window[4 + dx];
+                }
+            }
+        }
+        Some(Oriented { tables })
+    }
+
+    /// The shipped filter bank, parsed on first use.
+    pub(super) fn shipped() -> &'static Oriented {
+        static BANK: OnceLock<Oriented> = OnceLock::new();
+        BANK.get_or_init(|| {
+            // The file is part of the crate and checked by a unit test, so a
+            // parse failure is a build defect, not bad input.
+            Oriented::parse(include_bytes!("raisr_fast_weights.bin"))
+                .expect("the shipped weights file is malformed")
+        })
+    }
+}
+
+/// The quadrant of the doubled orientation `atan2(c, a)` of the structure
+/// tensor (`a = sxx - syy`, `c = 2 sxy`), centred on 0, 90, 180 and 270
+/// degrees: horizontal, diagonal, vertical and anti-diagonal gradients. A
+/// flat tensor is in the first. Comparisons, reproduced exactly by the
+/// training script.
+#[inline(always)]
+fn orientation(a: f32, c: f32) -> u32 {
+    let size = c.abs();
+    let slanted = if c > 0.0 { 1 } else { 3 };
+    let upright = if -a >= size { 2 } else { slanted };
+    if a >= size {
+        0
+    } else {
+        upright
+    }
+}
+
+impl Bank for Oriented {
+    #[inline(always)]
+    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], mut dst: [&mut [f32]; 3]) {
+        let Row {
+            kind,
+            halo,
+            sums,
+            windows,
+        } = row;
+        f.classes_row(kind, halo, sums, class, |position, xx, xy, yy| {
+            2 * orientation(xx - yy, 2.0 * xy) + (position & 1) as u32
+        });
+        let tables = &f.bank.tables[usize::from(kind.blue)];
+        let end = class.len() - halo;
+        let mut x = halo;
+        #[cfg(target_arch = "x86_64")]
+        if f.isa != Isa::Baseline {
+            let dst = dst.each_mut().map(|d| &mut **d);
+            // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
+            // with AVX2.
+            x = unsafe { add_avx2(tables, kind, class, dst, windows, halo..end) };
+        }
+        for (x, &c) in class[..end].iter().enumerate().skip(x) {
+            let d = apply(tables, c as usize, windows, x);
+            add1(kind, dst.each_mut().map(|d| &mut **d), x, d);
+        }
+    }
+}
+
+/// The two corrections of the pixel at column `x` of class `class`: one
+/// partial sum per window row, each tap a product then a sum, in the order
+/// [`add_avx2`] computes in, so both give the same bits.
+#[inline(always)]
+fn apply(
+    tables: &[[Table; 2]; TAPS],
+    class: usize,
+    rows: &[&[f32]; WINDOWS],
+    x: usize,
+) -> (f32, f32) {
+    let mut acc = [[0.0f32; 2]; 3];
+    for (k, row) in rows.iter().enumerate() {
+        for (dx, tap) in tables[3 * k..3 * k + 3].iter().enumerate() {
+            let v = row[x - 1 + dx];
+            for (a, t) in acc[k / 3].iter_mut().zip(tap) {
+                *a += t[class] * v;
+            }
+        }
+    }
+    let sum = |o: usize| (acc[0][o] + acc[1][o]) + acc[2][o];
+    (sum(0), sum(1))
+}
+
+/// [`apply`] and [`add1`] for the columns `cols`, eight at a time as far
+/// as whole eights go; returns the first column left. Each tap of the
+/// eight pixels is one permute of its table by their classes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn add_avx2(
+    tables: &[[Table; 2]; TAPS],
+    kind: RowKind,
+    class: &[u32],
+    [own, green, other]: [&mut [f32]; 3],
+    rows: &[&[f32]; WINDOWS],
+    cols: Range<usize>,
+) -> usize {
+    use std::arch::x86_64::*;
+    // Eight pixels from column `x` read their windows' columns `x - 1 ..
+    // x + 9`: checked once here, so the loads need no checks of their own.
+    let fits = |len: usize| cols.start >= 1 && len > cols.end;
+    assert!(rows.iter().all(|r| fits(r.len())) && class.len() >= cols.end);
+    let mut x = cols.start;
+    while x + 8 <= cols.end {
+        // SAFETY: the assertion above keeps every load in bounds (and the
+        // loads are unaligned ones); the classes are below 8, as `permute`
+        // needs (it reads the low 3 bits anyway).
+        let d = unsafe {
+            let index = _mm256_loadu_si256(class.as_ptr().add(x).cast());
+            // Written out: closures here were not inlined (each call
+            // passed its vectors through memory).
+            let [a0, a1] = row_sums(tables, rows, index, 0, x - 1);
+            let [b0, b1] = row_sums(tables, rows, index, 1, x - 1);
+            let [c0, c1] = row_sums(tables, rows, index, 2, x - 1);
+            [
+                _mm256_add_ps(_mm256_add_ps(a0, b0), c0),
+                _mm256_add_ps(_mm256_add_ps(a1, b1), c1),
+            ]
+        };
+        super::raisr::add8_avx2(kind, [&mut *own, &mut *green, &mut *other], x, d);
+        x += 8;
+    }
+    x
+}
+
+/// The two corrections' partial sums over window row `r` (windows `3 r ..
+/// 3 r + 3`) of the eight pixels of classes `index` whose windows start at
+/// column `left`, summed tap by tap as [`apply`] does. Its own function
+/// with two accumulators, so they stay in registers: one loop over all 27
+/// taps into an array of six kept them on the stack.
+///
+/// # Safety
+/// AVX2, and columns `left .. left + 10` of the window rows in bounds.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn row_sums(
+    tables: &[[Table; 2]; TAPS],
+    rows: &[&[f32]; WINDOWS],
+    index: std::arch::x86_64::__m256i,
+    r: usize,
+    left: usize,
+) -> [std::arch::x86_64::__m256; 2] {
+    use std::arch::x86_64::*;
+    let (mut a0, mut a1) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+    for k in 3 * r..3 * r + 3 {
+        for dx in 0..3 {
+            let [t0, t1] = &tables[3 * k + dx];
+            // SAFETY: by the caller's contract.
+            let (v, t0, t1) = unsafe {
+                (
+                    _mm256_loadu_ps(rows[k].as_ptr().add(left + dx)),
+                    _mm256_loadu_ps(t0.as_ptr()),
+                    _mm256_loadu_ps(t1.as_ptr()),
+                )
+            };
+            let t0 = _mm256_permutevar8x32_ps(t0, index);
+            let t1 = _mm256_permutevar8x32_ps(t1, index);
+            a0 = _mm256_add_ps(a0, _mm256_mul_ps(t0, v));
+            a1 = _mm256_add_ps(a1, _mm256_mul_ps(t1, v));
+        }
+    }
+    [a0, a1]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shipped_weights_parse_and_malformed_ones_are_refused() {
+        let taps = || {
+            Oriented::shipped()
+                .tables
+                .iter()
+                .flatten()
+                .flatten()
+                .flatten()
+        };
+        assert!(taps().all(|v| v.is_finite()));
+        assert!(taps().any(|&v| v != 0.0));
+        let bytes = include_bytes!("raisr_fast_weights.bin");
+        assert!(Oriented::parse(&bytes[..bytes.len() - 4]).is_none());
+        // RAISR's bank has the full hash's bins.
+        assert!(Oriented::parse(include_bytes!("raisr_weights.bin")).is_none());
+    }
+
+    #[test]
+    fn orientations_are_the_quadrants_of_the_doubled_angle() {
+        assert_eq!(orientation(0.0, 0.0), 0);
+        assert_eq!(orientation(1.0, 0.5), 0);
+        assert_eq!(orientation(0.5, 1.0), 1);
+        assert_eq!(orientation(-1.0, 0.5), 2);
+        assert_eq!(orientation(0.5, -1.0), 3);
+        // On the diagonals the upright bins win.
+        assert_eq!(orientation(1.0, 1.0), 0);
+        assert_eq!(orientation(-1.0, -1.0), 2);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_avx2_filters_give_the_scalar_bits() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let planes: Vec<Vec<f32>> = (0..WINDOWS)
+            .map(|k| {
+                (0..40)
+                    .map(|i| ((i * 37 + k * 11) % 29) as f32 * 0.37)
+                    .collect()
+            })
+            .collect();
+        let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
+        let class: Vec<u32> = (0..40).map(|i| (i * 7 % 8) as u32).collect();
+        for (blue, tables) in Oriented::shipped().tables.iter().enumerate() {
+            for parity in 0..2 {
+                let kind = RowKind {
+                    blue: blue == 1,
+                    chroma_parity: parity,
+                };
+                let mut fast = [0; 3].map(|_| vec![1.0f32; 40]);
+                let mut slow = fast.clone();
+                // SAFETY: AVX2 was detected above.
+                let end = unsafe {
+                    add_avx2(
+                        tables,
+                        kind,
+                        &class,
+                        fast.each_mut().map(|p| &mut p[..]),
+                        &rows,
+                        1..33,
+                    )
+                };
+                assert_eq!(end, 33);
+                for (x, &c) in class.iter().enumerate().take(33).skip(1) {
+                    let d = apply(tables, c as usize, &rows, x);
+                    add1(kind, slow.each_mut().map(|p| &mut p[..]), x, d);
+                }
+                let bits =
+                    |p: &[Vec<f32>; 3]| p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&fast), bits(&slow));
+            }
+        }
+    }
+}
