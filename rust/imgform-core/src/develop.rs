@@ -406,11 +406,11 @@ impl<T: Sample> Mosaic for Prepared<'_, T> {
                 }
                 continue;
             };
-            let mut gains = [0.0f64; RUN];
+            let mut gains = [0.0f32; RUN];
             let gains = &mut gains[..d.len()];
             vignetting.row(y, x, gains);
             for ((((d, &v), &b), &f), &g) in d.iter_mut().zip(s).zip(b).zip(f).zip(&*gains) {
-                *d = prepare(v, b, f * g as f32);
+                *d = prepare(v, b, f * g);
             }
         }
     }
