@@ -104,8 +104,9 @@ mod avx2 {
     /// [`super::step_cells`] with two pixels (12 values, three registers of
     /// four) per iteration and a cell's odd last pixel from the first six
     /// of them. The registers are set up from the cell's arrays with four
-    /// loads and a few vector additions: a loop of 24 scalar values per
-    /// cell, as the cells are 8-16 px long, cost as much as the stepping.
+    /// loads and a few vector additions: built from 24 scalar values, the
+    /// set-up took about as many instructions as stepping the cell's 8-16
+    /// pixels (a count of the generated code, not a timing).
     ///
     /// # Safety
     /// AVX2.
