@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -372,6 +374,26 @@ def test_develop_applies_geometry_after_the_pipeline_and_vignetting_before(dng) 
     inner = (slice(4, -4), slice(4, -4))
     np.testing.assert_allclose(out[inner], np.minimum(plain * gain, 1)[inner], rtol=0.02, atol=2e-3)
     assert gain[0, 0, 0] > gain[48, 72, 0] == pytest.approx(1, abs=1e-3)
+
+
+def test_a_corrected_develop_does_not_depend_on_the_working_array_kept(dng) -> None:
+    # The working array is kept from call to call (per size and sample
+    # type) and taken out while a call runs: other sizes, other types and
+    # concurrent calls must all find their development, not another's.
+    raw = load_raw(dng)
+    profile = _kit(raw).profile
+    narrow = replace(raw, cfa=np.ascontiguousarray(raw.cfa[:, :100]))
+    first = develop(raw, lens_correction=profile)
+    cut = develop(narrow, lens_correction=profile)
+    assert cut.shape == (96, 100, 3)
+    floats = develop(raw, lens_correction=profile, bps="float")
+    for _ in range(2):
+        np.testing.assert_array_equal(develop(raw, lens_correction=profile), first)
+    cases = [(raw, 8, first), (narrow, 8, cut), (raw, "float", floats), (raw, 8, first)] * 2
+    with ThreadPoolExecutor(2) as pool:
+        runs = [pool.submit(develop, s, lens_correction=profile, bps=b) for s, b, _ in cases]
+        for run, (_, _, want) in zip(runs, cases, strict=True):
+            np.testing.assert_array_equal(run.result(), want)
 
 
 def test_develop_auto_without_a_lens_is_uncorrected(dng) -> None:

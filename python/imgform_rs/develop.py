@@ -308,7 +308,10 @@ def develop(
         distortion and TCA in one resampling of the developed image before it
         is oriented (bilinear; the border the correction uncovers is 0).
         Sensors with non-square photosites are not corrected (``"auto"``
-        leaves them as they are, a profile raises ``ValueError``).
+        leaves them as they are, a profile raises ``ValueError``). The
+        development before the resampling goes to a working array of the
+        output's size that is kept for the next corrected develop (its
+        pages are not allocated and zeroed again for every raw of a batch).
 
     Returns
     -------

@@ -1207,8 +1207,9 @@ mod tests {
 
     /// [`resample_channels`] (the SIMD rows where the CPU has them) against
     /// [`channel_sample`] called for every sample (the scalar path), over
-    /// positions inside, across the borders, far outside and NaN, with and
-    /// without gains (including saturating and zero ones).
+    /// positions inside, across the borders, far outside and NaN, and
+    /// smooth rows of them, with and without gains (including saturating
+    /// and zero ones).
     fn assert_channel_rows_match_the_scalar_path<T: Resample>(view: &ImageView<T>) {
         let (w, h) = (view.width(), view.height());
         let mut state = 99u64;
@@ -1223,10 +1224,22 @@ mod tests {
             .map(|i| {
                 let (row, is_y) = (i / (6 * w), i % 2 == 1);
                 let side = if is_y { h_f } else { w_f };
-                match (row % 3, i % 37) {
+                match (row % 4, i % 37) {
                     (0, 0) => to_fixed(f64::NAN),
                     (0, 1) => to_fixed(1e9),
                     (0, _) => to_fixed(next() * (side + 4.0) - 2.0),
+                    // Smooth, as a lens correction's: each channel near
+                    // the pixel, the three a little apart, so that whole
+                    // steps take the SIMD path.
+                    (3, _) => {
+                        let (u, c) = ((i % (6 * w)) / 6, (i % 6 / 2) as f64);
+                        let at = if is_y {
+                            row as f64 + 0.3 * c - 0.4
+                        } else {
+                            0.97 * u as f64 + 0.4 * c - 0.3 + 0.2 * next()
+                        };
+                        to_fixed(at.clamp(0.0, side - 1.0))
+                    }
                     // Whole windows inside, some at exact integers.
                     (_, 2) => to_fixed((next() * (side - 1.0)).floor()),
                     _ => to_fixed(next() * (side - 1.0)),

@@ -282,9 +282,10 @@ unsafe fn gather8(base: *const u8, offsets: __m128i) -> __m256i {
     }
 }
 
-/// Runs `f(k, step)` for every full step of a row whose windows are inside
-/// and `pixel(x, px)` for the others and for the tail, `px` being the `nc`
-/// samples of pixel `x` at `out`.
+/// Runs `f(k, k % 3, step)` for every full step of a row whose windows are
+/// inside and `pixel(x, px)` for the others and for the tail, `px` being
+/// the `nc` samples of pixel `x` at `out`. The per-channel kernels pick
+/// their lanes' channels by `k % 3`.
 ///
 /// Always inlined into the AVX2 kernels (which have the instruction set)
 /// rather than a `target_feature` function of its own: LLVM once stopped
@@ -292,13 +293,13 @@ unsafe fn gather8(base: *const u8, offsets: __m128i) -> __m256i {
 /// closure called through memory per step.
 ///
 /// # Safety
-/// AVX2; `out` is valid for `nc · xy.len() / 2` samples, and `f(k, _)`
+/// AVX2; `out` is valid for `nc · xy.len() / 2` samples, and `f(k, _, _)`
 /// writes only those of pixels `8k .. 8k + 8` (so the two never overlap).
 #[inline(always)]
 unsafe fn walk<T>(
     xy: &[i32],
     g: &Geometry,
-    mut f: impl FnMut(usize, Step),
+    mut f: impl FnMut(usize, usize, Step),
     (out, nc): (*mut T, usize),
     pixel: &mut dyn FnMut(usize, &mut [T]),
 ) {
@@ -311,15 +312,21 @@ unsafe fn walk<T>(
     };
     let n = xy.len() / 2;
     let steps = n / LANES;
+    // Both counters are carried along: `k % 3` and `k % prefetch_every`
+    // cost a multiply and a division per step.
+    let (mut third, mut to_prefetch) = (0, 0);
     for k in 0..steps {
-        if k % g.prefetch_every == 0 {
+        if to_prefetch == 0 {
             g.prefetch(xy, LANES * (k + AHEAD));
+            to_prefetch = g.prefetch_every;
         }
+        to_prefetch -= 1;
         // SAFETY: step k reads xy[16k .. 16k + 16], inside since k < n / 8.
         match unsafe { step(xy.as_ptr().add(2 * LANES * k), g) } {
-            Some(s) => f(k, s),
+            Some(s) => f(k, third, s),
             None => (LANES * k..LANES * (k + 1)).for_each(&mut scalar),
         }
+        third = if third == 2 { 0 } else { third + 1 };
     }
     (LANES * steps..n).for_each(scalar);
 }
@@ -354,7 +361,7 @@ pub(super) unsafe fn row_u8<const NC: usize>(
         0, -1, 1, -1, 4, -1, 5, -1, 8, -1, 9, -1, 12, -1, 13, -1, 0, -1, 1, -1, 4, -1, 5, -1, 8,
         -1, 9, -1, 12, -1, 13, -1,
     );
-    let body = |k: usize, s: Step| {
+    let body = |k: usize, _, s: Step| {
         let below = _mm256_add_epi32(s.top, stride_v);
         // SAFETY (loads): `step` admitted only windows whose reads end
         // before `reach`, i.e. inside `src`. (Stores): `row` holds
@@ -455,7 +462,7 @@ pub(super) unsafe fn row_u16(
     let out = row.as_mut_ptr();
     let stride_v = _mm256_set1_epi32(g.stride);
     let low = _mm256_set1_epi32(0xffff);
-    let body = |k: usize, s: Step| {
+    let body = |k: usize, _, s: Step| {
         let fx = s.fx;
         let line = |offsets: __m256i| {
             // SAFETY: `step` admitted only reads inside `src`.
@@ -631,7 +638,7 @@ pub(super) unsafe fn cubic_u8<const NC: usize>(
     let out = row.as_mut_ptr();
     let stride_v = _mm256_set1_epi32(g.stride);
     let byte = _mm256_set1_epi32(0xff);
-    let body = |k: usize, s: Step| {
+    let body = |k: usize, _, s: Step| {
         // SAFETY: AVX2 is enabled here.
         let (wx, wy) = unsafe { (keys(s.fx), keys(s.fy)) };
         let rows: [__m256i; 4] = std::array::from_fn(|j| {
@@ -749,7 +756,7 @@ pub(super) unsafe fn cubic_u16(
     // order 0 1 4 5 | 2 3 6 7, so the fractions are put in that order too
     // and the results back (the permutation is its own inverse).
     let order = _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7);
-    let body = |k: usize, s: Step| {
+    let body = |k: usize, _, s: Step| {
         // SAFETY: AVX2 is enabled here.
         let (wx, wy) = unsafe {
             (

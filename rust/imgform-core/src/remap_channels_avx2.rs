@@ -27,13 +27,31 @@ const CHANNELS: [[i32; LANES]; 3] = [
     [1, 2, 0, 1, 2, 0, 1, 2],
 ];
 
-/// The byte offsets of step `k`'s lanes' channels in samples of `size`
-/// bytes.
-#[target_feature(enable = "avx2")]
-fn channel_bytes(k: usize, size: i32) -> __m256i {
-    // SAFETY: the array holds 8 lanes.
-    let c = unsafe { _mm256_loadu_si256(CHANNELS[k % 3].as_ptr().cast()) };
-    _mm256_mullo_epi32(c, _mm256_set1_epi32(size))
+/// The byte offsets of the lanes' channels in samples of `size` bytes, for
+/// steps `k` with `k % 3` = 0, 1, 2: made once per row, so that a step
+/// only picks one (see [`ChannelBytes::of`]).
+struct ChannelBytes([__m256i; 3]);
+
+impl ChannelBytes {
+    #[target_feature(enable = "avx2")]
+    fn new(size: i32) -> Self {
+        Self(CHANNELS.map(|c| {
+            // SAFETY: the array holds 8 lanes.
+            let c = unsafe { _mm256_loadu_si256(c.as_ptr().cast()) };
+            _mm256_mullo_epi32(c, _mm256_set1_epi32(size))
+        }))
+    }
+
+    /// The offsets of a step whose index is `third` modulo 3 (a `match`
+    /// rather than an index, which would need a bounds check).
+    #[inline(always)]
+    fn of(&self, third: usize) -> __m256i {
+        match third {
+            0 => self.0[0],
+            1 => self.0[1],
+            _ => self.0[2],
+        }
+    }
 }
 
 /// Whether the lengths fit: two coordinates and, if any, one gain per
@@ -127,9 +145,10 @@ pub(in crate::remap) unsafe fn channel_row_u8(
         -1, 11, -1, 12, -1, 15, -1,
     );
     let lower = below(base, &g);
-    let body = |k: usize, s: Step| {
+    let channels = ChannelBytes::new(1);
+    let body = |k: usize, third: usize, s: Step| {
         // SAFETY: `step` admitted only windows inside `src`: no offset is negative.
-        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channel_bytes(k, 1))) };
+        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channels.of(third))) };
         let wx = weight_pairs(s.fx);
         // SAFETY: `step` admitted only windows whose reads end inside `src`.
         let line = |row: *const u8| unsafe {
@@ -172,9 +191,10 @@ pub(in crate::remap) unsafe fn channel_row_u16(
     };
     let (base, dst) = (src.as_ptr().cast::<u8>(), out.as_mut_ptr());
     let (lower, low) = (below(base, &g), _mm256_set1_epi32(0xffff));
-    let body = |k: usize, s: Step| {
+    let channels = ChannelBytes::new(2);
+    let body = |k: usize, third: usize, s: Step| {
         // SAFETY: `step` admitted only windows inside `src`: no offset is negative.
-        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channel_bytes(k, 2))) };
+        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channels.of(third))) };
         let line = |row: *const u8| {
             // SAFETY: `step` admitted only windows whose reads end inside
             // `src`; the right tap is a pixel (6 bytes) on.
@@ -263,9 +283,10 @@ pub(in crate::remap) unsafe fn channel_row_f32(
             _mm256_mul_ps(a1, p1),
         )
     };
-    let body = |k: usize, s: Step| {
+    let channels = ChannelBytes::new(4);
+    let body = |k: usize, third: usize, s: Step| {
         // SAFETY: `step` admitted only windows inside `src`: no offset is negative.
-        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channel_bytes(k, 4))) };
+        let at = unsafe { lane_offsets(_mm256_add_epi32(s.top, channels.of(third))) };
         let wx = weights(s.fx);
         let line = |row: *const u8| {
             // SAFETY: `step` admitted only windows whose reads end inside `src`.
