@@ -519,7 +519,11 @@ impl<T: Sample, U: Sample> RgbSink<U> for Finish<T, U> {
         let [l0, l1, l2] = lin;
         let (l0, l1, l2) = (&mut l0[..n], &mut l1[..n], &mut l2[..n]);
         for i in 0..n {
-            let [r, g, b] = [r[i], g[i], b[i]].map(|v| T::quantize(clamp(v)) * inv);
+            // Written out rather than an array `map`: inside the larger tile
+            // loops of the learned demosaicers the map stopped being inlined
+            // and became a call per pixel (13 % of a develop's profile).
+            let q = |v: f32| T::quantize(clamp(v)) * inv;
+            let (r, g, b) = (q(r[i]), q(g[i]), q(b[i]));
             l0[i] = (m[0] * r + m[1] * g + m[2] * b).clamp(0.0, 1.0) * span;
             l1[i] = (m[3] * r + m[4] * g + m[5] * b).clamp(0.0, 1.0) * span;
             l2[i] = (m[6] * r + m[7] * g + m[8] * b).clamp(0.0, 1.0) * span;
@@ -571,7 +575,8 @@ impl<U: Sample> Curve<U> {
             Curve::Exact(t) => {
                 let px = v[0].iter().zip(v[1]).zip(v[2]);
                 for (o, ((&r, &g), &b)) in out.chunks_exact_mut(3).zip(px) {
-                    o.copy_from_slice(&[r, g, b].map(|c| U::from_f32(t.apply(c))));
+                    let f = |c: f32| U::from_f32(t.apply(c));
+                    o.copy_from_slice(&[f(r), f(g), f(b)]);
                 }
             }
             Curve::Table(t) => {
@@ -582,7 +587,8 @@ impl<U: Sample> Curve<U> {
                 }
                 let px = idx[0].iter().zip(&idx[1]).zip(&idx[2]);
                 for (o, ((&r, &g), &b)) in out.chunks_exact_mut(3).zip(px) {
-                    o.copy_from_slice(&[r, g, b].map(|c| t[usize::from(c)]));
+                    let f = |c: u16| t[usize::from(c)];
+                    o.copy_from_slice(&[f(r), f(g), f(b)]);
                 }
             }
         }
