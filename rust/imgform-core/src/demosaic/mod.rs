@@ -178,8 +178,7 @@ impl Method {
     /// 39.67 dB, CBSD68 39.79, Urban24 36.13: 0.6-0.9 dB above every
     /// classical peer we run (MLRI alone: 39.80, 38.89, 35.70, 0.1 dB
     /// below residual interpolation on CBSD68), with less false colour
-    /// and zipper on the test charts than MLRI, for about a fifth more
-    /// time.
+    /// and zipper on the test charts than MLRI, for about 1.3x its time.
     pub const BEST: Method = Method::RaisrFast;
 
     /// The most accurate method, which the name "quality" selects, whatever
