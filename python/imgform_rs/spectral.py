@@ -1175,8 +1175,10 @@ def dng_color_tags(fit: ColorFit, white_xyz: Any) -> tuple[Float64Array, Float64
     """
     cam_from_xyz = np.linalg.inv(fit.matrix)
     neutral = cam_from_xyz @ as_float_array(white_xyz, "white_xyz")
-    scale = 1.0 / neutral.max()
-    return cam_from_xyz * scale, neutral * scale
+    # Division, not a multiplication by the reciprocal: x / x is exactly 1 in
+    # IEEE arithmetic, x * (1 / x) is not always.
+    largest = neutral.max()
+    return cam_from_xyz / largest, neutral / largest
 
 
 #: The DNG profile connection space's white, D50 (xy 0.3457, 0.3585) with Y = 1.
