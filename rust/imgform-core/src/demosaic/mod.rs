@@ -459,6 +459,43 @@ impl<T: Sample> Mosaic for ImageView<'_, T> {
     }
 }
 
+/// A mosaic whose range was found once: the learned methods need it for
+/// their filters and again for the output's clamp, and for development's
+/// prepared mosaic each [`Mosaic::range`] is a full pass over the
+/// photosites (with the vignetting gains).
+struct Ranged<'a, M> {
+    raw: &'a M,
+    bounds: (f32, f32),
+}
+
+impl<'a, M: Mosaic> Ranged<'a, M> {
+    fn new(raw: &'a M) -> Self {
+        Ranged {
+            raw,
+            bounds: raw.range(),
+        }
+    }
+}
+
+impl<M: Mosaic> Mosaic for Ranged<'_, M> {
+    fn width(&self) -> usize {
+        self.raw.width()
+    }
+
+    fn height(&self) -> usize {
+        self.raw.height()
+    }
+
+    #[inline(always)]
+    fn load(&self, y: usize, x0: usize, dst: &mut [f32]) {
+        self.raw.load(y, x0, dst);
+    }
+
+    fn range(&self) -> (f32, f32) {
+        self.bounds
+    }
+}
+
 /// Where a demosaic puts its result: planes of red, green and blue in the
 /// mosaic's units, written as interleaved pixels of `O`. Plain demosaicing
 /// converts them ([`Convert`]); development finishes them into display
@@ -612,6 +649,7 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
+            let raw = &Ranged::new(raw);
             let k = refined::Refined {
                 mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
                 filters: filters::<T, _>(raisr::Weights::raisr(), raw, phase, isa),
@@ -619,6 +657,7 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::RaisrFast => {
+            let raw = &Ranged::new(raw);
             let k = refined::Refined {
                 mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
                 filters: filters::<T, _>(oriented::Oriented::shipped(), raw, phase, isa),
@@ -626,6 +665,7 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Fusion => {
+            let raw = &Ranged::new(raw);
             let refine = raisr::Raisr {
                 base: raisr::Given,
                 second: raisr::Against(rcd_menon(phase, T::FULL_SCALE)),
