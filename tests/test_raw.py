@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+import struct
 
 import numpy as np
 import pytest
@@ -254,3 +255,55 @@ def test_tiff_tags_of_corrupt_files_never_raise(data):
     for blob in (b"II*\0" + data, b"MM\0*" + data):
         for ifd in tiff_ifds(blob):
             assert all(isinstance(v, (str, tuple)) for v in ifd.values())
+
+
+def _ciff_heap(records: list[tuple[int, bytes]]) -> bytes:
+    """A CIFF heap: the records' values (each distinct value once), then its
+    table (count, then type, length and offset per record), then the
+    table's offset."""
+    values, table, offsets = b"", b"", {}
+    for kind, value in records:
+        if value not in offsets:
+            offsets[value] = len(values)
+            values += value
+        table += struct.pack("<HII", kind, len(value), offsets[value])
+    return values + struct.pack("<H", len(records)) + table + struct.pack("<I", len(values))
+
+
+def _ciff(root: bytes) -> bytes:
+    return b"II" + struct.pack("<I", 26) + b"HEAPCCDR" + bytes(12) + root
+
+
+def test_ciff_make_and_model_are_found_in_nested_heaps():
+    from imgform_rs._ciff import make_model
+
+    names = _ciff_heap([(0x0810, b"owner\0"), (0x080A, b"Canon\0Canon EOS 300D DIGITAL\0\0")])
+    props = _ciff_heap([(0x1029, b"\1\0\2\0"), (0x300B, names)])
+    data = _ciff(_ciff_heap([(0x2005, b"raw data"), (0x300A, props)]))
+    assert make_model(data) == ("Canon", "Canon EOS 300D DIGITAL")
+    # The same heap listed 300 times at each of four levels is read a
+    # bounded number of times, not 300^4.
+    heap = _ciff_heap([(0x1029, b"\0\0")])
+    for _ in range(4):
+        heap = _ciff_heap([(0x300A, heap)] * 300)
+    assert make_model(_ciff(heap)) == ("", "")
+    assert make_model(b"II*\0" + bytes(20)) == ("", "")
+
+
+@settings(max_examples=80)
+@given(st.binary(max_size=400), st.integers(0, 200))
+def test_ciff_names_of_corrupt_files_never_raise(data, cut):
+    from imgform_rs._ciff import make_model
+
+    names = _ciff_heap([(0x080A, b"Canon\0Canon PowerShot S40\0")])
+    whole = _ciff(_ciff_heap([(0x300A, names)]))
+    for blob in (_ciff(data), whole[:cut] + data, whole[: len(whole) - cut]):
+        make, model = make_model(blob)
+        assert isinstance(make, str) and isinstance(model, str)
+
+
+@pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
+def test_a_crw_names_its_camera():
+    raw = ig.load_raw(RAW_DIR / "canon_powershot_s40_CRW_0113.CRW")
+    assert (raw.make, raw.model) == ("Canon", "Canon PowerShot S40")
+    assert (raw.shot.make, raw.shot.model) == ("Canon", "Canon PowerShot S40")

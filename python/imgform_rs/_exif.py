@@ -4,7 +4,7 @@ What is copied: camera make and model, lens, ISO, exposure time, f-number,
 focal length, capture date and artist. LibRaw reads these from every format it
 decodes (CRW and QTK too, where there is no TIFF to copy from), and rawpy
 exposes them (``RawPy.other``, ``RawPy.lens``) except make and model, which
-come from the file's TIFF tags (:attr:`RawImage.make`). LibRaw reports 0 or
+come from the file's TIFF tags or a CRW's CIFF record (:attr:`RawImage.make`). LibRaw reports 0 or
 1970-01-01 for what a file does not record; those are left out. It also turns
 the APEX shutter and aperture values 0 that some writers leave in place of
 unknown ones (Magic Lantern's DNGs) into 1 s at f/1: that exact pair is taken

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ._ciff import make_model
 from ._exif import ShotInfo, shot_info
 from ._native import RawError
 from ._tiff import Value, first_tag, tiff_ifds
@@ -115,9 +116,9 @@ class RawImage:
     pixel_aspect : float
         Width / height of one photosite; LibRaw stretches the output when it is not 1.
     make, model : str
-        TIFF ``Make`` / ``Model`` of the file (rawpy does not expose LibRaw's
-        names); empty for formats that are not TIFF-based (CRW, QTK, ...) and
-        for an open ``RawPy``.
+        TIFF ``Make`` / ``Model`` of the file, or for a Canon CRW its CIFF
+        record of both (rawpy does not expose LibRaw's names); empty for
+        formats that are neither (QTK, ...) and for an open ``RawPy``.
     output_size : (int, int)
         ``(H, W)`` of the image LibRaw's ``postprocess`` would return (after
         orientation and aspect correction).
@@ -305,6 +306,8 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
         pixels = int(sizes.raw_height) * int(sizes.raw_width)
         make, model = (first_tag(ifds or [], tag) for tag in (_MAKE, _MODEL))
         make, model = (v if isinstance(v, str) else "" for v in (make, model))
+        if not (make or model) and data is not None:
+            make, model = make_model(data)
         shot = shot_info(raw, make, model)
     except RawError:
         raise
