@@ -25,9 +25,11 @@ All three train on the extended photographs (:func:`imgform_rs.training.sets.tra
 set ``"photos"``: 293 openly licensed photographs, each cropped, flipped or turned and
 re-exposed once at random), never on the benchmark's images nor the validation
 subsets. Every image is quantised to 8 bits, mosaicked RGGB (the four CFA positions
-all occur) and demosaicked in float32. The normal equations are accumulated in
-float64, solved with a small ridge term, and the filters rounded to float32: two
-runs give identical bytes. The choices were made on the nine held-out photographs of
+all occur) and demosaicked in float32. The normal equations are summed exactly and
+solved with a small ridge term in a fixed order (:mod:`imgform_rs.training.lstsq`),
+and the filters rounded to float32: every run gives identical bytes, on any machine
+(BLAS kernels sum in an order of their own, which made weights trained on one CPU
+differ from another's in a few last bits). The choices were made on the nine held-out photographs of
 that module (set ``"held-out"``), mean CPSNR:
 
 ==========================================================  ========
@@ -61,6 +63,7 @@ from pathlib import Path
 import numpy as np
 
 import imgform_rs as ig
+from imgform_rs.training.lstsq import NormalEquations
 from imgform_rs.training.photos import DEFAULT_DATA
 
 SEED = 20170101
@@ -289,28 +292,18 @@ def solve(images, bases: tuple[str, ...], classify, nclasses: int) -> np.ndarray
     again here rather than kept from :func:`strength_thresholds`: several hundred
     images' bases would not fit in memory."""
     nf = FEATURES + SECOND_FEATURES * (len(bases) - 1)
-    xtx = np.zeros((nclasses, nf, nf))
-    xty = np.zeros((nclasses, nf, 2))
-    count = np.zeros(nclasses, dtype=np.int64)
+    equations = NormalEquations(nclasses, nf, 2)
     for rgb in images:
         truth, bases_out, position = prepare(rgb, bases)
         cls = classify(*hash_inputs(bases_out[0], position))
         feats, target = samples(truth, bases_out, position)
         # Sorted once, so each class's samples are one contiguous block.
         order = np.argsort(cls, kind="stable")
-        feats, target = feats[order].astype(np.float64), target[order].astype(np.float64)
+        feats, target = feats[order], target[order]
         bounds = np.searchsorted(cls[order], np.arange(nclasses + 1))
         for k in np.flatnonzero(np.diff(bounds)):
-            x, y = feats[bounds[k] : bounds[k + 1]], target[bounds[k] : bounds[k + 1]]
-            xtx[k] += x.T @ x
-            xty[k] += x.T @ y
-            count[k] += len(x)
-    filters = np.zeros((nclasses, 2, nf), dtype=np.float32)
-    for k in np.flatnonzero(count >= MIN_SAMPLES):
-        ridge = RIDGE * np.trace(xtx[k]) / nf + 1e-12
-        w = np.linalg.solve(xtx[k] + ridge * np.eye(nf), xty[k])
-        filters[k] = w.T.astype(np.float32)
-    return filters
+            equations.add(k, feats[bounds[k] : bounds[k + 1]], target[bounds[k] : bounds[k + 1]])
+    return equations.solve(RIDGE, MIN_SAMPLES)
 
 
 def encode(bins: tuple[int, int, int], thresholds: np.ndarray, filters: np.ndarray) -> bytes:
