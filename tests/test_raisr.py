@@ -14,7 +14,7 @@ import imgform_rs as ig
 
 KERNELS = Path(__file__).parents[1] / "rust/imgform-core/src/demosaic"
 WEIGHTS = KERNELS / "raisr_weights.bin"
-LEARNED = ["raisr", "raisr_fast", "fusion"]
+LEARNED = ["raisr", "raisr_fast", "raisr_cd", "fusion"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(LEARNED))

@@ -261,7 +261,7 @@ def develop(
         Anything :func:`load_raw` takes, or its result.
     demosaic : str
         One of :data:`DEMOSAIC_METHODS` that supports the sensor's pattern.
-        The default ``"best"`` is ``"raisr_fast"`` for Bayer sensors and
+        The default ``"best"`` is ``"raisr_cd"`` for Bayer sensors and
         ``"markesteijn"`` for X-Trans ones.
     white_balance : {"camera", "daylight", "auto", "none"} or (r, g, b)
         As shot, the camera's daylight balance, LibRaw's grey world, none, or

@@ -1,6 +1,6 @@
 """Training of the learned demosaicers' filter banks: ``"raisr"`` (rebuilds
-``raisr_weights.bin``), ``"raisr_fast"`` (``raisr_fast_weights.bin``) and ``"fusion"``
-(``fusion_weights.bin``).
+``raisr_weights.bin``), ``"raisr_fast"`` (``raisr_fast_weights.bin``), ``"raisr_cd"``
+(``raisr_cd_weights.bin``) and ``"fusion"`` (``fusion_weights.bin``).
 
 RAISR (Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
 Resolution", IEEE Transactions on Computational Imaging 3(1), 2017) learns, per
@@ -14,7 +14,8 @@ operation in float32 so that a pixel falls in the same class in both.
 ``"raisr_fast"`` keeps the features and drops most of the hash: its 16 classes are
 the CFA position and the quadrant of the tensor's doubled orientation
 (:func:`orientation`, as in ``rust/imgform-core/src/demosaic/oriented.rs``), few
-enough for the kernel to filter eight pixels side by side.
+enough for the kernel to filter eight pixels side by side. ``"raisr_cd"`` is the same
+over ``demosaic(..., "ri_cd")``, whose red and blue are colour differences.
 
 ``"fusion"`` is the same machinery with two bases: the filters refine
 ``demosaic(..., "mlri")`` and also see ``"rcd_menon"``'s difference from it over the
@@ -39,6 +40,8 @@ method, trained on                                          held out
 ``"raisr"`` over ``"rcd_menon"``, the first 33 photographs  36.55
 ``"raisr"`` over ``"mlri"``, the 293 photographs            37.31
 ``"raisr_fast"`` over ``"mlri"``, the 293 photographs       37.14
+``"ri_cd"`` alone (no training)                             36.55
+``"raisr_cd"`` over ``"ri_cd"``, the 293 photographs        36.98
 ``"fusion"``, the first 33 photographs and the textures     37.01
 ``"fusion"``, the 293 photographs                           **37.43**
 ``"fusion"``, the 293 photographs and 192 synthetic         35.99
@@ -49,8 +52,8 @@ correlated channels) made the filters worse on photographs than none, as procedu
 textures (dead leaves, coloured zone plates, sinusoidal "fabrics") did before: their
 near-Nyquist aliasing dominates the squared error.
 
-Run ``python -m imgform_rs.training.demosaic [--method raisr|raisr_fast|fusion] [--out PATH]
-[--data DIR] [--small]`` (``--small``: two scikit-image images coloured by a smooth
+Run ``python -m imgform_rs.training.demosaic [--method raisr|raisr_fast|raisr_cd|fusion]
+[--out PATH] [--data DIR] [--small]`` (``--small``: two scikit-image images coloured by a smooth
 random field, no download; for the tests).
 """
 
@@ -71,9 +74,14 @@ FEATURES = 26
 #: Features of a second base: its difference from the first, 3 colours x 3x3.
 SECOND_FEATURES = 27
 #: The bases of each learned method: the one refined, then the one compared.
-BASES = {"raisr": ("mlri",), "raisr_fast": ("mlri",), "fusion": ("mlri", "rcd_menon")}
+BASES = {
+    "raisr": ("mlri",),
+    "raisr_fast": ("mlri",),
+    "raisr_cd": ("ri_cd",),
+    "fusion": ("mlri", "rcd_menon"),
+}
 #: The methods whose filters are chosen by CFA position and orientation alone.
-ORIENTED = {"raisr_fast"}
+ORIENTED = {"raisr_fast", "raisr_cd"}
 #: The training set of both (:func:`imgform_rs.training.sets.training_images`).
 TRAINING_SET = "photos"
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3

@@ -75,15 +75,26 @@ impl Oriented {
         Some(Oriented { tables })
     }
 
-    /// The shipped filter bank, parsed on first use.
-    pub(super) fn shipped() -> &'static Oriented {
-        static BANK: OnceLock<Oriented> = OnceLock::new();
-        BANK.get_or_init(|| {
-            // The file is part of the crate and checked by a unit test, so a
-            // parse failure is a build defect, not bad input.
-            Oriented::parse(include_bytes!("raisr_fast_weights.bin"))
-                .expect("the shipped weights file is malformed")
+    /// A shipped filter bank, parsed on first use.
+    fn shipped(cell: &'static OnceLock<Oriented>, bytes: &[u8]) -> &'static Oriented {
+        cell.get_or_init(|| {
+            // The files are part of the crate and checked by a unit test, so
+            // a parse failure is a build defect, not bad input.
+            Oriented::parse(bytes).expect("a shipped weights file is malformed")
         })
+    }
+
+    /// The shipped bank of [`super::Method::RaisrFast`], over MLRI.
+    pub(super) fn raisr_fast() -> &'static Oriented {
+        static BANK: OnceLock<Oriented> = OnceLock::new();
+        Self::shipped(&BANK, include_bytes!("raisr_fast_weights.bin"))
+    }
+
+    /// The shipped bank of [`super::Method::RaisrCd`], over
+    /// [`super::Method::RiCd`].
+    pub(super) fn raisr_cd() -> &'static Oriented {
+        static BANK: OnceLock<Oriented> = OnceLock::new();
+        Self::shipped(&BANK, include_bytes!("raisr_cd_weights.bin"))
     }
 }
 
@@ -244,16 +255,11 @@ mod tests {
 
     #[test]
     fn the_shipped_weights_parse_and_malformed_ones_are_refused() {
-        let taps = || {
-            Oriented::shipped()
-                .tables
-                .iter()
-                .flatten()
-                .flatten()
-                .flatten()
-        };
-        assert!(taps().all(|v| v.is_finite()));
-        assert!(taps().any(|&v| v != 0.0));
+        for bank in [Oriented::raisr_fast(), Oriented::raisr_cd()] {
+            let taps = || bank.tables.iter().flatten().flatten().flatten();
+            assert!(taps().all(|v| v.is_finite()));
+            assert!(taps().any(|&v| v != 0.0));
+        }
         let bytes = include_bytes!("raisr_fast_weights.bin");
         assert!(Oriented::parse(&bytes[..bytes.len() - 4]).is_none());
         // RAISR's bank has the full hash's bins.
@@ -287,7 +293,7 @@ mod tests {
             .collect();
         let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
         let class: Vec<u32> = (0..40).map(|i| (i * 7 % 8) as u32).collect();
-        for (blue, tables) in Oriented::shipped().tables.iter().enumerate() {
+        for (blue, tables) in Oriented::raisr_fast().tables.iter().enumerate() {
             for parity in 0..2 {
                 let kind = RowKind {
                     blue: blue == 1,

@@ -12,14 +12,15 @@
 //! and kept ~4 MB of planes per thread; this keeps ~0.3 MB. The arithmetic
 //! per pixel is the planes' ([`Filters`]), so the bits are the same.
 
-use super::mlri::{Buffers, Mlri};
+use super::mlri::Mlri;
 use super::raisr::{Bank, Filters, Row, REACH};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
-/// MLRI refined by the filter bank of [`Filters::bank`].
-pub(super) struct Refined<B: 'static> {
-    pub(super) mlri: Mlri,
+/// A base (MLRI, or [`super::differences::Differences`]) refined by the
+/// filter bank of [`Filters::bank`].
+pub(super) struct Refined<B: 'static, K = Mlri> {
+    pub(super) base: K,
     pub(super) filters: Filters<B>,
 }
 
@@ -29,8 +30,8 @@ const BASE_ROWS: usize = 2 * REACH;
 /// Rows of the horizontal sums of the tensor kept: the 3x3 sums' three.
 const SUM_ROWS: usize = 3;
 
-pub(super) struct State {
-    mlri: Buffers,
+pub(super) struct State<S> {
+    base_state: S,
     /// MLRI's rows (own chroma, green, other chroma), clamped.
     base: [Ring; 3],
     /// The horizontal 3-sums of the gradient products (xx, xy, yy).
@@ -43,21 +44,21 @@ pub(super) struct State {
     out: [Vec<f32>; 3],
 }
 
-impl<B: Bank> StreamKernel for Refined<B> {
-    type State = State;
-    const HALO: usize = <Mlri as StreamKernel>::HALO + REACH;
-    const ROWS: usize = <Mlri as StreamKernel>::ROWS;
-    const COLS: usize = <Mlri as StreamKernel>::COLS;
-    const AVX512: bool = <Mlri as StreamKernel>::AVX512;
+impl<B: Bank, K: StreamKernel> StreamKernel for Refined<B, K> {
+    type State = State<K::State>;
+    const HALO: usize = K::HALO + REACH;
+    const ROWS: usize = K::ROWS;
+    const COLS: usize = K::COLS;
+    const AVX512: bool = K::AVX512;
 
     fn rows(height: usize, across: usize, threads: usize) -> usize {
-        <Mlri as StreamKernel>::rows(height, across, threads)
+        K::rows(height, across, threads)
     }
 
-    fn state(&self, stride: usize, rows: usize) -> State {
+    fn state(&self, stride: usize, rows: usize) -> Self::State {
         let row = || vec![0.0f32; stride];
         State {
-            mlri: self.mlri.state(stride, rows),
+            base_state: self.base.state(stride, rows),
             base: [0; 3].map(|_| Ring::new(stride, BASE_ROWS, 0)),
             sums: [0; 3].map(|_| Ring::new(stride, SUM_ROWS, 0)),
             grad: [row(), row()],
@@ -67,9 +68,9 @@ impl<B: Bank> StreamKernel for Refined<B> {
     }
 
     #[inline(always)]
-    fn stream<E: Emit, L: Load>(&self, st: &mut State, t: &Tile, raw: &L, out: &mut E) {
+    fn stream<E: Emit, L: Load>(&self, st: &mut Self::State, t: &Tile, raw: &L, out: &mut E) {
         let State {
-            mlri,
+            base_state,
             base,
             sums,
             grad,
@@ -80,6 +81,8 @@ impl<B: Bank> StreamKernel for Refined<B> {
             ring.fit(t.stride);
         }
         let mut rows = Rows::<B, E> {
+            first: K::HALO,
+            halo: Self::HALO,
             filters: &self.filters,
             t,
             base,
@@ -89,15 +92,18 @@ impl<B: Bank> StreamKernel for Refined<B> {
             row: row.each_mut().map(|r| &mut r[..t.stride]),
             out,
         };
-        // MLRI, run on the same tile, emits `REACH` rows and columns more
-        // than the tile's output: its halo is that much narrower.
-        self.mlri.stream(mlri, t, raw, &mut rows);
+        // The base, run on the same tile, emits `REACH` rows and columns
+        // more than the tile's output: its halo is that much narrower.
+        self.base.stream(base_state, t, raw, &mut rows);
     }
 }
 
 /// Takes MLRI's rows and hands on each output row once the row two below
 /// it has come.
 struct Rows<'a, B: 'static, E> {
+    /// The base's halo (its first row and column) and the output's.
+    first: usize,
+    halo: usize,
     filters: &'a Filters<B>,
     t: &'a Tile,
     base: &'a mut [Ring; 3],
@@ -115,9 +121,9 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
         for (ring, row) in self.base.iter_mut().zip(rows) {
             f.clamp(row, ring.row_mut(ty));
         }
-        // MLRI's first row is tile row `first`; the hash's sums start a
+        // The base's first row is tile row `first`; the hash's sums start a
         // row below it (gradients across rows), the output two below that.
-        let first = <Mlri as StreamKernel>::HALO;
+        let first = self.first;
         if ty >= first + 2 {
             let y = ty - 1;
             let g = [y - 1, y, y + 1].map(|r| self.base[1].row(r));
@@ -134,7 +140,7 @@ impl<B: Bank, E: Emit> Rows<'_, B, E> {
     /// Refines tile row `y` and hands it on.
     #[inline(always)]
     fn refine(&mut self, y: usize) {
-        let (f, halo) = (self.filters, Refined::<B>::HALO);
+        let (f, halo) = (self.filters, self.halo);
         let kind = self.t.kind(f.phase, y);
         let sums = self
             .sums
