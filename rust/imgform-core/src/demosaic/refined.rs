@@ -1,6 +1,8 @@
 //! RAISR's filters over MLRI alone ([`super::Method::Raisr`], and with the
-//! hash of orientation alone [`super::Method::RaisrFast`]), applied to
-//! MLRI's rows as they stream out of its tile.
+//! hash of orientation alone [`super::Method::RaisrFast`]) or over
+//! [`super::differences`] ([`super::Method::RaisrCd`]), applied to the
+//! base's rows as they stream out of its tile. The text below says MLRI
+//! for either base.
 //!
 //! The filters and their hash read MLRI two rows above and below an output
 //! row and nothing else, so a ring of the last four MLRI rows and one of
