@@ -673,28 +673,19 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
-            let raw = &Ranged::new(raw);
-            let k: refined::Refined<_> = refined::Refined {
-                base: mlri::Mlri::new(phase, T::FULL_SCALE),
-                filters: filters::<T, _>(raisr::Weights::raisr(), raw, phase, isa),
-            };
-            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+            let base: mlri::Mlri = mlri::Mlri::new(phase, T::FULL_SCALE);
+            let bank = raisr::Weights::raisr();
+            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
         }
         Method::RaisrFast => {
-            let raw = &Ranged::new(raw);
-            let k: refined::Refined<_> = refined::Refined {
-                base: mlri::Mlri::new(phase, T::FULL_SCALE),
-                filters: filters::<T, _>(oriented::Oriented::raisr_fast(), raw, phase, isa),
-            };
-            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+            let base: mlri::Mlri = mlri::Mlri::new(phase, T::FULL_SCALE);
+            let bank = oriented::Oriented::raisr_fast();
+            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
         }
         Method::RaisrCd => {
-            let raw = &Ranged::new(raw);
-            let k = refined::Refined {
-                base: differences::Differences::new(phase, T::FULL_SCALE),
-                filters: filters::<T, _>(oriented::Oriented::raisr_cd(), raw, phase, isa),
-            };
-            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+            let base = differences::Differences::new(phase, T::FULL_SCALE);
+            let bank = oriented::Oriented::raisr_cd();
+            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
         }
         Method::Fusion => {
             let raw = &Ranged::new(raw);
@@ -710,6 +701,32 @@ where
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
     }
+}
+
+/// `base` refined by the learned filters of `bank` ([`refined::Refined`]),
+/// with the mosaic's range found once for the filters and the clamp.
+fn run_refined<T, M, O, K, S, B>(
+    raw: &M,
+    phase: Phase,
+    base: S,
+    bank: &'static B,
+    isa: Isa,
+    sink: &K,
+    out: &mut [O],
+) where
+    T: Sample,
+    M: Mosaic,
+    O: Send,
+    K: RgbSink<O>,
+    S: tiled::StreamKernel,
+    B: raisr::Bank,
+{
+    let raw = &Ranged::new(raw);
+    let k = refined::Refined {
+        base,
+        filters: filters::<T, _>(bank, raw, phase, isa),
+    };
+    tiled::run_tiled(raw, phase, &k, isa, sink, out);
 }
 
 /// A learned method's filter bank, with the mosaic's scale and range.
