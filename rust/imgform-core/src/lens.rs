@@ -412,7 +412,10 @@ impl LensCorrection {
         out: &mut [T],
     ) -> Result<()> {
         self.check_image(src, src.channels())?;
-        if black_width == 0 || black_tile.is_empty() || black_tile.len() % black_width != 0 {
+        if black_width == 0
+            || black_tile.is_empty()
+            || !black_tile.len().is_multiple_of(black_width)
+        {
             return Err(CoreError::Shape(format!(
                 "the black tile must be a non-empty (rows, {black_width}) array, got {} values",
                 black_tile.len()

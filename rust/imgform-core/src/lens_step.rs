@@ -155,7 +155,7 @@ mod avx2 {
                     *v = _mm256_add_epi64(*v, *d);
                 }
             }
-            if out.len() % 12 != 0 {
+            if !out.len().is_multiple_of(12) {
                 // SAFETY: the odd last pixel's six values follow the pairs'.
                 unsafe {
                     _mm_storeu_si128(dst.add(12 * pairs).cast(), positions(v[0]));

@@ -15,7 +15,7 @@ use crate::parallel::map_points;
 /// # Errors
 /// [`CoreError::Shape`] when the lengths disagree.
 pub fn check_points(points: &[f64], dim: usize, out: &[f64], out_dim: usize) -> Result<usize> {
-    if points.len() % dim != 0 {
+    if !points.len().is_multiple_of(dim) {
         return Err(CoreError::Shape(format!(
             "points must be (N, {dim}) values, got a buffer of {} values",
             points.len()

@@ -783,7 +783,7 @@ pub(super) unsafe fn cubic_u16(
         });
         let tap = |i: usize, j: usize| {
             let v = p[j][i / 2];
-            let v = if i % 2 == 0 {
+            let v = if i.is_multiple_of(2) {
                 _mm256_and_si256(v, low)
             } else {
                 _mm256_srli_epi32(v, 16)

@@ -87,7 +87,7 @@ fn film_transmit<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let model = Dyes::new(&base, &dyes).map_err(to_pyerr)?;
     let (arr, h, w) = planes(density, "density", model.layers())?;
-    if response.is_empty() || response.len() % base.len() != 0 {
+    if response.is_empty() || !response.len().is_multiple_of(base.len()) {
         return Err(PyValueError::new_err(format!(
             "response must hold (m, {}) values, one per wavelength, got {}",
             base.len(),

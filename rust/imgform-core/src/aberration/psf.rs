@@ -216,7 +216,7 @@ fn kept_index(t: usize, m: usize, q: usize) -> usize {
 /// Half a sub-sample when the kept grid has an even count (its centre falls
 /// between two samples), else none.
 fn tilt(m: usize) -> f64 {
-    if m % 2 == 0 {
+    if m.is_multiple_of(2) {
         0.5
     } else {
         0.0

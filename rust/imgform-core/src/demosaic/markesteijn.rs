@@ -61,7 +61,7 @@ const SPREAD: usize = 32;
 /// up (green 6, chroma 2 + 2, derivative 1, homogeneity 1, 5x5 sum 2),
 /// rounded up to the period.
 pub(super) const HALO: usize = 18;
-const _: () = assert!(ROWS % 6 == 0 && COLS % 6 == 0 && HALO % 6 == 0);
+const _: () = assert!(ROWS.is_multiple_of(6) && COLS.is_multiple_of(6) && HALO.is_multiple_of(6));
 
 /// How far each stage reaches beyond the pixel it computes, cumulated: the
 /// margin of the tile it leaves uncomputed.

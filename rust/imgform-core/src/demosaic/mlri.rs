@@ -1126,7 +1126,7 @@ impl<const CHROMA: bool> StreamKernel for Mlri<CHROMA> {
     /// whose page faults and memory traffic ate the gain.
     fn rows(height: usize, across: usize, threads: usize) -> usize {
         let bands = (1..threads)
-            .find(|b| across * b % threads == 0)
+            .find(|b| (across * b).is_multiple_of(threads))
             .unwrap_or(threads);
         height
             .div_ceil(bands)

@@ -45,7 +45,7 @@ impl Dyes {
     /// non-finite sample or a negative base density.
     pub fn new(base: &[f64], dyes: &[f64]) -> Result<Self> {
         let l = base.len();
-        if l == 0 || dyes.is_empty() || dyes.len() % l != 0 {
+        if l == 0 || dyes.is_empty() || !dyes.len().is_multiple_of(l) {
             return Err(CoreError::Shape(format!(
                 "the dye spectra must be (layers, {l}) for a base of {l} wavelengths, got {} \
                  values",
@@ -115,7 +115,7 @@ impl Dyes {
         F: Fn(&mut [f32]) + Sync,
     {
         let (n, l) = (self.layers(), self.grid_len);
-        if response.is_empty() || response.len() % l != 0 {
+        if response.is_empty() || !response.len().is_multiple_of(l) {
             return Err(CoreError::Shape(format!(
                 "the responses must be (m, {l}), one sample per wavelength, got {} values",
                 response.len()

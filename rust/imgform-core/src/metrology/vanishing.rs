@@ -197,7 +197,7 @@ impl Segment {
 
 /// Checks the segment buffer and returns the number of segments.
 fn check_segments(segments: &[f64]) -> Result<usize> {
-    if segments.len() % 4 != 0 {
+    if !segments.len().is_multiple_of(4) {
         return Err(invalid!(
             "segments must be (N, 4) values [x1, y1, x2, y2], got a buffer of {} values",
             segments.len()

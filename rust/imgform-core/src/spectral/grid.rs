@@ -124,7 +124,7 @@ pub fn weights(wavelengths: &[f64], rule: Quadrature) -> Result<Vec<f64>> {
 /// [`CoreError::Shape`] for a length that is not a multiple of the grid,
 /// [`CoreError::InvalidArgument`] naming the first bad sample.
 pub fn check_spectra(name: &str, spectra: &[f64], grid_len: usize) -> Result<usize> {
-    if grid_len == 0 || spectra.len() % grid_len != 0 || spectra.is_empty() {
+    if grid_len == 0 || !spectra.len().is_multiple_of(grid_len) || spectra.is_empty() {
         return Err(CoreError::Shape(format!(
             "{name} must hold spectra of {grid_len} samples, one per wavelength, got {} values",
             spectra.len()
