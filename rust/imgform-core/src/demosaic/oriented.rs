@@ -130,23 +130,24 @@ impl Bank for Oriented {
         let tables = &f.bank.tables[usize::from(kind.blue)];
         let end = class.len() - halo;
         let mut x = halo;
+        let src = [windows[3], windows[4], windows[5]];
         #[cfg(target_arch = "x86_64")]
         if f.isa == Isa::Avx512 {
             let dst = dst.each_mut().map(|d| &mut **d);
             // SAFETY: `Isa::Avx512` is only made on CPUs with the AVX-512
             // subsets, AVX2 and FMA.
-            x = unsafe { add_avx512(tables, kind, class, dst, windows, x..end) };
+            x = unsafe { add_avx512(tables, kind, class, src, dst, windows, x..end) };
         }
         #[cfg(target_arch = "x86_64")]
         if f.isa != Isa::Baseline {
             let dst = dst.each_mut().map(|d| &mut **d);
             // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
             // with AVX2 and FMA.
-            x = unsafe { add_avx2(tables, kind, class, dst, windows, x..end) };
+            x = unsafe { add_avx2(tables, kind, class, src, dst, windows, x..end) };
         }
         for (x, &c) in class[..end].iter().enumerate().skip(x) {
             let d = apply(tables, c as usize, windows, x);
-            add1(kind, dst.each_mut().map(|d| &mut **d), x, d);
+            add1(kind, src, dst.each_mut().map(|d| &mut **d), x, d);
         }
     }
 }
@@ -187,6 +188,7 @@ fn add_avx2(
     tables: &[[Table; 2]; TAPS],
     kind: RowKind,
     class: &[u32],
+    src: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
     cols: Range<usize>,
@@ -213,7 +215,7 @@ fn add_avx2(
                 _mm256_add_ps(_mm256_add_ps(a1, b1), c1),
             ]
         };
-        super::raisr::add8_avx2(kind, [&mut *own, &mut *green, &mut *other], x, d);
+        super::raisr::add8_avx2(kind, src, [&mut *own, &mut *green, &mut *other], x, d);
         x += 8;
     }
     x
@@ -271,6 +273,7 @@ fn add_avx512(
     tables: &[[Table; 2]; TAPS],
     kind: RowKind,
     class: &[u32],
+    src: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
     cols: Range<usize>,
@@ -293,7 +296,7 @@ fn add_avx512(
                 _mm512_add_ps(_mm512_add_ps(a1, b1), c1),
             ]
         };
-        add16(kind, [&mut *own, &mut *green, &mut *other], x, d);
+        add16(kind, src, [&mut *own, &mut *green, &mut *other], x, d);
         x += 16;
     }
     x
@@ -343,6 +346,7 @@ unsafe fn row_sums16(
 #[inline]
 fn add16(
     kind: RowKind,
+    [so, sg, st]: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     x: usize,
     [d0, d1]: [std::arch::x86_64::__m512; 2],
@@ -359,12 +363,13 @@ fn add16(
         &mut green[x..x + 16],
         &mut other[x..x + 16],
     );
-    // SAFETY: each slice holds the 16 floats loaded and stored (unaligned).
+    let (so, sg, st) = (&so[x..x + 16], &sg[x..x + 16], &st[x..x + 16]);
+    // SAFETY: each slice holds the 16 floats loaded or stored (unaligned).
     unsafe {
         let (vo, vg, vt) = (
-            _mm512_loadu_ps(o.as_ptr()),
-            _mm512_loadu_ps(g.as_ptr()),
-            _mm512_loadu_ps(t.as_ptr()),
+            _mm512_loadu_ps(so.as_ptr()),
+            _mm512_loadu_ps(sg.as_ptr()),
+            _mm512_loadu_ps(st.as_ptr()),
         );
         _mm512_storeu_ps(o.as_mut_ptr(), _mm512_mask_add_ps(vo, !chroma, vo, d0));
         _mm512_storeu_ps(g.as_mut_ptr(), _mm512_mask_add_ps(vg, chroma, vg, d0));
@@ -424,6 +429,7 @@ mod tests {
             &[[Table; 2]; TAPS],
             RowKind,
             &[u32],
+            [&[f32]; 3],
             [&mut [f32]; 3],
             &[&[f32]; WINDOWS],
             Range<usize>,
@@ -440,16 +446,17 @@ mod tests {
                         blue: blue == 1,
                         chroma_parity: parity,
                     };
+                    let src = [rows[3], rows[4], rows[5]];
                     let mut slow = [0; 3].map(|_| vec![1.0f32; 40]);
                     for (x, &c) in class.iter().enumerate().take(33).skip(1) {
                         let d = apply(tables, c as usize, &rows, x);
-                        add1(kind, slow.each_mut().map(|p| &mut p[..]), x, d);
+                        add1(kind, src, slow.each_mut().map(|p| &mut p[..]), x, d);
                     }
                     for run in loops {
                         let mut fast = [0; 3].map(|_| vec![1.0f32; 40]);
                         let dst = fast.each_mut().map(|p| &mut p[..]);
                         // SAFETY: the features were detected above.
-                        let end = unsafe { run(tables, kind, &class, dst, &rows, 1..33) };
+                        let end = unsafe { run(tables, kind, &class, src, dst, &rows, 1..33) };
                         assert_eq!(end, 33);
                         let bits = |p: &[Vec<f32>; 3]| {
                             p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()

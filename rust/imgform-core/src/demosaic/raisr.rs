@@ -306,9 +306,10 @@ pub(super) struct Row<'a> {
 /// A filter bank that refines rows: how it classes a row's pixels from the
 /// structure tensor's 3x3 sums and corrects them from the base's windows.
 pub(super) trait Bank: Sync + Sized + 'static {
-    /// Adds the corrections of the columns `halo .. len - halo` of `row`
-    /// to `dst` (own chroma, green, other chroma), `class` being room for a
-    /// class per column.
+    /// Writes the columns `halo .. len - halo` of `dst` (own chroma,
+    /// green, other chroma): the base's row (the windows' middle row) plus
+    /// its corrections, `class` being room for a class per column. The
+    /// other columns are left as they were.
     fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]);
 }
 
@@ -569,14 +570,11 @@ impl<B: TileKernel, S: Secondary> TileKernel for Raisr<B, S> {
             f.hash_row(kind, halo, tensor, class);
             let first = window_rows(planes, t.stride, ty);
             let [o_own, o_green, o_other] = &mut *out;
-            let mut dst = [
+            let dst = [
                 &mut o_own[row(ty)],
                 &mut o_green[row(ty)],
                 &mut o_other[row(ty)],
             ];
-            for (d, s) in dst.iter_mut().zip(&first[3..6]) {
-                d.copy_from_slice(s);
-            }
             let d = window_rows([&diff[0][..], &diff[1][..], &diff[2][..]], t.stride, ty);
             let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|k| {
                 if k < WINDOWS {
@@ -697,10 +695,11 @@ impl Filters<Weights> {
         });
     }
 
-    /// Adds the corrections of the filters (of the class of each column)
-    /// to the missing colours of the columns `halo .. len - halo` of a row
-    /// of `kind`: the first is green at a chroma site, the own chroma at a
-    /// green site.
+    /// Writes the columns `halo .. len - halo` of a row of `kind` to `dst`:
+    /// the windows' middle row (the base's row) with the corrections of
+    /// the filters (of the class of each column) added to its missing
+    /// colours, the first to green at a chroma site, to the own chroma at
+    /// a green site.
     #[inline(always)]
     pub(super) fn correct_row<const N: usize>(
         &self,
@@ -712,12 +711,13 @@ impl Filters<Weights> {
     ) {
         let end = class.len() - halo;
         let mut x = halo;
+        let src = [rows[3], rows[4], rows[5]];
         #[cfg(target_arch = "x86_64")]
         if self.isa != Isa::Baseline {
             let dst = [&mut *own, &mut *green, &mut *other];
             // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
             // with AVX2.
-            x = unsafe { add_avx2(self.bank, kind, class, dst, rows, halo..end) };
+            x = unsafe { add_avx2(self.bank, kind, class, src, dst, rows, halo..end) };
         }
         for (x, &c) in class[..end].iter().enumerate().skip(x) {
             let taps = self.bank.filter::<N>(c);
@@ -730,22 +730,32 @@ impl Filters<Weights> {
                 #[cfg(target_arch = "x86_64")]
                 Isa::Avx2 | Isa::Avx512 => unsafe { apply_avx2(taps, rows, x) },
             };
-            add1(kind, [&mut *own, &mut *green, &mut *other], x, d);
+            add1(kind, src, [&mut *own, &mut *green, &mut *other], x, d);
         }
     }
 }
 
-/// Adds the two corrections `(d0, d1)` of column `x` of a row of `kind`:
-/// the first to green at a chroma site and to the own chroma at a green
-/// site, the second to the other chroma.
+/// Writes column `x` of a row of `kind`: `src`'s colours (own chroma,
+/// green, other chroma) with the two corrections `(d0, d1)` added, the
+/// first to green at a chroma site and to the own chroma at a green site,
+/// the second to the other chroma. Read from the base's row rather than
+/// added in place, which saved copying each row first.
 #[inline(always)]
-pub(super) fn add1(kind: RowKind, [own, green, other]: [&mut [f32]; 3], x: usize, d: (f32, f32)) {
-    if x & 1 == kind.chroma_parity {
-        green[x] += d.0;
+pub(super) fn add1(
+    kind: RowKind,
+    src: [&[f32]; 3],
+    [own, green, other]: [&mut [f32]; 3],
+    x: usize,
+    d: (f32, f32),
+) {
+    let [o, g, t] = src.map(|r| r[x]);
+    let at_chroma = x & 1 == kind.chroma_parity;
+    (own[x], green[x]) = if at_chroma {
+        (o, g + d.0)
     } else {
-        own[x] += d.0;
-    }
-    other[x] += d.1;
+        (o + d.0, g)
+    };
+    other[x] = t + d.1;
 }
 
 /// [`add1`] for the eight columns from `x`, the corrections as vectors: the
@@ -755,6 +765,7 @@ pub(super) fn add1(kind: RowKind, [own, green, other]: [&mut [f32]; 3], x: usize
 #[inline]
 pub(super) fn add8_avx2(
     kind: RowKind,
+    [so, sg, st]: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     x: usize,
     [d0, d1]: [std::arch::x86_64::__m256; 2],
@@ -773,12 +784,13 @@ pub(super) fn add8_avx2(
         &mut green[x..x + 8],
         &mut other[x..x + 8],
     );
-    // SAFETY: each slice holds the 8 floats loaded and stored (unaligned).
+    let (so, sg, st) = (&so[x..x + 8], &sg[x..x + 8], &st[x..x + 8]);
+    // SAFETY: each slice holds the 8 floats loaded or stored (unaligned).
     unsafe {
         let (vo, vg, vt) = (
-            _mm256_loadu_ps(o.as_ptr()),
-            _mm256_loadu_ps(g.as_ptr()),
-            _mm256_loadu_ps(t.as_ptr()),
+            _mm256_loadu_ps(so.as_ptr()),
+            _mm256_loadu_ps(sg.as_ptr()),
+            _mm256_loadu_ps(st.as_ptr()),
         );
         let vg = _mm256_blendv_ps(vg, _mm256_add_ps(vg, d0), chroma);
         let vo = _mm256_blendv_ps(_mm256_add_ps(vo, d0), vo, chroma);
@@ -801,6 +813,7 @@ fn add_avx2<const N: usize>(
     weights: &Weights,
     kind: RowKind,
     class: &[u32],
+    src: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     rows: &[&[f32]; N],
     cols: Range<usize>,
@@ -808,7 +821,7 @@ fn add_avx2<const N: usize>(
     let mut x = cols.start;
     while x + 8 <= cols.end {
         let d = apply8_avx2(weights, class, rows, x);
-        add8_avx2(kind, [&mut *own, &mut *green, &mut *other], x, d);
+        add8_avx2(kind, src, [&mut *own, &mut *green, &mut *other], x, d);
         x += 8;
     }
     x

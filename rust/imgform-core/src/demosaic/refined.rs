@@ -149,9 +149,6 @@ impl<B: Bank, E: Emit> Rows<'_, B, E> {
             .each_ref()
             .map(|s| [y - 1, y, y + 1].map(|r| s.row(r)));
         let windows: [&[f32]; 9] = std::array::from_fn(|k| self.base[k % 3].row(y + k / 3 - 1));
-        for (d, s) in self.row.iter_mut().zip(&windows[3..6]) {
-            d.copy_from_slice(s);
-        }
         let [own, green, other] = &mut self.row;
         let dst = [own, green, other].map(|r| &mut **r);
         let row = Row {
