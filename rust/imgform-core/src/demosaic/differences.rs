@@ -27,7 +27,7 @@
 use super::mlri::{Buffers, Mlri};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
-use super::{chroma_masks, select, shifted, Phase};
+use super::Phase;
 
 /// The direction weights' floor on the squared gradient sum, relative to
 /// the squared full scale: equal weights on flat data, no division by 0.
@@ -49,24 +49,39 @@ impl Differences {
     }
 }
 
+/// Each stage computes a value at half of a row's sites only (stage 1 at
+/// its chroma sites, stage 2's interpolation at its green sites), so the
+/// rows are kept in halves: a row's *chroma half* holds its values at its
+/// chroma sites (columns `2j + p`, `p` the row's chroma parity), its
+/// *green half* those at its green sites (`2j + 1 - p`). Computed at
+/// every column and selected, as first written, the stages did twice the
+/// arithmetic; splitting and joining rows costs less than that half.
 pub(super) struct State {
     green_stage: Buffers,
-    /// The raw rows and the full green, as the green stage hands them on.
+    /// The chroma halves of the raw rows and of the full green.
     raw: Ring,
     green: Ring,
-    /// Per chroma (red, blue), `C - G` at each row's chroma sites: measured
-    /// at the chroma's own samples, from the diagonals at the other's.
+    /// The green halves of the full green.
+    green_sites: Ring,
+    /// Per chroma (red, blue), the chroma halves of `C - G`: measured at
+    /// the chroma's own samples, from the diagonals at the other's.
     at_chroma: [Ring; 2],
-    /// The output row's own and other chroma.
-    out: [Vec<f32>; 2],
-    masks: [Vec<u32>; 2],
+    /// The output row's own and other chroma at its green sites, and its
+    /// other chroma at its chroma sites (the own keeps the raw samples).
+    halves: [Vec<f32>; 3],
+    /// The output rows (own chroma, green, other chroma), joined.
+    out: [Vec<f32>; 3],
 }
 
-/// Rows the raw data is kept for: the three the diagonals read.
+/// Rows the raw data's chroma halves are kept for: the three the
+/// diagonals read.
 const RAW_ROWS: usize = 3;
-/// Rows the green is kept for: from the output row's upper neighbour to
-/// the newest row.
+/// Rows green's chroma halves are kept for: from the output row's upper
+/// neighbour to the newest row.
 const GREEN_ROWS: usize = 4;
+/// Rows green's green halves are kept for: from the output row to the
+/// newest.
+const GREEN_SITE_ROWS: usize = 3;
 
 impl StreamKernel for Differences {
     type State = State;
@@ -80,14 +95,16 @@ impl StreamKernel for Differences {
     }
 
     fn state(&self, stride: usize, rows: usize) -> State {
-        let ring = |depth| Ring::new(stride, depth, 0);
+        let half = |depth| Ring::new(stride.div_ceil(2), depth, 0);
+        let row = || vec![0.0; stride.div_ceil(2)];
         State {
             green_stage: self.green.state(stride, rows),
-            raw: ring(RAW_ROWS),
-            green: ring(GREEN_ROWS),
-            at_chroma: [ring(3), ring(3)],
-            out: [vec![0.0; stride], vec![0.0; stride]],
-            masks: chroma_masks(stride),
+            raw: half(RAW_ROWS),
+            green: half(GREEN_ROWS),
+            green_sites: half(GREEN_SITE_ROWS),
+            at_chroma: [half(3), half(3)],
+            halves: [row(), row(), row()],
+            out: [0; 3].map(|_| vec![0.0; stride]),
         }
     }
 
@@ -97,24 +114,24 @@ impl StreamKernel for Differences {
             green_stage,
             raw: raw_rows,
             green,
+            green_sites,
             at_chroma,
-            out: chroma,
-            masks,
+            halves,
+            out: joined,
         } = st;
-        for ring in [&mut *raw_rows, &mut *green]
-            .into_iter()
-            .chain(at_chroma.iter_mut())
-        {
-            ring.fit(t.stride);
+        let rings = [&mut *raw_rows, &mut *green, &mut *green_sites];
+        for ring in rings.into_iter().chain(at_chroma.iter_mut()) {
+            ring.fit(t.stride.div_ceil(2));
         }
         let mut rows = Rows {
             k: self,
             t,
             raw: raw_rows,
             green,
+            green_sites,
             at_chroma,
-            chroma,
-            masks,
+            halves,
+            joined,
             out,
         };
         self.green.stream(green_stage, t, raw, &mut rows);
@@ -128,9 +145,10 @@ struct Rows<'a, E> {
     t: &'a Tile,
     raw: &'a mut Ring,
     green: &'a mut Ring,
+    green_sites: &'a mut Ring,
     at_chroma: &'a mut [Ring; 2],
-    chroma: &'a mut [Vec<f32>; 2],
-    masks: &'a [Vec<u32>; 2],
+    halves: &'a mut [Vec<f32>; 3],
+    joined: &'a mut [Vec<f32>; 3],
     out: &'a mut E,
 }
 
@@ -138,8 +156,13 @@ impl<E: Emit> Emit for Rows<'_, E> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, [raw, green, _]: [&[f32]; 3]) {
         let n = self.t.stride;
-        self.raw.row_mut(ty)[..n].copy_from_slice(&raw[..n]);
-        self.green.row_mut(ty)[..n].copy_from_slice(&green[..n]);
+        let p = self.parity(ty);
+        pick(&raw[..n], p, self.raw.row_mut(ty));
+        split(
+            &green[..n],
+            p,
+            [self.green.row_mut(ty), self.green_sites.row_mut(ty)],
+        );
         let first = <Mlri<false> as StreamKernel>::HALO;
         if ty >= first + 2 {
             self.diagonals(ty - 1, first + 1);
@@ -148,6 +171,64 @@ impl<E: Emit> Emit for Rows<'_, E> {
             self.output(ty - 2, first + 2);
         }
     }
+}
+
+/// The values of `row` at its columns of parity `q`: `half[j]` is column
+/// `2j + q`.
+#[inline(always)]
+fn pick(row: &[f32], q: usize, half: &mut [f32]) {
+    let row = &row[q..];
+    let pairs = row.chunks_exact(2);
+    if let [last] = pairs.remainder() {
+        half[row.len() / 2] = *last;
+    }
+    for (h, pair) in half.iter_mut().zip(pairs) {
+        *h = pair[0];
+    }
+}
+
+/// Splits `row` into the values at the columns of parity `p` and at the
+/// others: `halves[0][j]` is column `2j + p`, `halves[1][j]` column `2j +
+/// 1 - p`.
+#[inline(always)]
+fn split(row: &[f32], p: usize, [a, b]: [&mut [f32]; 2]) {
+    let (even, odd) = if p == 0 { (a, b) } else { (b, a) };
+    let pairs = row.chunks_exact(2);
+    if let [last] = pairs.remainder() {
+        even[row.len() / 2] = *last;
+    }
+    for ((pair, e), o) in pairs.zip(even).zip(odd) {
+        (*e, *o) = (pair[0], pair[1]);
+    }
+}
+
+/// The inverse of [`split`].
+#[inline(always)]
+fn join([a, b]: [&[f32]; 2], p: usize, row: &mut [f32]) {
+    let (even, odd) = if p == 0 { (a, b) } else { (b, a) };
+    let last = row.len() / 2;
+    let mut pairs = row.chunks_exact_mut(2);
+    for ((pair, e), o) in (&mut pairs).zip(even).zip(odd) {
+        (pair[0], pair[1]) = (*e, *o);
+    }
+    if let [tail] = pairs.into_remainder() {
+        *tail = even[last];
+    }
+}
+
+/// `n` values of a half from index `j0 + dj`.
+#[inline(always)]
+fn at(half: &[f32], j0: usize, dj: isize, n: usize) -> &[f32] {
+    let start = (j0 as isize + dj) as usize;
+    &half[start..start + n]
+}
+
+/// The indices `j` of a half of parity `q` (its columns `2j + q`) whose
+/// columns lie in `r .. stride - r`.
+#[inline(always)]
+fn span(q: usize, r: usize, stride: usize) -> (usize, usize) {
+    let (lo, hi) = ((r + 1 - q) / 2, (stride - r + 1 - q) / 2);
+    (lo, hi - lo)
 }
 
 /// How rough a direction is whose differences are `a` and `b` at its two
@@ -169,23 +250,31 @@ fn blend((a1, b1, q1): (f32, f32, f32), (a2, b2, q2): (f32, f32, f32)) -> f32 {
 }
 
 impl<E: Emit> Rows<'_, E> {
+    /// The column parity of tile row `y`'s chroma sites.
+    fn parity(&self, y: usize) -> usize {
+        self.t.kind(self.k.green.phase, y).chroma_parity
+    }
+
     /// Stage 1 at tile row `y`, columns `r ..`: `C - G` at the row's chroma
     /// sites, for its own chroma measured, for the other one from the
-    /// diagonal neighbours (its samples in the rows above and below). Both
-    /// are computed at every column, without a branch (the green sites'
-    /// values are never read).
+    /// diagonal neighbours (its samples in the rows above and below, at
+    /// their chroma sites).
     #[inline(always)]
     fn diagonals(&mut self, y: usize, r: usize) {
-        let n = self.t.stride - 2 * r;
         let kind = self.t.kind(self.k.green.phase, y);
+        let p = kind.chroma_parity;
+        let (j0, n) = span(p, r, self.t.stride);
         let (raw, green) = (&*self.raw, &*self.green);
-        let side = |row: usize, dx: isize| {
+        // Columns `x - 1` and `x + 1` of the rows above and below are their
+        // chroma sites `j + p - 1` and `j + p`.
+        let side = |row: usize, dj: isize| {
             let (c, g) = (raw.row(row), green.row(row));
-            (shifted(c, r, dx, n), shifted(g, r, dx, n))
+            (at(c, j0, dj, n), at(g, j0, dj, n))
         };
+        let (west, east) = (p as isize - 1, p as isize);
         let (c, g) = side(y, 0);
-        let ((cnw, gnw), (cne, gne)) = (side(y - 1, -1), side(y - 1, 1));
-        let ((csw, gsw), (cse, gse)) = (side(y + 1, -1), side(y + 1, 1));
+        let ((cnw, gnw), (cne, gne)) = (side(y - 1, west), side(y - 1, east));
+        let ((csw, gsw), (cse, gse)) = (side(y + 1, west), side(y + 1, east));
         let eps = self.k.eps;
         let [red, blue] = &mut *self.at_chroma;
         let (own, other) = if kind.blue { (blue, red) } else { (red, blue) };
@@ -193,61 +282,63 @@ impl<E: Emit> Rows<'_, E> {
         diagonal_row(
             eps,
             taps,
-            &mut own.row_mut(y)[r..][..n],
-            &mut other.row_mut(y)[r..][..n],
+            &mut own.row_mut(y)[j0..][..n],
+            &mut other.row_mut(y)[j0..][..n],
         );
     }
 
-    /// Stage 2 at tile row `y`, columns `r ..`: both chroma everywhere (the
-    /// green sites from their four neighbours' differences), and the row
-    /// handed on.
+    /// Stage 2 at tile row `y`, columns `r ..`: both chroma at the green
+    /// sites from their four neighbours' differences, the other chroma at
+    /// the chroma sites from its diagonal estimate; the halves joined and
+    /// the row handed on.
     #[inline(always)]
     fn output(&mut self, y: usize, r: usize) {
-        let n = self.t.stride - 2 * r;
-        let kind = self.t.kind(self.k.green.phase, y);
-        let m = &self.masks[kind.chroma_parity][r..][..n];
+        let (stride, kind) = (self.t.stride, self.t.kind(self.k.green.phase, y));
+        let p = kind.chroma_parity;
+        let [own_g, other_g, other_c] = &mut *self.halves;
+        // At the green sites `j`, the west and east neighbours are chroma
+        // sites `j - p` and `j + 1 - p` of the row, the north and south
+        // ones chroma sites `j` of the rows above and below.
+        let (j0, n) = span(1 - p, r, stride);
+        let (west, east) = (-(p as isize), 1 - p as isize);
         let green = self.green.row(y);
-        let raw = shifted(self.raw.row(y), r, 0, n);
-        let (g, gw, ge) = (
-            shifted(green, r, 0, n),
-            shifted(green, r, -1, n),
-            shifted(green, r, 1, n),
-        );
+        let g = at(self.green_sites.row(y), j0, 0, n);
+        let (gw, ge) = (at(green, j0, west, n), at(green, j0, east, n));
         let (gn, gs) = (
-            shifted(self.green.row(y - 1), r, 0, n),
-            shifted(self.green.row(y + 1), r, 0, n),
+            at(self.green.row(y - 1), j0, 0, n),
+            at(self.green.row(y + 1), j0, 0, n),
         );
         let eps = self.k.eps;
         let order = if kind.blue { [1, 0] } else { [0, 1] };
-        for (slot, class) in order.into_iter().enumerate() {
+        for (class, out) in order.into_iter().zip([&mut *own_g, &mut *other_g]) {
             let d = &self.at_chroma[class];
             let mid = d.row(y);
-            let (dm, dw, de) = (
-                shifted(mid, r, 0, n),
-                shifted(mid, r, -1, n),
-                shifted(mid, r, 1, n),
-            );
-            let (dn, ds) = (
-                shifted(d.row(y - 1), r, 0, n),
-                shifted(d.row(y + 1), r, 0, n),
-            );
-            // The own chroma keeps its samples; the other takes its
-            // diagonal estimate there.
-            let keep = if slot == 0 { raw } else { g };
-            let out = &mut self.chroma[slot][r..][..n];
-            let taps = [dm, dw, de, dn, ds, keep];
-            output_row(eps, taps, [g, gw, ge, gn, gs], slot == 1, m, out);
+            let (dw, de) = (at(mid, j0, west, n), at(mid, j0, east, n));
+            let (dn, ds) = (at(d.row(y - 1), j0, 0, n), at(d.row(y + 1), j0, 0, n));
+            let out = &mut out[j0..][..n];
+            green_row(eps, [dn, ds, dw, de], [g, gw, ge, gn, gs], out);
         }
-        let [own, other] = &*self.chroma;
-        self.out.emit(y, [own, green, other]);
+        // At the chroma sites: the own chroma's samples are the raw ones,
+        // the other chroma is green plus its diagonal estimate.
+        let (j0, n) = span(p, r, stride);
+        let estimate = at(self.at_chroma[order[1]].row(y), j0, 0, n);
+        sum_row(at(green, j0, 0, n), estimate, &mut other_c[j0..][..n]);
+        let raw = self.raw.row(y);
+        let [own, joined_green, other] = &mut *self.joined;
+        let (own_g, other_g, other_c) = (&*own_g, &*other_g, &*other_c);
+        join([raw, own_g], p, own);
+        join([green, self.green_sites.row(y)], p, joined_green);
+        join([other_c, other_g], p, other);
+        self.out.emit(y, [own, joined_green, other]);
     }
 }
 
-/// Stage 1's loop over a row (see [`Rows::diagonals`]): the taps are the
-/// raw row and green at the centre, then at the north-west, north-east,
-/// south-west and south-east neighbours. Its own function, with its outputs
-/// as arguments, so that the compiler knows they alias no input and
-/// vectorises the loop (inlined into the stage, it did not).
+/// Stage 1's loop over the chroma sites of a row (see
+/// [`Rows::diagonals`]): the taps are the raw row and green at the centre,
+/// then at the north-west, north-east, south-west and south-east
+/// neighbours. Its own function, with its outputs as arguments, so that
+/// the compiler knows they alias no input and vectorises the loop
+/// (inlined into the stage, it did not).
 #[inline(always)]
 fn diagonal_row(eps: f32, taps: [&[f32]; 10], own: &mut [f32], other: &mut [f32]) {
     let n = own.len();
@@ -265,32 +356,32 @@ fn diagonal_row(eps: f32, taps: [&[f32]; 10], own: &mut [f32], other: &mut [f32]
     }
 }
 
-/// Stage 2's loop over a row for one chroma (see [`Rows::output`]): its
-/// differences at the centre and the west, east, north and south
-/// neighbours, and what the chroma sites (`m`) keep; green at the centre
-/// and its west, east, north and south neighbours. The other
-/// chroma (`estimate`) adds its difference at the chroma sites, the own
-/// keeps its samples. Its own function for the reason of [`diagonal_row`].
+/// Stage 2's loop over the green sites of a row for one chroma (see
+/// [`Rows::output`]): its differences at the north, south, west and east
+/// neighbours, green at the centre and its west, east, north and south
+/// neighbours. Its own function for the reason of [`diagonal_row`].
 #[inline(always)]
-fn output_row(
+fn green_row(
     eps: f32,
-    [dm, dw, de, dn, ds, keep]: [&[f32]; 6],
+    [dn, ds, dw, de]: [&[f32]; 4],
     [g, gw, ge, gn, gs]: [&[f32]; 5],
-    estimate: bool,
-    m: &[u32],
     out: &mut [f32],
 ) {
     let n = out.len();
-    let (dm, dw, de, dn, ds, keep) = (&dm[..n], &dw[..n], &de[..n], &dn[..n], &ds[..n], &keep[..n]);
-    let (g, gw, ge, gn, gs, m) = (&g[..n], &gw[..n], &ge[..n], &gn[..n], &gs[..n], &m[..n]);
-    let add = if estimate { 1.0 } else { 0.0 };
+    let (dn, ds, dw, de) = (&dn[..n], &ds[..n], &dw[..n], &de[..n]);
+    let (g, gw, ge, gn, gs) = (&g[..n], &gw[..n], &ge[..n], &gn[..n], &gs[..n]);
     for i in 0..n {
         let qv = roughness(eps, (dn[i], ds[i]), (gn[i], g[i], gs[i]));
         let qh = roughness(eps, (dw[i], de[i]), (gw[i], g[i], ge[i]));
-        let at_green = g[i] + blend((dn[i], ds[i], qv), (dw[i], de[i], qh));
-        // `add` is 0 for the own chroma: its samples plus +-0, exactly.
-        let at_chroma = keep[i] + add * dm[i];
-        out[i] = select(m[i], at_chroma, at_green);
+        out[i] = g[i] + blend((dn[i], ds[i], qv), (dw[i], de[i], qh));
+    }
+}
+
+/// `out = a + b`, element by element.
+#[inline(always)]
+fn sum_row(a: &[f32], b: &[f32], out: &mut [f32]) {
+    for ((o, a), b) in out.iter_mut().zip(a).zip(b) {
+        *o = a + b;
     }
 }
 
