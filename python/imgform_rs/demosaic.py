@@ -121,9 +121,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   --method raisr_cd``; 3 KB): the filters recover what the cheaper chroma loses, and
   the result is within 0.03 dB of ``"raisr_fast"`` on each validation subset (39.64
   dB on the scikit-image seven, 39.77 on CBSD68, 36.13 on Urban24; 0.57-0.84 dB
-  above every classical peer we run on each) at 0.71x its time: 125 MP/s at 24 MP
-  on two cores, 4.0x LibRaw's AHD, in 4.4 % of the output in extra memory
-  (``benchmarks/demosaic.py``, 2026-12-04; ``"raisr_fast"`` 89 MP/s, ``"mlri"``
+  above every classical peer we run on each) at 0.71x its time: 128 MP/s at 24 MP
+  on two cores, 4.1x LibRaw's AHD, in 4.2 % of the output in extra memory
+  (``benchmarks/demosaic.py``, 2026-12-04; ``"raisr_fast"`` 91 MP/s, ``"mlri"``
   104). Less false colour and zipper on the grey charts than any other
   residual-interpolation method (zone plate 4862 and 32.9 % against
   ``"raisr_fast"``'s 11074 and 35.4 %). On the nine held-out training photographs
