@@ -12,7 +12,8 @@
 //! filters allow another way to apply them. Along a row the CFA position
 //! alternates between two and the orientation takes four values, so each
 //! tap has just 8 values across a row's classes: one 8-float table, from
-//! which a single permute gives the tap of each of eight pixels. Eight
+//! which a single permute gives the tap of each of eight pixels (of
+//! sixteen with AVX-512, the table in both halves of a register). The
 //! pixels are then filtered side by side like a convolution, with no
 //! per-pixel fetch, and the tables of a row (1.7 KB) stay in cache.
 //!
