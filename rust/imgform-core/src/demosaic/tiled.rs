@@ -244,14 +244,14 @@ where
         .for_each_init(init, |scratch, mut task| match isa {
             Isa::Baseline => tile(&ctx, scratch, &mut task),
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `Isa::Avx2` is only made after detecting AVX2.
+            // SAFETY: `Isa::Avx2` is only made after detecting AVX2 and FMA.
             Isa::Avx2 => unsafe { tile_avx2(&ctx, scratch, &mut task) },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `Isa::Avx512` is only made after detecting the four
             // AVX-512 subsets `tile_avx512` enables.
             Isa::Avx512 if K::AVX512 => unsafe { tile_avx512(&ctx, scratch, &mut task) },
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `Isa::Avx512` is only made on CPUs with AVX2.
+            // SAFETY: `Isa::Avx512` is only made on CPUs with AVX2 and FMA.
             Isa::Avx512 => unsafe { tile_avx2(&ctx, scratch, &mut task) },
         });
 }
@@ -308,9 +308,13 @@ struct Scratch<S, Q> {
     sink: Q,
 }
 
-/// [`tile`] compiled for AVX2; the kernels inline into it.
+/// [`tile`] compiled for AVX2 and FMA (both of which [`Isa::Avx2`]
+/// requires); the kernels inline into it. Rust never contracts a product
+/// and a sum, so FMA only serves the kernels that ask for fused
+/// multiply-adds (the orientation-hashed filters' `mul_add`): without it,
+/// their scalar columns called a software `fmaf` per tap.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     ctx: &Ctx<'_, M, K, S>,
     scratch: &mut Scratch<K::State, S::Scratch>,
@@ -319,8 +323,9 @@ fn tile_avx2<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
     tile(ctx, scratch, task);
 }
 
-/// [`tile`] compiled for AVX-512 (see [`Isa::Avx512`]). The kernels use no
-/// fused multiply-add (Rust never contracts), so the bits are AVX2's.
+/// [`tile`] compiled for AVX-512 (see [`Isa::Avx512`]). The kernels fuse
+/// no multiply-add they do not ask for (Rust never contracts), so the bits
+/// are AVX2's.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl")]
 fn tile_avx512<M: Mosaic, O, S: RgbSink<O>, K: StreamKernel>(
