@@ -190,77 +190,12 @@ fn add_avx2(
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
-    [own, green, other]: [&mut [f32]; 3],
+    dst: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
     cols: Range<usize>,
 ) -> usize {
-    use std::arch::x86_64::*;
-    // Eight pixels from column `x` read their windows' columns `x - 1 ..
-    // x + 9`: checked once here, so the loads need no checks of their own.
-    let fits = |len: usize| cols.start >= 1 && len > cols.end;
-    assert!(rows.iter().all(|r| fits(r.len())) && class.len() >= cols.end);
-    let mut x = cols.start;
-    while x + 8 <= cols.end {
-        // SAFETY: the assertion above keeps every load in bounds (and the
-        // loads are unaligned ones); the classes are below 8, as `permute`
-        // needs (it reads the low 3 bits anyway).
-        let d = unsafe {
-            let index = _mm256_loadu_si256(class.as_ptr().add(x).cast());
-            // Written out: closures here were not inlined (each call
-            // passed its vectors through memory).
-            let [a0, a1] = row_sums(tables, rows, index, 0, x - 1);
-            let [b0, b1] = row_sums(tables, rows, index, 1, x - 1);
-            let [c0, c1] = row_sums(tables, rows, index, 2, x - 1);
-            [
-                _mm256_add_ps(_mm256_add_ps(a0, b0), c0),
-                _mm256_add_ps(_mm256_add_ps(a1, b1), c1),
-            ]
-        };
-        super::raisr::add8_avx2(kind, src, [&mut *own, &mut *green, &mut *other], x, d);
-        x += 8;
-    }
-    x
-}
-
-/// The two corrections' partial sums over window row `r` (windows `3 r ..
-/// 3 r + 3`) of the eight pixels of classes `index` whose windows start at
-/// column `left`, summed tap by tap as [`apply`] does. Its own function
-/// with two accumulators, so they stay in registers: one loop over all 27
-/// taps into an array of six kept them on the stack.
-///
-/// # Safety
-/// AVX2 and FMA, and columns `left .. left + 10` of the window rows in
-/// bounds.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn row_sums(
-    tables: &[[Table; 2]; TAPS],
-    rows: &[&[f32]; WINDOWS],
-    index: std::arch::x86_64::__m256i,
-    r: usize,
-    left: usize,
-) -> [std::arch::x86_64::__m256; 2] {
-    use std::arch::x86_64::*;
-    let (mut a0, mut a1) = (_mm256_setzero_ps(), _mm256_setzero_ps());
-    for k in 3 * r..3 * r + 3 {
-        for dx in 0..3 {
-            let [t0, t1] = &tables[3 * k + dx];
-            // SAFETY: by the caller's contract.
-            let (v, t0, t1) = unsafe {
-                (
-                    _mm256_loadu_ps(rows[k].as_ptr().add(left + dx)),
-                    _mm256_loadu_ps(t0.as_ptr()),
-                    _mm256_loadu_ps(t1.as_ptr()),
-                )
-            };
-            let t0 = _mm256_permutevar8x32_ps(t0, index);
-            let t1 = _mm256_permutevar8x32_ps(t1, index);
-            a0 = _mm256_fmadd_ps(t0, v, a0);
-            a1 = _mm256_fmadd_ps(t1, v, a1);
-        }
-    }
-    [a0, a1]
+    // SAFETY: AVX2 and FMA are enabled here.
+    unsafe { add_lanes::<std::arch::x86_64::__m256>(tables, kind, class, src, dst, rows, cols) }
 }
 
 /// [`add_avx2`] sixteen pixels at a time: each tap table, broadcast to
@@ -275,106 +210,226 @@ fn add_avx512(
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
+    dst: [&mut [f32]; 3],
+    rows: &[&[f32]; WINDOWS],
+    cols: Range<usize>,
+) -> usize {
+    // SAFETY: the AVX-512 subsets, AVX2 and FMA are enabled here.
+    unsafe { add_lanes::<std::arch::x86_64::__m512>(tables, kind, class, src, dst, rows, cols) }
+}
+
+/// The vector operations of the filter loop ([`add_lanes`]), at eight
+/// lanes (AVX2) or sixteen (AVX-512), so that one loop serves both. The
+/// methods are always inlined into the `target_feature` functions that
+/// run the loop, which have the instructions.
+///
+/// # Safety
+/// Every method needs the CPU features of its width (AVX2 and FMA, or the
+/// AVX-512 subsets of [`add_avx512`]); pointers are read `N` values on.
+#[cfg(target_arch = "x86_64")]
+trait Lanes: Copy {
+    /// Pixels per step.
+    const N: usize;
+    /// The classes of a step's pixels.
+    type Index: Copy;
+    unsafe fn classes(p: *const u32) -> Self::Index;
+    unsafe fn load(p: *const f32) -> Self;
+    /// A tap of each pixel's class, from the tap's table.
+    unsafe fn tap(table: &Table, index: Self::Index) -> Self;
+    unsafe fn zero() -> Self;
+    /// `a * b + c`, rounded once.
+    unsafe fn fmadd(a: Self, b: Self, c: Self) -> Self;
+    unsafe fn add(a: Self, b: Self) -> Self;
+    /// [`add1`] for the `N` columns from `x`, the corrections as vectors.
+    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], x: usize, d: [Self; 2]);
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Lanes for std::arch::x86_64::__m256 {
+    const N: usize = 8;
+    type Index = std::arch::x86_64::__m256i;
+    #[inline(always)]
+    unsafe fn classes(p: *const u32) -> Self::Index {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm256_loadu_si256(p.cast()) }
+    }
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm256_loadu_ps(p) }
+    }
+    #[inline(always)]
+    unsafe fn tap(table: &Table, index: Self::Index) -> Self {
+        use std::arch::x86_64::*;
+        // SAFETY: by the trait's contract; a table holds 8 values.
+        unsafe { _mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr()), index) }
+    }
+    #[inline(always)]
+    unsafe fn zero() -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm256_setzero_ps() }
+    }
+    #[inline(always)]
+    unsafe fn fmadd(a: Self, b: Self, c: Self) -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm256_fmadd_ps(a, b, c) }
+    }
+    #[inline(always)]
+    unsafe fn add(a: Self, b: Self) -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm256_add_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], x: usize, d: [Self; 2]) {
+        // SAFETY: by the trait's contract.
+        unsafe { super::raisr::add8_avx2(kind, src, dst, x, d) }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Lanes for std::arch::x86_64::__m512 {
+    const N: usize = 16;
+    type Index = std::arch::x86_64::__m512i;
+    #[inline(always)]
+    unsafe fn classes(p: *const u32) -> Self::Index {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm512_loadu_si512(p.cast()) }
+    }
+    #[inline(always)]
+    unsafe fn load(p: *const f32) -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm512_loadu_ps(p) }
+    }
+    #[inline(always)]
+    unsafe fn tap(table: &Table, index: Self::Index) -> Self {
+        use std::arch::x86_64::*;
+        // SAFETY: by the trait's contract; the table (8 values) is in
+        // both halves, and the classes are below 8.
+        unsafe {
+            let t = _mm512_broadcast_f32x8(_mm256_loadu_ps(table.as_ptr()));
+            _mm512_permutexvar_ps(index, t)
+        }
+    }
+    #[inline(always)]
+    unsafe fn zero() -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm512_setzero_ps() }
+    }
+    #[inline(always)]
+    unsafe fn fmadd(a: Self, b: Self, c: Self) -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm512_fmadd_ps(a, b, c) }
+    }
+    #[inline(always)]
+    unsafe fn add(a: Self, b: Self) -> Self {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm512_add_ps(a, b) }
+    }
+    /// The first correction goes to green at the chroma sites and to the
+    /// own chroma elsewhere, by masks.
+    #[inline(always)]
+    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], x: usize, d: [Self; 2]) {
+        use std::arch::x86_64::*;
+        let ([so, sg, st], [own, green, other], [d0, d1]) = (src, dst, d);
+        // Lanes of chroma sites: the even ones when column `x` is one.
+        let chroma: __mmask16 = if x & 1 == kind.chroma_parity {
+            0x5555
+        } else {
+            0xaaaa
+        };
+        let (o, g, t) = (
+            &mut own[x..x + 16],
+            &mut green[x..x + 16],
+            &mut other[x..x + 16],
+        );
+        let (so, sg, st) = (&so[x..x + 16], &sg[x..x + 16], &st[x..x + 16]);
+        // SAFETY: by the trait's contract; each slice holds the 16 floats
+        // loaded or stored (unaligned).
+        unsafe {
+            let (vo, vg, vt) = (
+                _mm512_loadu_ps(so.as_ptr()),
+                _mm512_loadu_ps(sg.as_ptr()),
+                _mm512_loadu_ps(st.as_ptr()),
+            );
+            _mm512_storeu_ps(o.as_mut_ptr(), _mm512_mask_add_ps(vo, !chroma, vo, d0));
+            _mm512_storeu_ps(g.as_mut_ptr(), _mm512_mask_add_ps(vg, chroma, vg, d0));
+            _mm512_storeu_ps(t.as_mut_ptr(), _mm512_add_ps(vt, d1));
+        }
+    }
+}
+
+/// [`apply`] and [`add1`] for the columns `cols`, [`Lanes::N`] at a time
+/// as far as whole steps go; returns the first column left.
+///
+/// # Safety
+/// The CPU features of `V`'s width.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn add_lanes<V: Lanes>(
+    tables: &[[Table; 2]; TAPS],
+    kind: RowKind,
+    class: &[u32],
+    src: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
     cols: Range<usize>,
 ) -> usize {
-    use std::arch::x86_64::*;
-    // As in `add_avx2`: pixels from column `x` read columns `x - 1 ..
-    // x + 17`.
+    // A step of pixels from column `x` reads their windows' columns `x - 1
+    // .. x + N + 1`: checked once here, so the loads need no checks of
+    // their own.
     let fits = |len: usize| cols.start >= 1 && len > cols.end;
     assert!(rows.iter().all(|r| fits(r.len())) && class.len() >= cols.end);
     let mut x = cols.start;
-    while x + 16 <= cols.end {
-        // SAFETY: as in `add_avx2`.
+    while x + V::N <= cols.end {
+        // SAFETY: the assertion above keeps every load in bounds (and the
+        // loads are unaligned ones); the classes are below 8, as the
+        // permutes need.
         let d = unsafe {
-            let index = _mm512_loadu_si512(class.as_ptr().add(x).cast());
-            let [a0, a1] = row_sums16(tables, rows, index, 0, x - 1);
-            let [b0, b1] = row_sums16(tables, rows, index, 1, x - 1);
-            let [c0, c1] = row_sums16(tables, rows, index, 2, x - 1);
-            [
-                _mm512_add_ps(_mm512_add_ps(a0, b0), c0),
-                _mm512_add_ps(_mm512_add_ps(a1, b1), c1),
-            ]
+            let index = V::classes(class.as_ptr().add(x));
+            // Written out: closures here were not inlined (each call
+            // passed its vectors through memory).
+            let [a0, a1] = row_sums::<V>(tables, rows, index, 0, x - 1);
+            let [b0, b1] = row_sums::<V>(tables, rows, index, 1, x - 1);
+            let [c0, c1] = row_sums::<V>(tables, rows, index, 2, x - 1);
+            [V::add(V::add(a0, b0), c0), V::add(V::add(a1, b1), c1)]
         };
-        add16(kind, src, [&mut *own, &mut *green, &mut *other], x, d);
-        x += 16;
+        // SAFETY: the caller's features; `x + N` is within the rows.
+        unsafe { V::store(kind, src, [&mut *own, &mut *green, &mut *other], x, d) };
+        x += V::N;
     }
     x
 }
 
-/// [`row_sums`] for sixteen pixels.
+/// The two corrections' partial sums over window row `r` (windows `3 r ..
+/// 3 r + 3`) of a step's pixels of classes `index` whose windows start at
+/// column `left`, summed tap by tap as [`apply`] does. Two accumulators,
+/// so they stay in registers: one loop over all 27 taps into an array of
+/// six kept them on the stack.
 ///
 /// # Safety
-/// AVX-512 (F, DQ) and FMA, and columns `left .. left + 18` of the window
-/// rows in bounds.
+/// The CPU features of `V`'s width, and columns `left .. left + N + 2` of
+/// the window rows in bounds.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-#[inline]
-unsafe fn row_sums16(
+#[inline(always)]
+unsafe fn row_sums<V: Lanes>(
     tables: &[[Table; 2]; TAPS],
     rows: &[&[f32]; WINDOWS],
-    index: std::arch::x86_64::__m512i,
+    index: V::Index,
     r: usize,
     left: usize,
-) -> [std::arch::x86_64::__m512; 2] {
-    use std::arch::x86_64::*;
-    let (mut a0, mut a1) = (_mm512_setzero_ps(), _mm512_setzero_ps());
-    for k in 3 * r..3 * r + 3 {
-        for dx in 0..3 {
-            let [t0, t1] = &tables[3 * k + dx];
-            // SAFETY: by the caller's contract.
-            let (v, t0, t1) = unsafe {
-                (
-                    _mm512_loadu_ps(rows[k].as_ptr().add(left + dx)),
-                    _mm256_loadu_ps(t0.as_ptr()),
-                    _mm256_loadu_ps(t1.as_ptr()),
-                )
-            };
-            let t0 = _mm512_permutexvar_ps(index, _mm512_broadcast_f32x8(t0));
-            let t1 = _mm512_permutexvar_ps(index, _mm512_broadcast_f32x8(t1));
-            a0 = _mm512_fmadd_ps(t0, v, a0);
-            a1 = _mm512_fmadd_ps(t1, v, a1);
-        }
-    }
-    [a0, a1]
-}
-
-/// [`add1`] for the sixteen columns from `x`: the first correction goes to
-/// green at the chroma sites and to the own chroma elsewhere, by masks.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
-#[inline]
-fn add16(
-    kind: RowKind,
-    [so, sg, st]: [&[f32]; 3],
-    [own, green, other]: [&mut [f32]; 3],
-    x: usize,
-    [d0, d1]: [std::arch::x86_64::__m512; 2],
-) {
-    use std::arch::x86_64::*;
-    // Lanes of chroma sites: the even ones when column `x` is one.
-    let chroma: __mmask16 = if x & 1 == kind.chroma_parity {
-        0x5555
-    } else {
-        0xaaaa
-    };
-    let (o, g, t) = (
-        &mut own[x..x + 16],
-        &mut green[x..x + 16],
-        &mut other[x..x + 16],
-    );
-    let (so, sg, st) = (&so[x..x + 16], &sg[x..x + 16], &st[x..x + 16]);
-    // SAFETY: each slice holds the 16 floats loaded or stored (unaligned).
+) -> [V; 2] {
+    // SAFETY: by the caller's contract.
     unsafe {
-        let (vo, vg, vt) = (
-            _mm512_loadu_ps(so.as_ptr()),
-            _mm512_loadu_ps(sg.as_ptr()),
-            _mm512_loadu_ps(st.as_ptr()),
-        );
-        _mm512_storeu_ps(o.as_mut_ptr(), _mm512_mask_add_ps(vo, !chroma, vo, d0));
-        _mm512_storeu_ps(g.as_mut_ptr(), _mm512_mask_add_ps(vg, chroma, vg, d0));
-        _mm512_storeu_ps(t.as_mut_ptr(), _mm512_add_ps(vt, d1));
+        let (mut a0, mut a1) = (V::zero(), V::zero());
+        for k in 3 * r..3 * r + 3 {
+            for dx in 0..3 {
+                let [t0, t1] = &tables[3 * k + dx];
+                let v = V::load(rows[k].as_ptr().add(left + dx));
+                a0 = V::fmadd(V::tap(t0, index), v, a0);
+                a1 = V::fmadd(V::tap(t1, index), v, a1);
+            }
+        }
+        [a0, a1]
     }
 }
 
