@@ -63,6 +63,10 @@ use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
 #[path = "remap_avx2.rs"]
 mod avx2;
 
+#[cfg(target_arch = "x86_64")]
+#[path = "remap_channels_avx512.rs"]
+mod avx512;
+
 /// How a fractional position is sampled.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Interpolation {
@@ -227,6 +231,25 @@ impl Resample for u8 {
         rows: (&[i32], &[f32], &mut [u8]),
         sample: &mut dyn FnMut(usize, &mut [u8]),
     ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if avx512::available() && src.channels() == 3 {
+            let size = (src.width(), src.height());
+            // SAFETY: the CPU has the kernel's features; the view holds an
+            // RGB image of `size` with rows `stride` apart.
+            let (xy, gains, row) = rows;
+            if unsafe {
+                avx512::channel_row_u8(
+                    src.data(),
+                    src.stride(),
+                    size,
+                    (xy, gains, &mut *row),
+                    sample,
+                )
+            } {
+                return true;
+            }
+            return avx2_channel_row!(channel_row_u8, src, (xy, gains, row), sample);
+        }
         avx2_channel_row!(channel_row_u8, src, rows, sample)
     }
 
@@ -1212,6 +1235,46 @@ mod tests {
     /// and zero ones).
     fn assert_channel_rows_match_the_scalar_path<T: Resample>(view: &ImageView<T>) {
         let (w, h) = (view.width(), view.height());
+        let (xy, gains) = channel_positions(w, h);
+        let fill = check_fill::<T>(7.0).unwrap();
+        let table = std::array::from_fn(<T::Bilinear as Arith<T>>::bilinear);
+        let taps = Taps::<T, T::Bilinear, 2, 3>::new(view, &table, fill);
+        for gains in [Vec::new(), gains] {
+            let coords = Scattered {
+                width: w,
+                xy: xy.clone(),
+                gains,
+            };
+            let mut fast = vec![T::default(); 3 * w * h];
+            resample_channels(view, &coords, Interpolation::Bilinear, fill, &mut fast).unwrap();
+            for (y, row) in fast.chunks_exact(3 * w).enumerate() {
+                let row_xy = &coords.xy[6 * w * y..][..6 * w];
+                let row_gains = coords.gains.get(3 * w * y..3 * w * (y + 1)).unwrap_or(&[]);
+                assert_row_is_scalar(&taps, (row_xy, row_gains), row, (w, y));
+            }
+        }
+    }
+
+    /// Each sample of `row` (of image row `y`) against [`channel_sample`].
+    fn assert_row_is_scalar<T: Resample>(
+        taps: &Taps<T, T::Bilinear, 2, 3>,
+        (xy, gains): (&[i32], &[f32]),
+        row: &[T],
+        (w, y): (usize, usize),
+    ) {
+        for (s, &got) in row.iter().enumerate() {
+            let want = channel_sample(taps, xy, gains, s);
+            assert!(
+                got.to_f32().to_bits() == want.to_f32().to_bits(),
+                "width {w}, row {y}, sample {s}: {got:?} vs {want:?}"
+            );
+        }
+    }
+
+    /// Per-channel positions (fixed point) and gains for a `w x h` image:
+    /// inside, across the borders, far outside and NaN, and smooth rows of
+    /// them as a lens correction's, some with the channels rows apart.
+    fn channel_positions(w: usize, h: usize) -> (Vec<i32>, Vec<f32>) {
         let mut state = 99u64;
         let mut next = move || {
             state = state
@@ -1240,6 +1303,17 @@ mod tests {
                         };
                         to_fixed(at.clamp(0.0, side - 1.0))
                     }
+                    // Smooth and sloping, red and blue up to 2.5 rows
+                    // from green: steps over one to six source rows.
+                    (1, _) => {
+                        let (u, c) = ((i % (6 * w)) / 6, (i % 6 / 2) as f64 - 1.0);
+                        let at = if is_y {
+                            row as f64 + 2.5 * c * u as f64 / w_f + 0.05 * u as f64
+                        } else {
+                            1.02 * u as f64 + 0.8 * c
+                        };
+                        to_fixed(at.clamp(0.0, side - 1.0))
+                    }
                     // Whole windows inside, some at exact integers.
                     (_, 2) => to_fixed((next() * (side - 1.0)).floor()),
                     _ => to_fixed(next() * (side - 1.0)),
@@ -1253,26 +1327,53 @@ mod tests {
                 _ => (0.5 + 2.5 * next()) as f32,
             })
             .collect();
-        let fill = check_fill::<T>(7.0).unwrap();
-        let table = std::array::from_fn(<T::Bilinear as Arith<T>>::bilinear);
-        let taps = Taps::<T, T::Bilinear, 2, 3>::new(view, &table, fill);
-        for gains in [Vec::new(), gains] {
-            let coords = Scattered {
-                width: w,
-                xy: xy.clone(),
-                gains,
-            };
-            let mut fast = vec![T::default(); 3 * w * h];
-            resample_channels(view, &coords, Interpolation::Bilinear, fill, &mut fast).unwrap();
-            for (y, row) in fast.chunks_exact(3 * w).enumerate() {
-                let row_xy = &coords.xy[6 * w * y..][..6 * w];
-                let row_gains = coords.gains.get(3 * w * y..3 * w * (y + 1)).unwrap_or(&[]);
-                for (s, &got) in row.iter().enumerate() {
-                    let want = channel_sample(&taps, row_xy, row_gains, s);
-                    assert!(
-                        got.to_f32().to_bits() == want.to_f32().to_bits(),
-                        "{w}x{h}, row {y}, sample {s}: {got:?} vs {want:?}"
-                    );
+        (xy, gains)
+    }
+
+    /// Both x86 u8 kernels, called directly (the dispatch takes only the
+    /// widest the CPU has), against the scalar path.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn both_u8_channel_kernels_give_the_scalar_bits() {
+        type Kernel = unsafe fn(
+            &[u8],
+            usize,
+            (usize, usize),
+            (&[i32], &[f32], &mut [u8]),
+            &mut dyn FnMut(usize, &mut [u8]),
+        ) -> bool;
+        let mut kernels: Vec<Kernel> = Vec::new();
+        if std::arch::is_x86_feature_detected!("avx2") {
+            kernels.push(avx2::channel_row_u8);
+        }
+        if avx512::available() {
+            kernels.push(avx512::channel_row_u8);
+        }
+        let table = std::array::from_fn(<u32 as Arith<u8>>::bilinear);
+        for (w, h) in [(100, 12), (40, 9), (17, 6)] {
+            for stride in [3 * w, 3 * w + 5] {
+                let data = u8_samples((h - 1) * stride + 3 * w);
+                let view = ImageView::new(&data, w, h, 3, stride).unwrap();
+                let taps = Taps::<u8, u32, 2, 3>::new(&view, &table, 7.0);
+                let (xy, gains) = channel_positions(w, h);
+                for (kernel, gained) in kernels.iter().flat_map(|k| [(k, false), (k, true)]) {
+                    for y in 0..h {
+                        let xy = &xy[6 * w * y..][..6 * w];
+                        let gains = if gained {
+                            &gains[3 * w * y..][..3 * w]
+                        } else {
+                            &[][..]
+                        };
+                        let mut row = vec![0u8; 3 * w];
+                        let mut scalar =
+                            |s: usize, px: &mut [u8]| px[0] = channel_sample(&taps, xy, gains, s);
+                        // SAFETY: the CPU has the kernel's features; `data` holds the view.
+                        let done = unsafe {
+                            kernel(&data, stride, (w, h), (xy, gains, &mut row), &mut scalar)
+                        };
+                        assert!(done);
+                        assert_row_is_scalar(&taps, (xy, gains), &row, (w, y));
+                    }
                 }
             }
         }
@@ -1280,7 +1381,7 @@ mod tests {
 
     #[test]
     fn per_channel_rows_match_the_scalar_path_bit_for_bit() {
-        for (w, h) in [(40, 9), (3, 2), (17, 6)] {
+        for (w, h) in [(100, 12), (40, 9), (3, 2), (17, 6)] {
             // Contiguous, and with 5 samples of padding after each row.
             for stride in [3 * w, 3 * w + 5] {
                 let n = (h - 1) * stride + 3 * w;
