@@ -96,11 +96,11 @@ struct Step {
     /// Byte offset of the first load: the highest source row any lane
     /// reads, a little left of lane 0's left tap.
     start: usize,
-    /// Per lane: the tap pair's byte indices into a pair of 64-byte loads,
-    /// as `vpermi2b` takes them.
+    /// Per lane: the tap pair's byte indices into a 64-byte load, as
+    /// `vpermb` takes them.
     picks: __m512i,
+    /// Per lane: the rows from the step's first to its window's first.
     down: __m512i,
-    deepest: usize,
     fx: __m512i,
     fy: __m512i,
 }
@@ -139,7 +139,7 @@ unsafe fn step(xy: *const i32, channel: __m512i, src: &Source) -> Option<Step> {
     if inside != u16::MAX {
         return None;
     }
-    // Rows below the highest one a lane reads.
+    // The highest row a lane's window starts on.
     let row = _mm512_reduce_min_epi32(iy);
     let down = _mm512_sub_epi32(iy, _mm512_set1_epi32(row));
     // Each sample's left tap as a byte of its row: 3 per pixel plus its channel.
@@ -153,8 +153,7 @@ unsafe fn step(xy: *const i32, channel: __m512i, src: &Source) -> Option<Step> {
     if near & rows != u16::MAX || !(0..=src.room).contains(&start) {
         return None;
     }
-    // Byte 0 the left tap, byte 2 the right one, 3 bytes on; an odd `down`
-    // picks from the second of a pair of loads (index bit 6).
+    // Byte 0 the left tap, byte 2 the right one, 3 bytes on.
     let picks = _mm512_or_si512(
         picks,
         _mm512_slli_epi32::<16>(_mm512_add_epi32(picks, _mm512_set1_epi32(3))),
@@ -164,16 +163,14 @@ unsafe fn step(xy: *const i32, channel: __m512i, src: &Source) -> Option<Step> {
         start: start as usize,
         picks,
         down,
-        deepest: (_mm512_reduce_max_epi32(iy) - row) as usize,
         fx: _mm512_and_si512(sx, mask),
         fy: _mm512_and_si512(sy, mask),
     })
 }
 
-/// The two window rows of a step's lanes as 16-bit tap pairs. Lanes whose
-/// window starts on the first or second of the step's rows pick their taps
-/// from rows 0-1 and 1-2, the others from rows 2-3 and 3-4: one two-table
-/// byte permutation (`vpermi2b`) per window row and pair of rows.
+/// The two window rows of a step's lanes as 16-bit tap pairs: every
+/// lane's picked from the first two rows, then those of the lanes further
+/// down overwritten from each next pair, as long as some lane is lower.
 ///
 /// # Safety
 /// The features of [`channel_row_u8`]; the step's loads, up to four rows
@@ -183,13 +180,15 @@ unsafe fn window_rows(s: &Step, src: &Source) -> (__m512i, __m512i) {
     let stride = src.stride as usize;
     // SAFETY: `step` admitted `start` only with these loads in bounds.
     let load = |r: usize| unsafe { _mm512_loadu_si512(src.base.add(s.start + r * stride).cast()) };
-    let mut upper = load(0);
     let mut lower = load(1);
-    let mut top = _mm512_maskz_permutexvar_epi8(TAP_BYTES, s.picks, upper);
+    let mut top = _mm512_maskz_permutexvar_epi8(TAP_BYTES, s.picks, load(0));
     let mut bottom = _mm512_maskz_permutexvar_epi8(TAP_BYTES, s.picks, lower);
-    for r in 1..=s.deepest {
-        let lanes = _mm512_cmpeq_epi32_mask(s.down, _mm512_set1_epi32(r as i32));
-        (upper, lower) = (lower, load(r + 1));
+    let mut r = 0;
+    while _mm512_cmpgt_epi32_mask(s.down, _mm512_set1_epi32(r)) != 0 {
+        r += 1;
+        let upper = lower;
+        lower = load(r as usize + 1);
+        let lanes = _mm512_cmpeq_epi32_mask(s.down, _mm512_set1_epi32(r));
         let bytes = _mm512_movepi8_mask(_mm512_movm_epi32(lanes)) & TAP_BYTES;
         top = _mm512_mask_permutexvar_epi8(top, bytes, s.picks, upper);
         bottom = _mm512_mask_permutexvar_epi8(bottom, bytes, s.picks, lower);
