@@ -236,6 +236,25 @@ def test_correct_writes_into_a_given_output(geometry) -> None:
         p.correct(img, geometry=geometry, out=np.empty((40, 30, 3), np.float32).transpose(1, 0, 2))
 
 
+def test_equal_profiles_share_one_native_correction_and_its_grids() -> None:
+    """The grids of positions are built once per profile and size; a
+    profile with unhashable (list) terms gets a fresh correction, and all
+    give the same bits."""
+    p = _synthetic(distortion=("poly3", (-0.02,)), vignetting=(-0.3, 0.0, 0.0))
+    twin = replace(p)
+    assert twin is not p and p.native(40, 30) is twin.native(40, 30)
+    assert p.native(41, 30) is not p.native(40, 30)
+    listed = replace(p, distortion=("poly3", [-0.02]))
+    assert listed.native(40, 30) is not listed.native(40, 30)
+    img = np.random.default_rng(5).random((30, 40, 3), dtype=np.float32)
+    first = p.correct(img)
+    for profile in (p, twin, listed):
+        np.testing.assert_array_equal(profile.correct(img), first)
+        np.testing.assert_array_equal(
+            profile.correct(img, vignetting=False), p.correct(img, vignetting=False)
+        )
+
+
 def test_bad_profiles_and_images_raise_clear_errors() -> None:
     with pytest.raises(ValueError, match="unknown distortion model"):
         _synthetic(distortion=("poly9", (0.1,))).positions(10, 10)

@@ -179,22 +179,18 @@ class LensProfile:
         return self.distortion is not None or self.tca is not None
 
     def native(self, width: int, height: int) -> Any:
-        """The Rust correction for images of ``width x height`` pixels."""
-        dist = self.distortion or ("none", ())
-        tca = self.tca or ("none", ())
-        return _native.NativeLensCorrection(
-            int(width),
-            int(height),
-            self.crop_factor,
-            self.calibration_crop,
-            self.aspect_ratio,
-            self.center,
-            dist[0],
-            list(dist[1]),
-            tca[0],
-            list(tca[1]),
-            self.vignetting,
-        )
+        """The Rust correction for images of ``width x height`` pixels: the
+        same object for equal profiles and sizes, among the last few asked
+        for, so that the grid of source positions it builds on first use
+        (~4 ms and ~7 MB at 24 MP) serves every later image of a batch or
+        sequence from that lens at that setting (a profile built with
+        unhashable terms, lists, gets a new one each time)."""
+        width, height = int(width), int(height)
+        try:
+            hash(self)
+        except TypeError:
+            return _native_correction(self, width, height)
+        return _kept_correction(self, width, height)
 
     def positions(self, width: int, height: int) -> npt.NDArray[np.float64]:
         """Where each corrected pixel is read from in the uncorrected image.
@@ -275,6 +271,30 @@ class LensProfile:
         if self.aperture:
             setting += f" f/{self.aperture:g}"
         return f"{self.lens} on {self.camera} at {setting}: {applied}"
+
+
+def _native_correction(profile: LensProfile, width: int, height: int) -> Any:
+    """The Rust correction of ``profile`` for images of ``width x height``."""
+    dist = profile.distortion or ("none", ())
+    tca = profile.tca or ("none", ())
+    return _native.NativeLensCorrection(
+        width,
+        height,
+        profile.crop_factor,
+        profile.calibration_crop,
+        profile.aspect_ratio,
+        profile.center,
+        dist[0],
+        list(dist[1]),
+        tca[0],
+        list(tca[1]),
+        profile.vignetting,
+    )
+
+
+# The four profiles and sizes asked for last: a profile is a frozen
+# dataclass, so equal ones hash alike.
+_kept_correction = functools.lru_cache(maxsize=4)(_native_correction)
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,9 @@ use crate::demosaic::{demosaic, demosaic_through, Method, Mosaic, RgbSink};
 use crate::error::{all_finite, CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
-use crate::lens::{GainRows, LensCorrection};
+#[cfg(doc)]
+use crate::lens::LensCorrection;
+use crate::lens::{GainRows, LensCorrector};
 use crate::parallel::for_each_row;
 use crate::remap::{Interpolation, Resample};
 use rayon::prelude::*;
@@ -174,12 +176,13 @@ pub fn develop<T: Sample, U: Sample>(
     develop_devignetted::<T, U>(raw, pattern, params, None, out)
 }
 
-/// [`develop`] of a photograph taken through the lens that `lens`
+/// [`develop`] of a photograph taken through the lens that `corrector`
 /// describes, for images of the mosaic's size: its vignetting (if it has
 /// a model) is removed from each photosite above black as the mosaic is
 /// prepared, its distortion and TCA (if any) by resampling the finished
 /// image bilinearly, taps outside it reading 0
-/// ([`LensCorrection::correct_geometry`] of the development, bit for bit).
+/// ([`LensCorrection::correct_geometry`] of the development, bit for bit),
+/// through the grid of positions that `corrector` keeps from call to call.
 ///
 /// The resampling reads rows tens of pixels away from the one it writes
 /// (more at the corners), so the development goes to `developed` first,
@@ -197,10 +200,11 @@ pub fn develop_corrected<T: Sample, U: Resample>(
     raw: ImageView<'_, u16>,
     pattern: &CfaPattern,
     params: &DevelopParams,
-    lens: &LensCorrection,
+    corrector: &LensCorrector,
     developed: &mut [U],
     out: &mut [U],
 ) -> Result<()> {
+    let lens = corrector.lens();
     let (w, h) = (raw.width(), raw.height());
     if (lens.width, lens.height) != (w, h) {
         return Err(CoreError::Shape(format!(
@@ -222,7 +226,7 @@ pub fn develop_corrected<T: Sample, U: Resample>(
     }
     develop_devignetted::<T, U>(raw, pattern, params, gains.as_ref(), developed)?;
     let developed = ImageView::contiguous(developed, w, h, 3)?;
-    lens.correct_geometry(&developed, Interpolation::Bilinear, 0.0, false, out)
+    corrector.correct_geometry(&developed, Interpolation::Bilinear, 0.0, false, out)
 }
 
 /// [`develop`] with the photosites above black multiplied by `vignetting`'s
@@ -598,6 +602,7 @@ impl<U: Sample> Curve<U> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lens::LensCorrection;
 
     fn params(black: f32, scale: f32, tone: Tone) -> DevelopParams {
         DevelopParams {
@@ -852,6 +857,8 @@ mod tests {
         let pat = CfaPattern::from_name("RGGB").unwrap();
         let mut p = params(100.0, 1.0 / 3000.0, Tone::Srgb);
         let c = lens(w, h, false, true);
+        // One corrector for all: from the second call on, its kept grid.
+        let corrector = LensCorrector::new(c);
         for method in [Method::Mlri, Method::Bilinear, Method::Nearest] {
             p.method = method;
             let mut plain = vec![0u8; 3 * w * h];
@@ -862,15 +869,19 @@ mod tests {
                 .unwrap();
             let mut got = vec![0u8; want.len()];
             let mut working = vec![0u8; want.len()];
-            develop_corrected::<u16, u8>(view, &pat, &p, &c, &mut working, &mut got).unwrap();
-            assert!(got == want, "{method:?}");
+            for _ in 0..2 {
+                develop_corrected::<u16, u8>(view, &pat, &p, &corrector, &mut working, &mut got)
+                    .unwrap();
+                assert!(got == want, "{method:?}");
+            }
         }
-        let other = lens(w, h + 2, false, true);
+        let other = LensCorrector::new(lens(w, h + 2, false, true));
         let mut working = vec![0u8; 3 * w * h];
         let mut out = working.clone();
         let err = develop_corrected::<u16, u8>(view, &pat, &p, &other, &mut working, &mut out);
         assert!(matches!(err, Err(CoreError::Shape(_))));
-        let err = develop_corrected::<u16, u8>(view, &pat, &p, &c, &mut working[1..], &mut out);
+        let err =
+            develop_corrected::<u16, u8>(view, &pat, &p, &corrector, &mut working[1..], &mut out);
         assert!(matches!(err, Err(CoreError::Shape(_))));
     }
 
@@ -887,7 +898,8 @@ mod tests {
         let c = lens(w, h, true, false);
         let mut out = vec![0.0f32; 3 * w * h];
         // Without distortion and TCA the working buffer is not used.
-        develop_corrected::<f32, f32>(view, &pat, &p, &c, &mut [], &mut out).unwrap();
+        develop_corrected::<f32, f32>(view, &pat, &p, &LensCorrector::new(c), &mut [], &mut out)
+            .unwrap();
         for (i, px) in out.chunks_exact(3).enumerate() {
             let (u, v) = (i % w, i / w);
             let want = 0.25 * c.gain(u as f64, v as f64);

@@ -42,6 +42,7 @@ use crate::image::{ImageView, Sample};
 use crate::invalid;
 use crate::parallel::{for_each_band, for_each_row, ROWS_PER_TASK};
 use rayon::prelude::*;
+use std::sync::OnceLock;
 use step::{nearest, step_cells, Cell, STEP_BITS};
 
 #[path = "lens_step.rs"]
@@ -286,6 +287,52 @@ impl Normalization {
     }
 }
 
+/// A [`LensCorrection`] that keeps the grids of source positions it
+/// builds (one without and one with vignetting gains), so that correcting
+/// many images of one size, the frames of a sequence or a batch from one
+/// lens at one setting, builds each grid once: at 24 MP a grid is ~100 k
+/// lens-model evaluations, ~4 ms of a ~50 ms 8-bit correction. A grid
+/// holds 48 bytes per node (~7 MB at 24 MP).
+#[derive(Debug)]
+pub struct LensCorrector {
+    lens: LensCorrection,
+    grids: [OnceLock<PositionGrid>; 2],
+}
+
+impl LensCorrector {
+    pub fn new(lens: LensCorrection) -> Self {
+        Self {
+            lens,
+            grids: Default::default(),
+        }
+    }
+
+    /// The correction it applies.
+    pub fn lens(&self) -> &LensCorrection {
+        &self.lens
+    }
+
+    /// [`LensCorrection::correct_geometry`] through the kept grid (built
+    /// on first use; a concurrent first use waits for it).
+    ///
+    /// # Errors
+    /// As [`LensCorrection::correct_geometry`].
+    pub fn correct_geometry<T: Resample>(
+        &self,
+        src: &ImageView<T>,
+        interpolation: Interpolation,
+        fill: f64,
+        vignetting: bool,
+        out: &mut [T],
+    ) -> Result<()> {
+        self.lens.check_image(src, 3)?;
+        let fill = check_fill::<T>(fill)?;
+        let grid = self.grids[usize::from(vignetting)]
+            .get_or_init(|| PositionGrid::new(&self.lens, vignetting));
+        resample_channels(src, grid, interpolation, fill, out)
+    }
+}
+
 /// The corrections of one lens at one focal length / aperture / distance,
 /// for images of one size.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -389,10 +436,7 @@ impl LensCorrection {
         vignetting: bool,
         out: &mut [T],
     ) -> Result<()> {
-        self.check_image(src, 3)?;
-        let fill = check_fill::<T>(fill)?;
-        let grid = PositionGrid::new(self, vignetting);
-        resample_channels(src, &grid, interpolation, fill, out)
+        LensCorrector::new(*self).correct_geometry(src, interpolation, fill, vignetting, out)
     }
 
     /// Removes vignetting: `out = black + (src - black) * gain`, where
@@ -538,6 +582,7 @@ const PREDICTION_MARGIN: f64 = 0.8;
 /// interpolation strays furthest from a smooth function) within
 /// [`GRID_TOLERANCE`] of the exact position, as predicted from a coarser
 /// probe and then checked; at step 1 every pixel is a node.
+#[derive(Debug)]
 struct PositionGrid {
     columns: Axis,
     rows: Axis,
@@ -551,6 +596,7 @@ struct PositionGrid {
 
 /// The nodes along one side and, per pixel, the cell it falls in and its
 /// weight towards the cell's far node.
+#[derive(Debug)]
 struct Axis {
     nodes: Vec<usize>,
     /// Per cell, one over its length in pixels (1 for a cell of zero

@@ -6,7 +6,7 @@ use imgform_core::develop::{
     develop as develop_kernel, develop_corrected, develop_in_place, DevelopParams, Tone,
 };
 use imgform_core::image::{ImageView, Sample};
-use imgform_core::lens::LensCorrection;
+use imgform_core::lens::LensCorrector;
 use imgform_core::remap::Resample;
 use numpy::{Element, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -81,9 +81,9 @@ fn run_corrected<'py, T: Sample, U: Working>(
     src: &[u16],
     (h, w): (usize, usize),
     (pattern, params): (&CfaPattern, &DevelopParams),
-    lens: &LensCorrection,
+    lens: &LensCorrector,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let len = if lens.corrects_geometry() {
+    let len = if lens.lens().corrects_geometry() {
         3 * h * w
     } else {
         0
@@ -168,7 +168,7 @@ fn develop<'py>(
     };
     let src = contiguous(&arr);
     let (p, pat) = (&params, &pattern);
-    let lens = lens.map(|l| l.get().correction());
+    let lens = lens.as_ref().map(|l| l.get().corrector());
     // 8-bit output keeps a 16-bit demosaic; 16-bit and float outputs are
     // demosaiced and finished in the output array itself unless a lens
     // correction resamples them.

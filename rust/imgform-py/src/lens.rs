@@ -2,7 +2,9 @@
 //! lens setting and image size, so the models are checked once.
 
 use imgform_core::image::ImageView;
-use imgform_core::lens::{LensCorrection, Normalization, RadialDistortion, Tca, Vignetting};
+use imgform_core::lens::{
+    LensCorrection, LensCorrector, Normalization, RadialDistortion, Tca, Vignetting,
+};
 use imgform_core::remap::{Interpolation, Resample};
 use numpy::{Element, PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -12,14 +14,16 @@ use crate::dispatch_image;
 use crate::errors::to_pyerr;
 use crate::remap::resample_into;
 
-/// lensfun's corrections of one lens at one setting, for images of one size.
+/// lensfun's corrections of one lens at one setting, for images of one
+/// size, with the grids of positions its corrections build kept for the
+/// next ones.
 #[pyclass(frozen, name = "NativeLensCorrection", module = "imgform_rs._native")]
-pub struct NativeLensCorrection(LensCorrection);
+pub struct NativeLensCorrection(LensCorrector);
 
 impl NativeLensCorrection {
-    /// The core correction, for other bindings that apply it.
-    pub fn correction(&self) -> LensCorrection {
-        self.0
+    /// The core corrector, for other bindings that apply it.
+    pub fn corrector(&self) -> &LensCorrector {
+        &self.0
     }
 }
 
@@ -51,19 +55,19 @@ impl NativeLensCorrection {
                 "vignetting terms must be finite, got {k:?}"
             )));
         }
-        Ok(Self(LensCorrection {
+        Ok(Self(LensCorrector::new(LensCorrection {
             width,
             height,
             normalization,
             distortion,
             tca,
             vignetting: vignetting.map(|k| Vignetting { k }),
-        }))
+        })))
     }
 
     /// Source positions (H, W, 3, 2) float64, lensfunpy's layout.
     fn positions<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-        let c = &self.0;
+        let c = self.0.lens();
         detached_into(py, &[c.height, c.width, 3, 2], |out| c.positions(out))
     }
 
@@ -104,14 +108,14 @@ impl NativeLensCorrection {
             )));
         }
         let tile = contiguous(&black).to_vec();
-        dispatch_image!(img, devignette_typed(py, &self.0, &tile, shape[1]))
+        dispatch_image!(img, devignette_typed(py, self.0.lens(), &tile, shape[1]))
     }
 }
 
 fn geometry_typed<'py, T: Resample + Element>(
     arr: PyReadonlyArrayDyn<'py, T>,
     py: Python<'py>,
-    lens: &LensCorrection,
+    lens: &LensCorrector,
     interpolation: Interpolation,
     fill: f64,
     vignetting: bool,
