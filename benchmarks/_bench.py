@@ -34,6 +34,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, TextIO
 
+from imgform_rs import instruction_set
+
 
 @dataclass
 class Timing:
@@ -110,8 +112,9 @@ RESULTS = Path(__file__).parent / "results"
 
 def machine() -> dict[str, Any]:
     """What a benchmark's numbers depend on besides the code: CPU, cores,
-    date, load, Python, the commit and the versions of the peers installed
-    (a peer that is not installed is left out)."""
+    the instruction set our kernels ran (``IMGFORM_ISA`` may cap it), date,
+    load, Python, the commit and the versions of the peers installed (a peer
+    that is not installed is left out)."""
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
@@ -143,6 +146,7 @@ def machine() -> dict[str, Any]:
     return {
         "cpu": cpu,
         "cores": os.cpu_count(),
+        "instruction_set": instruction_set(),
         "platform": platform.platform(),
         "python": platform.python_version(),
         "commit": commit,

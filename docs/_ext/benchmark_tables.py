@@ -71,9 +71,12 @@ def describe_run(result: dict[str, Any]) -> str:
     commit = result.get("commit")
     commit_text = f" at commit {commit}" if commit else ""
     started = result["started"].replace("T", " ").removesuffix("+00:00")
+    isa = result.get("instruction_set")
+    isa_text = f", kernels built for {isa}" if isa else ""
     return (
         f"{result['command']}{commit_text}, {started} UTC, on "
-        f"{result['cpu']} ({result['cores']} cores{load_text}), Python {result['python']}; "
+        f"{result['cpu']} ({result['cores']} cores{load_text}{isa_text}), "
+        f"Python {result['python']}; "
         f"versions: {versions}."
     )
 

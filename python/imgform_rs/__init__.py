@@ -40,6 +40,7 @@ from .cfa import (
     simulate_sensor,
 )
 from .chromatic import add_lateral_ca, correct_lateral_ca
+from .cpu import instruction_set
 from .demosaic import (
     BAYER_DEMOSAIC_METHODS,
     DEMOSAIC_METHODS,
@@ -119,6 +120,7 @@ __all__ = [
     "focal_stack",
     "hyperfocal_distance",
     "image_distance",
+    "instruction_set",
     "load_raw",
     "look_at",
     "magnification",

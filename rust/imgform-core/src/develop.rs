@@ -441,7 +441,7 @@ impl<T: Sample> Prepared<'_, T> {
     /// operations, and so the bits, are the same.
     fn row_range(&self, y: usize, row: &mut [f32]) -> (f32, f32) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::cpu::has_avx2() {
             // SAFETY: AVX2 was detected just above.
             return unsafe { self.row_range_avx2(y, row) };
         }

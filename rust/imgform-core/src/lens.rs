@@ -838,7 +838,7 @@ impl ChannelRows for PositionGrid {
     /// fused multiply-adds the operations, and so the bits, are the same.
     fn fill_row(&self, y: usize, lines: &mut GridLines, xy: &mut [i32], gains: &mut [f32]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::cpu::has_avx2() {
             // SAFETY: AVX2 was detected just above.
             return unsafe { self.fill_row_avx2(y, lines, xy, gains) };
         }

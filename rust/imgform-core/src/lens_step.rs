@@ -53,7 +53,7 @@ pub(super) struct Cell {
 /// of the row): one dispatch per row, as the cells are short.
 pub(super) fn step_cells(cells: &[Cell], out: &mut [i32]) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
+    if crate::cpu::has_avx2() {
         // SAFETY: AVX2 was detected just above.
         return unsafe { avx2::step_cells(cells, out) };
     }

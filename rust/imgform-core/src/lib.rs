@@ -6,7 +6,7 @@
 //! the number of threads. Conventions (axis order, camera frame, CFA patterns,
 //! shift sign) are those of `shared/CONVENTIONS.md`.
 
-mod cpu;
+pub mod cpu;
 pub mod error;
 pub mod image;
 pub mod parallel;

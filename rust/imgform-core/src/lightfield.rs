@@ -295,7 +295,7 @@ impl<T: Sample> Stack<'_, T> {
     /// [`Stack::run`] through the widest vector unit the CPU has.
     fn run_dispatch(&self, first: usize, buf: &mut Buffers, out: &mut [T]) {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::cpu::has_avx2() {
             // SAFETY: AVX2 support was detected just above.
             unsafe { self.run_avx2(first, buf, out) };
             return;

@@ -211,7 +211,7 @@ pub trait Resample: Sample {
 macro_rules! avx2_channel_row {
     ($kernel:ident, $src:expr, $rows:expr, $sample:expr) => {{
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && $src.channels() == 3 {
+        if $crate::cpu::has_avx2() && $src.channels() == 3 {
             let size = ($src.width(), $src.height());
             // SAFETY: AVX2 is present; the view guarantees that its data
             // holds an RGB image of `size` with rows `stride` apart; the
@@ -261,7 +261,7 @@ impl Resample for u8 {
         pixel: &mut dyn FnMut(usize, &mut [u8]),
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
+        if crate::cpu::has_avx2() {
             let (data, stride) = (src.data(), src.stride());
             let size = (src.width(), src.height());
             // SAFETY: AVX2 is present; the view guarantees that `data` holds
@@ -308,7 +308,7 @@ impl Resample for u16 {
         pixel: &mut dyn FnMut(usize, &mut [u16]),
     ) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && src.channels() == 1 {
+        if crate::cpu::has_avx2() && src.channels() == 1 {
             let (data, stride) = (src.data(), src.stride());
             let size = (src.width(), src.height());
             // SAFETY: as for u8.

@@ -53,7 +53,11 @@ const TAP_BYTES: u64 = 0x5555_5555_5555_5555;
 /// Whether the CPU has the instructions [`channel_row_u8`] is built with.
 pub(super) fn available() -> bool {
     use std::arch::is_x86_feature_detected as has;
-    has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vbmi")
+    crate::cpu::allows(crate::cpu::Level::Avx512)
+        && has!("avx512f")
+        && has!("avx512bw")
+        && has!("avx512dq")
+        && has!("avx512vbmi")
 }
 
 /// The source as a step addresses it.

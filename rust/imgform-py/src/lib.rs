@@ -12,6 +12,7 @@ mod align;
 mod camera;
 mod cfa;
 mod chromatic;
+mod cpu;
 mod defocus;
 mod demosaic;
 mod develop;
@@ -35,6 +36,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     camera::register(m)?;
     cfa::register(m)?;
     chromatic::register(m)?;
+    cpu::register(m)?;
     defocus::register(m)?;
     demosaic::register(m)?;
     develop::register(m)?;

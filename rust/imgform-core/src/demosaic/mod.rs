@@ -610,9 +610,21 @@ pub(crate) enum Isa {
 }
 
 impl Isa {
-    /// The widest instruction set of this CPU that the kernels have.
+    /// The widest instruction set of this CPU that the kernels have and
+    /// the cap ([`crate::cpu`]) allows.
     fn detect() -> Self {
-        Self::available().pop().unwrap_or(Isa::Baseline)
+        let allowed = |isa: &Isa| match isa {
+            Isa::Baseline => true,
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => crate::cpu::allows(crate::cpu::Level::Avx2),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => crate::cpu::allows(crate::cpu::Level::Avx512),
+        };
+        Self::available()
+            .into_iter()
+            .rev()
+            .find(allowed)
+            .unwrap_or(Isa::Baseline)
     }
 
     /// Every instruction set of this CPU that the kernels have, narrowest
