@@ -125,11 +125,11 @@ impl Bank for Oriented {
             sums,
             windows,
         } = row;
-        f.classes_row(kind, halo, sums, class, |position, xx, xy, yy| {
+        let end = class.len() - halo;
+        f.classes_row(kind, halo..end, sums, class, |position, xx, xy, yy| {
             2 * orientation(xx - yy, 2.0 * xy) + (position & 1) as u32
         });
         let tables = &f.bank.tables[usize::from(kind.blue)];
-        let end = class.len() - halo;
         let mut x = halo;
         let src = [windows[3], windows[4], windows[5]];
         #[cfg(target_arch = "x86_64")]

@@ -277,6 +277,106 @@ fn angle_bin(a: f32, b: f32) -> usize {
     2 * quadrant + usize::from(upper)
 }
 
+/// [`Filters::hash_row`]'s classes ([`Weights::class`]) of the columns
+/// `cols`, eight at a time, by the same IEEE operations in the same order
+/// (no fused multiply-adds), so every class is the scalar one; returns the
+/// first column left for the scalar loop. The hash is a dependent chain of
+/// two square roots and a division per pixel, which one at a time cost
+/// more than the filters it chooses.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn hash_avx2(
+    w: &Weights,
+    kind: RowKind,
+    sums: [[&[f32]; 3]; 3],
+    class: &mut [u32],
+    cols: Range<usize>,
+) -> usize {
+    use std::arch::x86_64::*;
+    const COS: f32 = 0.923_879_5;
+    const SIN: f32 = 0.382_683_43;
+    let ps = _mm256_set1_ps;
+    let ints = _mm256_castps_si256;
+    let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    // Columns advance by eight, so each lane keeps its column's parity.
+    let odd = _mm256_and_si256(
+        _mm256_add_epi32(lanes, _mm256_set1_epi32(cols.start as i32)),
+        _mm256_set1_epi32(1),
+    );
+    let parity = _mm256_set1_epi32(kind.chroma_parity as i32);
+    let chroma = _mm256_and_si256(_mm256_cmpeq_epi32(odd, parity), _mm256_set1_epi32(1));
+    let position = _mm256_add_epi32(_mm256_set1_epi32(2 * i32::from(kind.blue)), chroma);
+    let first = _mm256_mullo_epi32(
+        position,
+        _mm256_set1_epi32((ANGLES * STRENGTHS * COHERENCES) as i32),
+    );
+    // A comparison's mask (-1 or 0) as `k` or 0.
+    let count = |mask: __m256, k: i32| _mm256_and_si256(ints(mask), _mm256_set1_epi32(k));
+    let mut x = cols.start;
+    while x + 8 <= cols.end {
+        // SAFETY: the slice holds the eight values read.
+        let load = |r: &[f32]| unsafe { _mm256_loadu_ps(r[x..x + 8].as_ptr()) };
+        let add3 =
+            |p: &[&[f32]; 3]| _mm256_add_ps(_mm256_add_ps(load(p[0]), load(p[1])), load(p[2]));
+        let [sxx, sxy, syy] = sums.each_ref().map(add3);
+        // eigen()
+        let half_trace = _mm256_mul_ps(ps(0.5), _mm256_add_ps(sxx, syy));
+        let half_diff = _mm256_mul_ps(ps(0.5), _mm256_sub_ps(sxx, syy));
+        let d = _mm256_sqrt_ps(_mm256_add_ps(
+            _mm256_mul_ps(half_diff, half_diff),
+            _mm256_mul_ps(sxy, sxy),
+        ));
+        let l1 = _mm256_add_ps(half_trace, d);
+        let l2 = _mm256_max_ps(_mm256_sub_ps(half_trace, d), _mm256_setzero_ps());
+        let (r1, r2) = (_mm256_sqrt_ps(l1), _mm256_sqrt_ps(l2));
+        let sum = _mm256_add_ps(r1, r2);
+        let coherence = _mm256_and_ps(
+            _mm256_div_ps(_mm256_sub_ps(r1, r2), sum),
+            _mm256_cmp_ps::<_CMP_GT_OQ>(sum, _mm256_setzero_ps()),
+        );
+        // angle_bin()
+        let a = _mm256_sub_ps(sxx, syy);
+        let b = _mm256_mul_ps(ps(2.0), sxy);
+        let u = _mm256_sub_ps(_mm256_mul_ps(a, ps(COS)), _mm256_mul_ps(b, ps(SIN)));
+        let v = _mm256_add_ps(_mm256_mul_ps(a, ps(SIN)), _mm256_mul_ps(b, ps(COS)));
+        let negate = |p: __m256| _mm256_xor_ps(p, ps(-0.0));
+        let top = _mm256_cmp_ps::<_CMP_GE_OQ>(v, _mm256_setzero_ps());
+        let right = _mm256_cmp_ps::<_CMP_GE_OQ>(u, _mm256_setzero_ps());
+        let upper = _mm256_blendv_ps(
+            _mm256_blendv_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(negate(v), negate(u)),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(negate(v), u),
+                right,
+            ),
+            _mm256_blendv_ps(
+                _mm256_cmp_ps::<_CMP_LT_OQ>(v, negate(u)),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(v, u),
+                right,
+            ),
+            top,
+        );
+        let bottom = _mm256_xor_ps(top, _mm256_castsi256_ps(_mm256_set1_epi32(-1)));
+        let turned = _mm256_xor_ps(top, right);
+        let per_angle = (STRENGTHS * COHERENCES) as i32;
+        let mut c = _mm256_add_epi32(first, count(bottom, 4 * per_angle));
+        c = _mm256_add_epi32(c, count(turned, 2 * per_angle));
+        c = _mm256_add_epi32(c, count(upper, per_angle));
+        for &t in &w.strength {
+            c = _mm256_add_epi32(
+                c,
+                count(_mm256_cmp_ps::<_CMP_GE_OQ>(l1, ps(t)), COHERENCES as i32),
+            );
+        }
+        for &t in &w.coherence {
+            c = _mm256_add_epi32(c, count(_mm256_cmp_ps::<_CMP_GE_OQ>(coherence, ps(t)), 1));
+        }
+        // SAFETY: the slice holds the eight values written.
+        unsafe { _mm256_storeu_si256(class[x..x + 8].as_mut_ptr().cast(), c) };
+        x += 8;
+    }
+    x
+}
+
 /// A filter bank with what applying it needs: the hash's scale and the
 /// clamping bounds. Its methods work a row at a time, so the same code
 /// refines the planes of a tile ([`Raisr`]) and MLRI's rows as they stream
@@ -663,17 +763,17 @@ impl<B> Filters<B> {
     pub(super) fn classes_row(
         &self,
         kind: RowKind,
-        halo: usize,
+        cols: Range<usize>,
         sums: [[&[f32]; 3]; 3],
         class: &mut [u32],
         hash: impl Fn(usize, f32, f32, f32) -> u32,
     ) {
         let blue = usize::from(kind.blue);
-        let end = class.len() - halo;
-        let [xx, xy, yy] = sums.map(|rows| rows.map(|r| &r[halo..end]));
-        for (i, c) in class[halo..end].iter_mut().enumerate() {
+        let start = cols.start;
+        let [xx, xy, yy] = sums.map(|rows| rows.map(|r| &r[cols.clone()]));
+        for (i, c) in class[cols.clone()].iter_mut().enumerate() {
             let add3 = |p: &[&[f32]; 3]| (p[0][i] + p[1][i]) + p[2][i];
-            let chroma = usize::from((halo + i) & 1 == kind.chroma_parity);
+            let chroma = usize::from((start + i) & 1 == kind.chroma_parity);
             *c = hash(2 * blue + chroma, add3(&xx), add3(&xy), add3(&yy));
         }
     }
@@ -690,7 +790,16 @@ impl Filters<Weights> {
         class: &mut [u32],
     ) {
         let weights = self.bank;
-        self.classes_row(kind, halo, sums, class, |position, xx, xy, yy| {
+        let end = class.len() - halo;
+        #[allow(unused_mut)]
+        let mut x = halo;
+        #[cfg(target_arch = "x86_64")]
+        if self.isa != Isa::Baseline {
+            // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
+            // with AVX2.
+            x = unsafe { hash_avx2(weights, kind, sums, class, halo..end) };
+        }
+        self.classes_row(kind, x..end, sums, class, |position, xx, xy, yy| {
             weights.class(position, xx, xy, yy) as u32
         });
     }
@@ -852,6 +961,72 @@ mod tests {
         let mut odd = bytes.to_vec();
         odd[20] = 27;
         assert!(Weights::parse(&odd).is_none());
+    }
+
+    /// The vector hash gives every column the scalar class, at the bins'
+    /// edges too: sums exactly on a strength or coherence threshold, flat
+    /// and isotropic tensors, and gradients on the octants' borders.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_vector_hash_gives_the_scalar_classes() {
+        if !crate::cpu::has_avx2() {
+            return;
+        }
+        let w = Weights::raisr();
+        let mut seed = 11u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let n = 203;
+        let mut rows: [[Vec<f32>; 3]; 3] =
+            std::array::from_fn(|_| std::array::from_fn(|_| vec![0.0; n]));
+        for x in 0..n {
+            let scale = 10f32.powi((x % 7) as i32 - 6);
+            let (xx, xy, yy) = match x % 5 {
+                // Exactly on a threshold: the other two rows stay zero.
+                0 => (w.strength[x % 2], 0.0, 0.0),
+                1 => (0.0, 0.0, 0.0),
+                2 => (scale, if x % 2 == 0 { scale } else { -scale }, scale),
+                _ => (next() * scale, (next() - 0.5) * scale, next() * scale),
+            };
+            for (p, v) in rows.iter_mut().zip([xx, xy, yy]) {
+                if x % 5 < 3 {
+                    p[0][x] = v;
+                } else {
+                    p.iter_mut().for_each(|r| r[x] = v * next());
+                }
+            }
+        }
+        let sums = rows.each_ref().map(|p| p.each_ref().map(|r| &r[..]));
+        for blue in [false, true] {
+            for chroma_parity in [0, 1] {
+                let kind = RowKind {
+                    blue,
+                    chroma_parity,
+                };
+                let mut scalar = vec![0u32; n];
+                let mut vector = vec![0u32; n];
+                let f = Filters {
+                    phase: Phase { ry: 0, rx: 0 },
+                    inv_scale: 1.0,
+                    bounds: (0.0, 1.0),
+                    bank: w,
+                    isa: Isa::Baseline,
+                };
+                f.hash_row(kind, 3, sums, &mut scalar);
+                // SAFETY: the CPU has AVX2.
+                let end = unsafe { hash_avx2(w, kind, sums, &mut vector, 3..n - 3) };
+                assert!(end > n - 3 - 8);
+                f.classes_row(kind, end..n - 3, sums, &mut vector, |p, a, b, c| {
+                    w.class(p, a, b, c) as u32
+                });
+                assert_eq!(
+                    scalar, vector,
+                    "blue row {blue}, chroma parity {chroma_parity}"
+                );
+            }
+        }
     }
 
     /// The taps give the filter's value on the features (module docs) of
