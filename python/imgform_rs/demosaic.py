@@ -129,11 +129,11 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"raisr_fast"``'s 11074 and 35.4 %). On the nine held-out training photographs
   0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are clamped to the
   range of the input mosaic.
-- ``"fusion"``: a learned adaptive fusion of ``"mlri"`` and ``"rcd_menon"``. No
+- ``"fusion"``: a learned adaptive fusion of ``"mlri"`` and ``"rcd"``. No
   single classical method leads everywhere: residual interpolation wins where the
   colour channels are weakly correlated (saturated colours), colour differences where
   they are strongly correlated (most photographs). Here the filters of ``"raisr"``
-  refine ``"mlri"`` and also see the ``"rcd_menon"`` output's difference from it over
+  refine ``"mlri"`` and also see the ``"rcd"`` output's difference from it over
   the 3x3 window (53 features per pixel), so that per CFA position and class of local
   structure they learn how far to trust either and how to correct both. The filters
   (120 KB) are trained by ``python -m imgform_rs.training.demosaic --method fusion``
@@ -144,7 +144,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   we run, still 1.3-1.6 dB below the deep demosaicnet. Less false colour on the zone
   plate than ``"mlri"`` but twice ``"rcd_menon"``'s; the least zipper on the Siemens
   star of ours. ``"mlri"`` streams down tiles as tall as the image, as it does alone;
-  its rows are refined in chunks of 64 rows, where ``"rcd_menon"`` and the filters
+  its rows are refined in chunks of 64 rows, where ``"rcd"`` and the filters
   run on sub-tiles 384 columns wide: 3.3-3.4x the CPU time of ``"mlri"`` at 24 MP
   (one thread, 2026-11-27) and 13 % of the output in extra memory. The 36 training
   photographs under CC-BY licences are credited in

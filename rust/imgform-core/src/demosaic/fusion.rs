@@ -1,32 +1,31 @@
-//! The learned fusion of MLRI and the RCD / Menon mean
+//! The learned fusion of MLRI and RCD
 //! ([`super::Method::Fusion`]): RAISR's filters over MLRI that also see the
 //! second base, run so that no base does more work than it does alone.
 //!
-//! MLRI streams down tiles as tall as the image with a halo of 30 pixels;
-//! the RCD / Menon mean and the filters work on planes of small tiles with
-//! a halo of 12. Run as one plane kernel on small tiles, MLRI recomputed
-//! its wide halo around every 128 x 384 tile (1.8 times its own work) and
-//! all of them kept full tile planes (19 % of the output in memory). Here
-//! MLRI streams down the tall tile as it does alone; its rows gather into
-//! chunks of [`CHUNK_ROWS`] output rows (2 more on each side for the
-//! filters' hash), and each chunk is refined in sub-tiles
-//! [`SUB_COLS`] wide, where the RCD / Menon mean and the filters
-//! ([`Raisr`]) see the MLRI rows as a [`Given`] base. Every output pixel
-//! gets the same arithmetic on the same values as in any other cut, so the
-//! bits do not depend on the tiling nor on the thread count. (The filters
-//! over MLRI alone need no second base's planes: they refine MLRI's rows as
-//! they stream out, [`super::refined`].)
+//! MLRI streams down tiles as tall as the image with a halo of 30 pixels; RCD
+//! and the filters work on planes of small tiles with a halo of 12. Run as
+//! one plane kernel on small tiles, MLRI recomputed its wide halo around
+//! every 128 x 384 tile (1.8 times its own work) and all of them kept full
+//! tile planes (19 % of the output in memory). Here MLRI streams down the
+//! tall tile as it does alone; its rows gather into chunks of [`CHUNK_ROWS`]
+//! output rows (2 more on each side for the filters' hash), and each chunk is
+//! refined in sub-tiles [`SUB_COLS`] wide, where RCD and the filters
+//! ([`Raisr`]) see the MLRI rows as a [`Given`] base. Every output pixel gets
+//! the same arithmetic on the same values as in any other cut, so the bits do
+//! not depend on the tiling nor on the thread count. (The filters over MLRI
+//! alone need no second base's planes: they refine MLRI's rows as they stream
+//! out, [`super::refined`].)
 
 use super::mlri::{Buffers, Mlri};
 use super::raisr::{self, Given, Raisr, Secondary, REACH};
 use super::ring::{cache_aligned, ALIGN_PAD};
 use super::tiled::{Emit, Load, StreamKernel, Tile, TileKernel};
 
-/// Output rows per chunk: the RCD / Menon mean recomputes 12 halo rows
+/// Output rows per chunk: RCD recomputes 12 halo rows
 /// above and below each chunk (38 % more rows at 64), while its planes,
 /// the filters' and the chunk's grow with it.
 const CHUNK_ROWS: usize = 64;
-/// Output columns per sub-tile: the RCD / Menon mean's own tile width,
+/// Output columns per sub-tile: RCD's own tile width,
 /// whose planes stay in cache.
 const SUB_COLS: usize = 384;
 

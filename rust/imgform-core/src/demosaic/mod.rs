@@ -130,11 +130,11 @@ pub enum Method {
     /// validation subset), at about 0.73x its time. Not flip-symmetric.
     /// Outputs are clamped to the input's range.
     RaisrCd,
-    /// A learned adaptive fusion of [`Method::Mlri`] and [`Method::RcdMenon`]:
-    /// filters as [`Method::Raisr`]'s over MLRI that also see the RCD /
-    /// Menon mean's difference from MLRI over the 3x3 window. MLRI's residual interpolation wins where the colour channels
-    /// are weakly correlated, RCD / Menon's colour differences where they
-    /// are strongly correlated; per class of local structure the filters
+    /// A learned adaptive fusion of [`Method::Mlri`] and [`Method::Rcd`]:
+    /// filters as [`Method::Raisr`]'s over MLRI that also see RCD's
+    /// difference from MLRI over the 3x3 window. MLRI's residual
+    /// interpolation wins where the colour channels are weakly correlated,
+    /// RCD's colour differences where they are strongly correlated; per class of local structure the filters
     /// learn how far to trust either. Not flip-symmetric. Outputs are
     /// clamped to the input's range.
     Fusion,
@@ -201,7 +201,7 @@ impl Method {
 
     /// The most accurate method, which the name "quality" selects, whatever
     /// its speed: by the mean over the validation subsets, the learned
-    /// fusion of MLRI and the RCD / Menon mean, ahead of MLRI on each subset.
+    /// fusion of MLRI and RCD, ahead of MLRI on each subset.
     pub const QUALITY: Method = Method::Fusion;
 
     /// The names that select a method by what it is for rather than by what
@@ -259,7 +259,7 @@ impl Method {
             Method::RiCd => <differences::Differences as tiled::StreamKernel>::HALO,
             Method::RaisrCd => <refined::Refined<oriented::Oriented, differences::Differences> as tiled::StreamKernel>::HALO,
             Method::Fusion => {
-                <fusion::Fusion<raisr::Against<ensemble::Ensemble>> as tiled::StreamKernel>::HALO
+                <fusion::Fusion<raisr::Against<Rcd>> as tiled::StreamKernel>::HALO
             }
             Method::Markesteijn => markesteijn::HALO,
         }
@@ -706,7 +706,7 @@ where
             let raw = &Ranged::new(raw);
             let refine = raisr::Raisr {
                 base: raisr::Given,
-                second: raisr::Against(rcd_menon(phase, T::FULL_SCALE)),
+                second: raisr::Against(Rcd::new(phase, T::FULL_SCALE)),
                 filters: filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa),
             };
             let k = fusion::Fusion {

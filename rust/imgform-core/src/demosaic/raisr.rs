@@ -22,7 +22,7 @@
 //! The same machinery fuses two bases ([`Against`]): the filters then also
 //! see the second base's difference from the first over the 3x3 window, 27
 //! features more, and learn per class how far to trust either (the learned
-//! fusion of MLRI and the RCD / Menon mean, [`super::Method::Fusion`]).
+//! fusion of MLRI and RCD, [`super::Method::Fusion`]).
 //!
 //! The filters are trained by `python -m imgform_rs.training.demosaic` on
 //! openly licensed images that are not the benchmark's (see the docs) and
@@ -164,7 +164,7 @@ impl Weights {
         Self::shipped(&WEIGHTS, include_bytes!("raisr_weights.bin"), WINDOWS)
     }
 
-    /// The shipped filter bank of the fusion of MLRI and the RCD / Menon mean.
+    /// The shipped filter bank of the fusion of MLRI and RCD.
     pub(crate) fn fusion() -> &'static Weights {
         static WEIGHTS: OnceLock<Weights> = OnceLock::new();
         Self::shipped(&WEIGHTS, include_bytes!("fusion_weights.bin"), 2 * WINDOWS)
