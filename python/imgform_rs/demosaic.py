@@ -139,14 +139,15 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   (120 KB) are trained by ``python -m imgform_rs.training.demosaic --method fusion``
   on 293 openly licensed photographs (:mod:`imgform_rs.training.sets`, set
   ``"photos"``), never on the benchmark's images. Not flip-symmetric. Outputs are
-  clamped to the range of the input mosaic. Mean CPSNR 40.11 dB on the scikit-image
+  clamped to the range of the input mosaic. Mean CPSNR 40.08 dB on the scikit-image
   seven, 40.03 on CBSD68, 36.49 on Urban24: 0.9-1.3 dB above every classical peer
-  we run, still 1.3-1.6 dB below the deep demosaicnet. Less false colour on the zone
-  plate than ``"mlri"`` but twice ``"rcd_menon"``'s; the least zipper on the Siemens
-  star of ours. ``"mlri"`` streams down tiles as tall as the image, as it does alone;
+  we run, still 1.3-1.6 dB below the deep demosaicnet. On the grey zone plate
+  slightly less false colour than ``"mlri"`` (13163 against 13662) but 2.7 times
+  ``"raisr_cd"``'s. ``"mlri"`` streams down tiles as tall as the image, as it does alone;
   its rows are refined in chunks of 64 rows, where ``"rcd"`` and the filters
-  run on sub-tiles 384 columns wide: 3.3-3.4x the CPU time of ``"mlri"`` at 24 MP
-  (one thread, 2026-11-27) and 13 % of the output in extra memory. The 36 training
+  run on sub-tiles 384 columns wide: 38 MP/s at 24 MP on two cores (1.25x LibRaw's
+  AHD, 2.7x the time of ``"mlri"``; ``benchmarks/demosaic.py``, 2026-12-05) and 11 %
+  of the output in extra memory. The 36 training
   photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
@@ -158,7 +159,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
   method                    scikit 7    CBSD68  Urban24
   ========================  ==========  ======  =======
-  ``"fusion"``              40.11       40.03   36.49
+  ``"fusion"``              40.08       40.03   36.49
   ``"raisr"``               39.90       39.92   36.29
   ``"raisr_fast"``          39.67       39.79   36.13
   ``"raisr_cd"`` (best)     39.64       39.77   36.13
