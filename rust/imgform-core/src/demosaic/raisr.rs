@@ -180,7 +180,7 @@ impl Weights {
     }
 
     /// The class (index into `taps`) of a CFA position and structure-tensor
-    /// sums. Branch-free, so a row of them vectorises.
+    /// sums; [`hash_avx2`] computes eight at a time, to the same bits.
     #[inline(always)]
     fn class(&self, position: usize, sxx: f32, sxy: f32, syy: f32) -> usize {
         let (l1, coh) = eigen(sxx, sxy, syy);
