@@ -256,6 +256,11 @@ fn eigen(sxx: f32, sxy: f32, syy: f32) -> (f32, f32) {
     (l1, coherence)
 }
 
+/// cos and sin of 22.5 degrees: [`angle_bin`]'s rotation of the doubled
+/// angle, shared by its vector twin [`hash_avx2`].
+const COS: f32 = 0.923_879_5;
+const SIN: f32 = 0.382_683_43;
+
 /// The octant of the doubled orientation angle `atan2(b, a)` of the tensor
 /// (`a = sxx - syy`, `b = 2 sxy`), rotated by 22.5 degrees so that bins
 /// are centred on horizontal, diagonal and vertical gradients. Comparisons
@@ -263,8 +268,6 @@ fn eigen(sxx: f32, sxy: f32, syy: f32) -> (f32, f32) {
 /// quadrant comes from the signs, the octant within it from one comparison.
 #[inline(always)]
 fn angle_bin(a: f32, b: f32) -> usize {
-    const COS: f32 = 0.923_879_5;
-    const SIN: f32 = 0.382_683_43;
     let (u, v) = (a * COS - b * SIN, a * SIN + b * COS);
     let (top, right) = (v >= 0.0, u >= 0.0);
     let quadrant = 2 * usize::from(!top) + usize::from(top != right);
@@ -293,8 +296,6 @@ fn hash_avx2(
     cols: Range<usize>,
 ) -> usize {
     use std::arch::x86_64::*;
-    const COS: f32 = 0.923_879_5;
-    const SIN: f32 = 0.382_683_43;
     let ps = _mm256_set1_ps;
     let ints = _mm256_castps_si256;
     let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
