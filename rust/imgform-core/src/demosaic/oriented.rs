@@ -10,20 +10,23 @@
 //! same photographs, four orientations kept all but 0.1-0.2 dB of the
 //! eight-angle, nine-shape hash on the validation subsets), and sixteen
 //! filters allow another way to apply them. Along a row the CFA position
-//! alternates between two and the orientation takes four values, so each
-//! tap has just 8 values across a row's classes: one 8-float table, from
-//! which a single permute gives the tap of each of eight pixels (of
-//! sixteen with AVX-512, the table in both halves of a register). The
-//! pixels are then filtered side by side like a convolution, with no
-//! per-pixel fetch, and the tables of a row (1.7 KB) stay in cache.
+//! alternates between two, the orientation takes four values and the
+//! shape two ([`coherent`]), so each tap has just 16 values across a row's
+//! classes: one 16-float table, from which a single permute gives the tap
+//! of each of sixteen pixels with AVX-512 (two permutes and a blend, of
+//! eight pixels, with AVX2). The pixels are then filtered side by side
+//! like a convolution, with no per-pixel fetch, and the tables of a row
+//! (3.5 KB) stay in cache.
 //!
 //! The features, the taps' windows and the training are RAISR's
 //! ([`super::raisr::taps`]); only the class differs: the quadrant of the
 //! doubled orientation of the 3x3 structure tensor of MLRI's green
-//! ([`orientation`]). The filters are trained by
+//! ([`orientation`]) and whether the tensor is anisotropic enough to be an
+//! edge ([`coherent`]). The filters are trained by
 //! `python -m imgform_rs.training.demosaic --method raisr_fast` and shipped
 //! in `raisr_fast_weights.bin` (the layout of [`File::read`], with one
-//! strength and one coherence bin and no thresholds).
+//! strength bin, two coherence bins and the bound of [`coherent`] as the
+//! coherence threshold).
 
 use super::raisr::{add1, taps, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
 use super::{Isa, RowKind};
@@ -32,11 +35,14 @@ use std::sync::OnceLock;
 
 /// Orientation bins: quadrants of the doubled angle ([`orientation`]).
 const ORIENTATIONS: usize = 4;
+/// Shape bins: isotropic or not ([`coherent`]).
+const SHAPES: usize = 2;
 /// Taps per missing colour: 3 columns of each window.
 const TAPS: usize = 3 * WINDOWS;
 
-/// One tap of every class of a row: entry `2 * orientation + chroma_site`.
-type Table = [f32; 8];
+/// One tap of every class of a row: entry `2 * (SHAPES * orientation +
+/// shape) + chroma_site` (the [`Oriented::lane`]).
+type Table = [f32; 16];
 
 /// The filter bank of the orientation hash, as tap tables.
 pub(super) struct Oriented {
@@ -44,36 +50,55 @@ pub(super) struct Oriented {
     /// columns of [`super::raisr`]'s windows, left to right), per missing
     /// colour, the tap of each class.
     tables: [[[Table; 2]; TAPS]; 2],
+    /// The bound of [`coherent`].
+    coherence: f32,
 }
 
 impl Oriented {
     /// Reads a [`File`] of [`ORIENTATIONS`] angle bins, one strength and
-    /// one coherence bin, and [`FEATURES`] features, whose numbers are the
-    /// filters indexed `[position][orientation][missing colour][feature]`.
+    /// [`SHAPES`] coherence bins, and [`FEATURES`] features, whose numbers
+    /// are the bound of [`coherent`] (positive), then the filters indexed
+    /// `[position][orientation][shape][missing colour][feature]`.
     ///
     /// Returns `None` for a malformed file.
     pub(super) fn parse(bytes: &[u8]) -> Option<Oriented> {
         let file = File::read(bytes)?;
-        let size = POSITIONS * ORIENTATIONS * 2 * FEATURES;
-        if file.bins != [ORIENTATIONS, 1, 1] || file.features != FEATURES {
+        let size = 1 + POSITIONS * ORIENTATIONS * SHAPES * 2 * FEATURES;
+        if file.bins != [ORIENTATIONS, 1, SHAPES] || file.features != FEATURES {
             return None;
         }
         if file.numbers.len() != size {
             return None;
         }
-        let mut tables = [[[[0.0; 8]; 2]; TAPS]; 2];
-        for (class, filter) in file.numbers.chunks_exact(2 * FEATURES).enumerate() {
-            let (position, orientation) = (class / ORIENTATIONS, class % ORIENTATIONS);
-            let (blue, lane) = (position / 2, 2 * orientation + position % 2);
+        let (&coherence, filters) = file.numbers.split_first()?;
+        if !(coherence > 0.0 && coherence.is_finite()) {
+            return None;
+        }
+        let mut tables = [[[[0.0; 16]; 2]; TAPS]; 2];
+        for (class, filter) in filters.chunks_exact(2 * FEATURES).enumerate() {
+            let per_position = ORIENTATIONS * SHAPES;
+            let (position, rest) = (class / per_position, class % per_position);
+            let (lane, kind) = (
+                Self::lane(position, rest / SHAPES, rest % SHAPES),
+                &mut tables[position / 2],
+            );
             // The fourth column of each window is zero: it is not a tap.
             for (k, window) in taps(filter.split_at(FEATURES), WINDOWS).iter().enumerate() {
-                for (dx, tap) in tables[blue][3 * k..3 * k + 3].iter_mut().enumerate() {
+                for (dx, tap) in kind[3 * k..3 * k + 3].iter_mut().enumerate() {
                     tap[0][lane] = window[dx];
                     tap[1][lane] = window[4 + dx];
                 }
             }
         }
-        Some(Oriented { tables })
+        Some(Oriented { tables, coherence })
+    }
+
+    /// A class's entry in its row's tables: the parity of its CFA
+    /// `position` in the lowest bit, so that along a row two neighbours of
+    /// the same orientation and shape differ in it alone.
+    #[inline(always)]
+    fn lane(position: usize, orientation: usize, shape: usize) -> usize {
+        2 * (SHAPES * orientation + shape) + position % 2
     }
 
     /// A shipped filter bank, parsed on first use.
@@ -97,6 +122,17 @@ impl Oriented {
         static BANK: OnceLock<Oriented> = OnceLock::new();
         Self::shipped(&BANK, include_bytes!("raisr_cd_weights.bin"))
     }
+}
+
+/// Whether the structure tensor (`a = sxx - syy`, `c = 2 sxy`, trace
+/// `t`) is anisotropic: `(l1 - l2)^2 > k (l1 + l2)^2` for its eigenvalues,
+/// as `a^2 + c^2` is `(l1 - l2)^2`. RAISR's coherence, `(sqrt l1 - sqrt
+/// l2) / (sqrt l1 + sqrt l2)`, is a monotone function of the same ratio, so
+/// a bound on it is a bound on this one, without a square root; a flat
+/// tensor is isotropic. Reproduced exactly by the training script.
+#[inline(always)]
+fn coherent(a: f32, c: f32, t: f32, k: f32) -> bool {
+    a * a + c * c > k * (t * t)
 }
 
 /// The quadrant of the doubled orientation `atan2(c, a)` of the structure
@@ -126,8 +162,11 @@ impl Bank for Oriented {
             windows,
         } = row;
         let end = class.len() - halo;
+        let k = f.bank.coherence;
         f.classes_row(kind, halo..end, sums, class, |position, xx, xy, yy| {
-            2 * orientation(xx - yy, 2.0 * xy) + (position & 1) as u32
+            let (a, c) = (xx - yy, 2.0 * xy);
+            let shape = usize::from(coherent(a, c, xx + yy, k));
+            Oriented::lane(position, orientation(a, c) as usize, shape) as u32
         });
         let tables = &f.bank.tables[usize::from(kind.blue)];
         let mut x = halo;
@@ -181,7 +220,8 @@ fn apply(
 
 /// [`apply`] and [`add1`] for the columns `cols`, eight at a time as far
 /// as whole eights go; returns the first column left. Each tap of the
-/// eight pixels is one permute of its table by their classes.
+/// eight pixels is a permute of each half of its table by their classes
+/// and a blend of the two.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
@@ -198,10 +238,11 @@ fn add_avx2(
     unsafe { add_lanes::<std::arch::x86_64::__m256>(tables, kind, class, src, dst, rows, cols) }
 }
 
-/// [`add_avx2`] sixteen pixels at a time: each tap table, broadcast to
-/// both halves of a 512-bit register, is permuted by sixteen classes. On
-/// Zen 4, which splits 512-bit operations in two, this still took a
-/// sixth less time than eight pixels a step (fewer instructions to issue).
+/// [`add_avx2`] sixteen pixels at a time: each tap table fills a 512-bit
+/// register and one permute by sixteen classes gives their taps. On Zen
+/// 4, which splits 512-bit operations in two, this took a sixth less time
+/// than eight pixels a step even with 8-entry tables (fewer instructions
+/// to issue).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 #[inline]
@@ -247,11 +288,15 @@ trait Lanes: Copy {
 #[cfg(target_arch = "x86_64")]
 impl Lanes for std::arch::x86_64::__m256 {
     const N: usize = 8;
-    type Index = std::arch::x86_64::__m256i;
+    /// The classes, and bit 3 of each moved to the sign bit, which picks
+    /// the table's second half in a blend.
+    type Index = (std::arch::x86_64::__m256i, std::arch::x86_64::__m256);
     #[inline(always)]
     unsafe fn classes(p: *const u32) -> Self::Index {
+        use std::arch::x86_64::*;
         // SAFETY: by the trait's contract.
-        unsafe { std::arch::x86_64::_mm256_loadu_si256(p.cast()) }
+        let index = unsafe { _mm256_loadu_si256(p.cast()) };
+        (index, _mm256_castsi256_ps(_mm256_slli_epi32::<28>(index)))
     }
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
@@ -259,10 +304,15 @@ impl Lanes for std::arch::x86_64::__m256 {
         unsafe { std::arch::x86_64::_mm256_loadu_ps(p) }
     }
     #[inline(always)]
-    unsafe fn tap(table: &Table, index: Self::Index) -> Self {
+    unsafe fn tap(table: &Table, (index, high): Self::Index) -> Self {
         use std::arch::x86_64::*;
-        // SAFETY: by the trait's contract; a table holds 8 values.
-        unsafe { _mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr()), index) }
+        // SAFETY: by the trait's contract; a table holds 16 values, and
+        // the permutes read the classes' low 3 bits.
+        unsafe {
+            let low = _mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr()), index);
+            let up = _mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr().add(8)), index);
+            _mm256_blendv_ps(low, up, high)
+        }
     }
     #[inline(always)]
     unsafe fn zero() -> Self {
@@ -303,12 +353,9 @@ impl Lanes for std::arch::x86_64::__m512 {
     #[inline(always)]
     unsafe fn tap(table: &Table, index: Self::Index) -> Self {
         use std::arch::x86_64::*;
-        // SAFETY: by the trait's contract; the table (8 values) is in
-        // both halves, and the classes are below 8.
-        unsafe {
-            let t = _mm512_broadcast_f32x8(_mm256_loadu_ps(table.as_ptr()));
-            _mm512_permutexvar_ps(index, t)
-        }
+        // SAFETY: by the trait's contract; a table holds 16 values, and
+        // the classes are below 16.
+        unsafe { _mm512_permutexvar_ps(index, _mm512_loadu_ps(table.as_ptr())) }
     }
     #[inline(always)]
     unsafe fn zero() -> Self {
@@ -382,7 +429,7 @@ unsafe fn add_lanes<V: Lanes>(
     let mut x = cols.start;
     while x + V::N <= cols.end {
         // SAFETY: the assertion above keeps every load in bounds (and the
-        // loads are unaligned ones); the classes are below 8, as the
+        // loads are unaligned ones); the classes are below 16, as the
         // permutes need.
         let d = unsafe {
             let index = V::classes(class.as_ptr().add(x));
@@ -448,6 +495,23 @@ mod tests {
         assert!(Oriented::parse(&bytes[..bytes.len() - 4]).is_none());
         // RAISR's bank has the full hash's bins.
         assert!(Oriented::parse(include_bytes!("raisr_weights.bin")).is_none());
+        // The bound of `coherent` comes first, and must be positive.
+        let mut bound = bytes.to_vec();
+        bound[24..28].copy_from_slice(&(-0.5f32).to_le_bytes());
+        assert!(Oriented::parse(&bound).is_none());
+    }
+
+    #[test]
+    fn edges_are_coherent_and_flat_or_isotropic_tensors_are_not() {
+        let k = Oriented::raisr_cd().coherence;
+        // (sxx, sxy, syy): a vertical edge, a diagonal one, isotropic, flat.
+        let shape = |(xx, xy, yy): (f32, f32, f32)| coherent(xx - yy, 2.0 * xy, xx + yy, k);
+        assert!(shape((1.0, 0.0, 0.0)) && shape((0.5, 0.5, 0.5)));
+        assert!(!shape((1.0, 0.0, 1.0)) && !shape((0.0, 0.0, 0.0)));
+        // Eigenvalues 1 and l2: anisotropic up to RAISR's coherence 0.3,
+        // where sqrt(l2) = 0.7 / 1.3.
+        let l2 = (0.7f32 / 1.3).powi(2);
+        assert!(shape((1.0, 0.0, l2 * 0.98)) && !shape((1.0, 0.0, l2 * 1.02)));
     }
 
     #[test]
@@ -480,7 +544,7 @@ mod tests {
             })
             .collect();
         let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
-        let class: Vec<u32> = (0..40).map(|i| (i * 7 % 8) as u32).collect();
+        let class: Vec<u32> = (0..40).map(|i| (i * 7 % 16) as u32).collect();
         type Loop = unsafe fn(
             &[[Table; 2]; TAPS],
             RowKind,
