@@ -88,21 +88,23 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   whole planes): 33 MP/s at 24 MP on two cores, 1.7x the time of ``"mlri"`` and
   2.1x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-11-28), and 4 % of the output
   in extra memory.
-- ``"raisr_fast"``: ``"raisr"`` with a hash of orientation alone. Its 16 filters are
-  chosen by the CFA position and the quadrant of the doubled orientation of the
-  structure tensor (horizontal, diagonal, vertical or anti-diagonal gradients): so
-  few that along a row each tap takes one of 8 values, and eight pixels are filtered
-  side by side, each tap one permute of an 8-entry table by the pixels' classes,
-  instead of fetching each pixel's filter. Same features, base and training as
-  ``"raisr"`` (``python -m imgform_rs.training.demosaic --method raisr_fast``; 3 KB of
-  filters). Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
-  Mean CPSNR 39.67 dB on the scikit-image seven, 39.79 on CBSD68, 36.13 on Urban24:
-  within 0.2 dB of ``"raisr"`` on each subset and 0.6-0.9 dB above every classical
-  peer we run. On the grey charts it has the least false colour and zipper of the
-  residual-interpolation family (zone plate 11074 and 35.4 % against ``"mlri"``'s
-  13662 and 37.2 %). 52 MP/s at 24 MP on two cores, 1.3x the time of ``"mlri"``,
-  2.9x LibRaw's AHD and 1.4x as fast as ``"raisr"`` (``benchmarks/demosaic.py``,
-  2026-11-28), in 4 % of the output in extra memory.
+- ``"raisr_fast"``: ``"raisr"`` with a hash of orientation and shape alone. Its 32
+  filters are chosen by the CFA position, the quadrant of the doubled orientation of
+  the structure tensor (horizontal, diagonal, vertical or anti-diagonal gradients)
+  and whether the tensor is anisotropic (an edge, against texture or flat: RAISR's
+  coherence above 0.3, tested without a square root): so few that along a row each
+  tap takes one of 16 values, and sixteen pixels are filtered side by side, each tap
+  one permute of a 16-entry table by the pixels' classes (with AVX2, eight pixels and
+  two permutes and a blend), instead of fetching each pixel's filter. Same features,
+  base and training as ``"raisr"`` (``python -m imgform_rs.training.demosaic --method
+  raisr_fast``; 6 KB of filters). Not flip-symmetric. Outputs are clamped to the
+  range of the input mosaic. Mean CPSNR 39.69 dB on the scikit-image seven, 39.84 on
+  CBSD68, 36.20 on Urban24: within 0.2 dB of ``"raisr"`` on each subset and 0.6-0.9
+  dB above every classical peer we run. On the grey zone plate less false colour than
+  ``"mlri"`` (11939 against 13662; zipper 35.9 % against 37.2 %). 90 MP/s at 24 MP
+  on two cores, 1.2x the time of ``"mlri"``, 2.9x LibRaw's AHD and 1.3x as fast as
+  ``"raisr"`` (``benchmarks/demosaic.py``, 2026-12-05), in 4 % of the output in
+  extra memory.
 - ``"ri_cd"``: ``"mlri"``'s green (residual interpolation along rows and columns,
   combined by the colour-difference gradients), then red and blue by colour
   differences to that green, each interpolated along the smoother of two directions:
@@ -116,19 +118,21 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   Urban24: on the two validation subsets above ``"mlri"`` (38.89, 35.70), whose
   guided chroma wins only on the seven, and above every classical peer we run on
   each subset. The base of ``"raisr_cd"``.
-- ``"raisr_cd"``: ``"raisr_fast"``'s 16 orientation-hashed filters trained over
-  ``"ri_cd"`` instead of ``"mlri"`` (``python -m imgform_rs.training.demosaic
-  --method raisr_cd``; 3 KB): the filters recover what the cheaper chroma loses, and
-  the result is within 0.03 dB of ``"raisr_fast"`` on each validation subset (39.64
-  dB on the scikit-image seven, 39.77 on CBSD68, 36.13 on Urban24; 0.57-0.84 dB
-  above every classical peer we run on each) at 0.71x its time: 128 MP/s at 24 MP
-  on two cores, 4.1x LibRaw's AHD, in 4.2 % of the output in extra memory
-  (``benchmarks/demosaic.py``, 2026-12-04; ``"raisr_fast"`` 91 MP/s, ``"mlri"``
-  104). Less false colour and zipper on the grey charts than any other
-  residual-interpolation method (zone plate 4862 and 32.9 % against
-  ``"raisr_fast"``'s 11074 and 35.4 %). On the nine held-out training photographs
-  0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are clamped to the
-  range of the input mosaic.
+- ``"raisr_cd"``: ``"raisr_fast"``'s 32 filters hashed by orientation and shape,
+  trained over ``"ri_cd"`` instead of ``"mlri"`` (``python -m
+  imgform_rs.training.demosaic --method raisr_cd``; 6 KB): the filters recover what
+  the cheaper chroma loses, and the result is within 0.04 dB of ``"raisr_fast"`` on
+  each validation subset (39.65 dB on the scikit-image seven, 39.82 on CBSD68, 36.18
+  on Urban24; 0.62-0.85 dB above every classical peer we run on each) at 0.70x its
+  time: 129 MP/s at 24 MP on two cores, 4.2x LibRaw's AHD, in 4.2 % of the output in
+  extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 90 MP/s,
+  ``"mlri"`` 104). Less false colour and zipper on the grey charts than any other
+  residual-interpolation method (zone plate 5309 and 35.6 % against
+  ``"raisr_fast"``'s 11939 and 35.9 %). Splitting its 16 orientation classes by shape
+  gained 0.05-0.06 dB on CBSD68, Urban24 and the held-out photographs, for 9 % more
+  false colour on the zone plate (it was 4862). On the nine held-out training
+  photographs 0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are
+  clamped to the range of the input mosaic.
 - ``"fusion"``: a learned adaptive fusion of ``"mlri"`` and ``"rcd"``. No
   single classical method leads everywhere: residual interpolation wins where the
   colour channels are weakly correlated (saturated colours), colour differences where
@@ -145,9 +149,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   slightly less false colour than ``"mlri"`` (13163 against 13662) but 2.7 times
   ``"raisr_cd"``'s. ``"mlri"`` streams down tiles as tall as the image, as it does alone;
   its rows are refined in chunks of 64 rows, where ``"rcd"`` and the filters
-  run on sub-tiles 384 columns wide: 38 MP/s at 24 MP on two cores (1.25x LibRaw's
-  AHD, 2.7x the time of ``"mlri"``; ``benchmarks/demosaic.py``, 2026-12-05) and 11 %
-  of the output in extra memory. The 36 training
+  run on sub-tiles 384 columns wide: 36-38 MP/s at 24 MP on two cores (1.16-1.25x
+  LibRaw's AHD, 2.7-2.9x the time of ``"mlri"``, in two runs of
+  ``benchmarks/demosaic.py`` on 2026-12-05) and 11 % of the output in extra memory. The 36 training
   photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
@@ -161,8 +165,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
   ``"fusion"``              40.08       40.03   36.49
   ``"raisr"``               39.90       39.92   36.29
-  ``"raisr_fast"``          39.67       39.79   36.13
-  ``"raisr_cd"`` (best)     39.64       39.77   36.13
+  ``"raisr_fast"``          39.69       39.84   36.20
+  ``"raisr_cd"`` (best)     39.65       39.82   36.18
   ``"ri_cd"``               39.72       39.10   35.77
   ``"mlri"``                39.80       38.89   35.70
   ``"rcd_menon"``           39.63       37.38   34.89
@@ -172,7 +176,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
 
   The residual-interpolation peer (Kiku et al. 2013, in NumPy), the strongest
-  classical one, is 0.84 / 0.78 / 0.57 dB behind ``"best"`` and 0.09 dB ahead of
+  classical one, is 0.85 / 0.83 / 0.62 dB behind ``"best"`` and 0.09 dB ahead of
   ``"mlri"`` alone on CBSD68; LibRaw and colour-demosaicing's Menon2007 are further
   behind on every subset.
 - ``"quality"``: the most accurate method whatever its speed, by the mean over the

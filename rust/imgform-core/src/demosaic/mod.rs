@@ -110,11 +110,12 @@ pub enum Method {
     /// missing colours. Not flip-symmetric (the filters are learned).
     /// Outputs are clamped to the input's range.
     Raisr,
-    /// [`Method::Raisr`] with a hash of orientation alone: per CFA position
-    /// and quadrant of the structure tensor's orientation (16 classes), a
-    /// least-squares linear filter predicts the residual of MLRI's missing
-    /// colours. Its filters run eight pixels side by side, at a small
-    /// fraction of RAISR's cost, for most of its gain. Not flip-symmetric.
+    /// [`Method::Raisr`] with a hash of orientation and shape alone: per CFA
+    /// position, quadrant of the structure tensor's orientation and
+    /// whether the tensor is anisotropic (32 classes), a least-squares
+    /// linear filter predicts the residual of MLRI's missing colours. Its
+    /// filters run sixteen pixels side by side, at a small fraction of
+    /// RAISR's cost, for most of its gain. Not flip-symmetric.
     /// Outputs are clamped to the input's range.
     RaisrFast,
     /// Residual-interpolated green (MLRI's green stage, Kiku et al. 2013)
@@ -126,8 +127,8 @@ pub enum Method {
     RiCd,
     /// [`Method::RaisrFast`]'s orientation-hashed filters trained over
     /// [`Method::RiCd`]: they recover what the cheaper red and blue lose
-    /// against MLRI's (within 0.03 dB of [`Method::RaisrFast`] on each
-    /// validation subset), at about 0.73x its time. Not flip-symmetric.
+    /// against MLRI's (within 0.04 dB of [`Method::RaisrFast`] on each
+    /// validation subset), at 0.70x its time. Not flip-symmetric.
     /// Outputs are clamped to the input's range.
     RaisrCd,
     /// A learned adaptive fusion of [`Method::Mlri`] and [`Method::Rcd`]:
@@ -193,10 +194,10 @@ impl Method {
     /// the name "best" selects: the orientation-hashed filters over
     /// residual-interpolated green and colour-difference chroma
     /// ([`Method::RaisrCd`]), chosen on the validation subsets rather than
-    /// the scikit-image seven alone. Mean CPSNR on the seven 39.64 dB,
-    /// CBSD68 39.77, Urban24 36.13: 0.57-0.84 dB above every classical peer we
-    /// run, within 0.03 dB of [`Method::RaisrFast`] on each subset at
-    /// about 0.73x its time, and 0.9x MLRI's.
+    /// the scikit-image seven alone. Mean CPSNR on the seven 39.65 dB,
+    /// CBSD68 39.82, Urban24 36.18: 0.62-0.85 dB above every classical peer
+    /// we run, within 0.04 dB of [`Method::RaisrFast`] on each subset at
+    /// 0.70x its time, and 0.81x MLRI's.
     pub const BEST: Method = Method::RaisrCd;
 
     /// The most accurate method, which the name "quality" selects, whatever
