@@ -70,7 +70,7 @@ filters: $(BUILT) ## rebuild the leung2011 demosaicer's least-squares filters
 	$(PY) -m imgform_rs.training.leung2011
 
 WEIGHTS := $(addprefix rust/imgform-core/src/demosaic/,raisr_weights.bin raisr_fast_weights.bin \
-	raisr_cd_weights.bin fusion_weights.bin)
+	raisr_cd_weights.bin fusion_weights.bin fusion_refined_weights.bin)
 # include_bytes! makes the weights part of the extension.
 $(BUILT): $(WEIGHTS)
 
@@ -106,9 +106,10 @@ $(TRAINING_DATA)/.fetched-extended: $(TRAINING_DATA)/.fetched
 training-data: $(TRAINING_DATA)/.fetched-extended ## fetch the training photographs (Debian + PyPI)
 
 .PHONY: weights
-weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "raisr_fast", "raisr_cd", "fusion") and check the shipped weights bit for bit
+weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "raisr_fast", "raisr_cd", "fusion", "fusion_refined") and check the shipped weights bit for bit
 	mkdir -p out
-	for m in raisr raisr_fast raisr_cd fusion; do \
+	# fusion_refined trains over the built extension's fusion, so it comes last.
+	for m in raisr raisr_fast raisr_cd fusion fusion_refined; do \
 		$(PY) -m imgform_rs.training.demosaic --method $$m --out out/$${m}_weights.bin && \
 		cmp out/$${m}_weights.bin rust/imgform-core/src/demosaic/$${m}_weights.bin && \
 		echo "$$m weights reproduced bit for bit" || exit 1; \

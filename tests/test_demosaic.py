@@ -60,13 +60,14 @@ def test_methods_are_exactly_the_documented_ones():
         "ri_cd",
         "raisr_cd",
         "fusion",
+        "fusion_refined",
         "markesteijn",
         "best",
         "quality",
     )
 
 
-@pytest.mark.parametrize(("alias", "method"), [("best", "raisr_cd"), ("quality", "fusion")])
+@pytest.mark.parametrize(("alias", "method"), [("best", "raisr_cd"), ("quality", "fusion_refined")])
 def test_aliases_name_a_method(alias, method):
     raw = np.random.default_rng(4).integers(0, 4096, (40, 52)).astype(np.uint16)
     for pattern in ["RGGB", "GBRG"]:
@@ -146,10 +147,11 @@ def test_bilinear_reproduces_a_linear_ramp_in_the_interior(a, b, h, w, p, dtype)
     np.testing.assert_array_equal(out[1:-1, 1:-1], want[1:-1, 1:-1])
 
 
-# The learned filters of "raisr", "raisr_fast", "raisr_cd" and "fusion" ("best" and
-# "quality" name learned methods) are not mirror-symmetric, so flips change their
-# output slightly; tests/test_raisr.py checks their tile seams by a shift instead.
-LEARNED = ("raisr", "raisr_fast", "raisr_cd", "best", "fusion", "quality")
+# The learned filters of "raisr", "raisr_fast", "raisr_cd", "fusion" and
+# "fusion_refined" ("best" and "quality" name learned methods) are not mirror-symmetric,
+# so flips change their output slightly; tests/test_raisr.py checks their tile seams by
+# a shift instead.
+LEARNED = ("raisr", "raisr_fast", "raisr_cd", "best", "fusion", "fusion_refined", "quality")
 FLIP_SYMMETRIC = [m for m in METHODS if m not in LEARNED]
 
 

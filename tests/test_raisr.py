@@ -1,6 +1,6 @@
-"""The learned demosaicers ("raisr", "raisr_fast" and "fusion"): properties the shared
-demosaic tests don't cover (they are not flip-symmetric), agreement with their training
-script, reproducible training."""
+"""The learned demosaicers ("raisr", "raisr_fast", "raisr_cd", "fusion" and
+"fusion_refined"): properties the shared demosaic tests don't cover (they are not
+flip-symmetric), agreement with their training script, reproducible training."""
 
 from pathlib import Path
 
@@ -14,7 +14,7 @@ import imgform_rs as ig
 
 KERNELS = Path(__file__).parents[1] / "rust/imgform-core/src/demosaic"
 WEIGHTS = KERNELS / "raisr_weights.bin"
-LEARNED = ["raisr", "raisr_fast", "raisr_cd", "fusion"]
+LEARNED = ["raisr", "raisr_fast", "raisr_cd", "fusion", "fusion_refined"]
 
 
 @given(raw=mosaics(), p=st.sampled_from(BAYER), method=st.sampled_from(LEARNED))

@@ -1,6 +1,7 @@
 """Training of the learned demosaicers' filter banks: ``"raisr"`` (rebuilds
 ``raisr_weights.bin``), ``"raisr_fast"`` (``raisr_fast_weights.bin``), ``"raisr_cd"``
-(``raisr_cd_weights.bin``) and ``"fusion"`` (``fusion_weights.bin``).
+(``raisr_cd_weights.bin``), ``"fusion"`` (``fusion_weights.bin``) and
+``"fusion_refined"`` (``fusion_refined_weights.bin``).
 
 RAISR (Romano, Isidoro and Milanfar, "RAISR: Rapid and Accurate Image Super
 Resolution", IEEE Transactions on Computational Imaging 3(1), 2017) learns, per
@@ -23,7 +24,11 @@ over ``demosaic(..., "ri_cd")``, whose red and blue are colour differences.
 3x3 window (27 more features), so that per class they learn how far to trust either
 (``Method::Fusion`` in ``rust/imgform-core/src/demosaic/mod.rs``).
 
-All three train on the extended photographs (:func:`imgform_rs.training.sets.training_images`,
+``"fusion_refined"`` is a cascade: ``"raisr_fast"``'s classes and features over the
+output of ``"fusion"`` as the extension built with the shipped ``fusion_weights.bin``
+computes it, so it is retrained after any change to ``"fusion"`` and a rebuild.
+
+All of them train on the extended photographs (:func:`imgform_rs.training.sets.training_images`,
 set ``"photos"``: 293 openly licensed photographs, each cropped, flipped or turned and
 re-exposed once at random), never on the benchmark's images nor the validation
 subsets. Every image is quantised to 8 bits, mosaicked RGGB (the four CFA positions
@@ -48,7 +53,8 @@ method, trained on                                                 held out
 ``"fusion"`` with ``"rcd_menon"``, 33 photographs and textures     37.01
 ``"fusion"`` with ``"rcd_menon"``, the 293 photographs             37.43
 ``"fusion"`` with ``"rcd_menon"``, 293 photographs, 192 synthetic  35.99
-``"fusion"`` with ``"rcd"``, the 293 photographs                   **37.48**
+``"fusion"`` with ``"rcd"``, the 293 photographs                   37.48
+``"fusion_refined"``: over ``"fusion"``, orientation, shape (32)   **37.54**
 =================================================================  =========
 
 Menon's half of the ``"rcd_menon"`` mean added nothing the filters used: with ``"rcd"``
@@ -87,9 +93,10 @@ BASES = {
     "raisr_fast": ("mlri",),
     "raisr_cd": ("ri_cd",),
     "fusion": ("mlri", "rcd"),
+    "fusion_refined": ("fusion",),
 }
-#: The methods whose filters are chosen by CFA position and orientation alone.
-ORIENTED = {"raisr_fast", "raisr_cd"}
+#: The methods whose filters are chosen by CFA position, orientation and shape alone.
+ORIENTED = {"raisr_fast", "raisr_cd", "fusion_refined"}
 #: The training set of both (:func:`imgform_rs.training.sets.training_images`).
 TRAINING_SET = "photos"
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3

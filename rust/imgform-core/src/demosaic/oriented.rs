@@ -124,6 +124,13 @@ impl Oriented {
         static BANK: OnceLock<Oriented> = OnceLock::new();
         Self::shipped(&BANK, include_bytes!("raisr_cd_weights.bin"))
     }
+
+    /// The shipped bank of [`super::Method::FusionRefined`], over
+    /// [`super::Method::Fusion`].
+    pub(super) fn fusion_refined() -> &'static Oriented {
+        static BANK: OnceLock<Oriented> = OnceLock::new();
+        Self::shipped(&BANK, include_bytes!("fusion_refined_weights.bin"))
+    }
 }
 
 /// Whether the structure tensor (`a = sxx - syy`, `c = 2 sxy`, trace
@@ -488,7 +495,11 @@ mod tests {
 
     #[test]
     fn the_shipped_weights_parse_and_malformed_ones_are_refused() {
-        for bank in [Oriented::raisr_fast(), Oriented::raisr_cd()] {
+        for bank in [
+            Oriented::raisr_fast(),
+            Oriented::raisr_cd(),
+            Oriented::fusion_refined(),
+        ] {
             let taps = || bank.tables.iter().flatten().flatten().flatten();
             assert!(taps().all(|v| v.is_finite()));
             assert!(taps().any(|&v| v != 0.0));
@@ -561,7 +572,11 @@ mod tests {
         } else {
             &[add_avx2]
         };
-        for bank in [Oriented::raisr_fast(), Oriented::raisr_cd()] {
+        for bank in [
+            Oriented::raisr_fast(),
+            Oriented::raisr_cd(),
+            Oriented::fusion_refined(),
+        ] {
             for (blue, tables) in bank.tables.iter().enumerate() {
                 for parity in 0..2 {
                     let kind = RowKind {
