@@ -124,7 +124,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   the cheaper chroma loses, and the result is within 0.04 dB of ``"raisr_fast"`` on
   each validation subset (39.65 dB on the scikit-image seven, 39.82 on CBSD68, 36.18
   on Urban24; 0.62-0.85 dB above every classical peer we run on each) at 0.70x its
-  time: 129 MP/s at 24 MP on two cores, 4.2x LibRaw's AHD, in 4.2 % of the output in
+  time: 128 MP/s at 24 MP on two cores, 4.2x LibRaw's AHD, in 4.2 % of the output in
   extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 90 MP/s,
   ``"mlri"`` 104). Less false colour and zipper on the grey charts than any other
   residual-interpolation method (zone plate 5309 and 35.6 % against
@@ -163,9 +163,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   the scikit-image seven, 40.17 on CBSD68, 36.58 on Urban24 (+0.14 and +0.09 dB over
   ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.07 on the held-out
   training photographs), with a little less false colour and zipper on the grey
-  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). XX MP/s at 24 MP on
-  two cores, XX the time of ``"fusion"`` (``benchmarks/demosaic.py``, 2026-12-05), 11 %
-  of the output in extra memory. Not flip-symmetric. Outputs are clamped to the
+  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 35 MP/s at 24 MP on
+  two cores, 1.07x the time of ``"fusion"`` and 1.15x LibRaw's AHD
+  (``benchmarks/demosaic.py``, 2026-12-05), 11 % of the output in extra memory. Not flip-symmetric. Outputs are clamped to the
   range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
