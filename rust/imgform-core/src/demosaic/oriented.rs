@@ -1,5 +1,6 @@
 //! RAISR's filters over MLRI with a hash of orientation and shape alone
-//! ([`super::Method::RaisrFast`]; over RI-CD, [`super::Method::RaisrCd`]).
+//! ([`super::Method::RaisrFast`]; over RI-CD, [`super::Method::RaisrCd`];
+//! over the fusion, [`super::Method::FusionRefined`]).
 //!
 //! The full hash ([`super::raisr`]) picks one of 288 filters per pixel from
 //! the structure tensor's angle, strength and coherence. A filter chosen

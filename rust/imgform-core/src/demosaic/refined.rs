@@ -1,8 +1,8 @@
 //! RAISR's filters over MLRI alone ([`super::Method::Raisr`], and with the
-//! hash of orientation alone [`super::Method::RaisrFast`]) or over
-//! [`super::differences`] ([`super::Method::RaisrCd`]), applied to the
-//! base's rows as they stream out of its tile. The text below says MLRI
-//! for either base.
+//! hash of orientation and shape [`super::Method::RaisrFast`]), over
+//! [`super::differences`] ([`super::Method::RaisrCd`]) or over the fusion
+//! ([`super::Method::FusionRefined`]), applied to the base's rows as they
+//! stream out of its tile. The text below says MLRI for any base.
 //!
 //! The filters and their hash read MLRI two rows above and below an output
 //! row and nothing else, so a ring of the last four MLRI rows and one of
@@ -19,8 +19,9 @@ use super::raisr::{Bank, Filters, Row, REACH};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
-/// A base (MLRI, or [`super::differences::Differences`]) refined by the
-/// filter bank of [`Filters::bank`].
+/// A base (MLRI, [`super::differences::Differences`] or
+/// [`super::fusion::Fusion`]) refined by the filter bank of
+/// [`Filters::bank`].
 pub(super) struct Refined<B: 'static, K = Mlri> {
     pub(super) base: K,
     pub(super) filters: Filters<B>,
