@@ -593,10 +593,19 @@ fn apply8_avx2<const N: usize>(
     use std::arch::x86_64::*;
     // The eight pixels' windows and classes, sliced once: the loads of
     // each pixel then need no bounds checks (a dozen compares per pixel).
-    let rows: [&[f32]; N] = std::array::from_fn(|k| &rows[k][x - 1..x + 11]);
-    let class = &class[x..x + 8];
-    let a: [__m256; 8] =
-        std::array::from_fn(|i| lanes_avx2(weights.filter::<N>(class[i]), &rows, i + 1));
+    // Loops in this function rather than `array::from_fn`, whose closures
+    // were compiled as functions of their own, the second called for each
+    // pixel (26 % of the fusion's profile): 13 % less time for the fusion,
+    // 23 % for RAISR at 24 MP, same bits.
+    let mut windows: [&[f32]; N] = [&[]; N];
+    for (w, row) in windows.iter_mut().zip(rows) {
+        *w = &row[x - 1..x + 11];
+    }
+    let (rows, class) = (&windows, &class[x..x + 8]);
+    let mut a = [_mm256_setzero_ps(); 8];
+    for (i, a) in a.iter_mut().enumerate() {
+        *a = lanes_avx2(weights.filter::<N>(class[i]), rows, i + 1);
+    }
     // Per 128-bit half: pairs of lanes of pixels (0, 1), then their sums
     // for pixels 0..4 (first correction, low half; second, high half).
     let pairs = [0, 2, 4, 6].map(|i| _mm256_hadd_ps(a[i], a[i + 1]));
