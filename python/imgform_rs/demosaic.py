@@ -85,8 +85,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   and the motorcycle's saturated paint. ``"mlri"`` streams down tall tiles, and
   each row it hands over completes the refinement of the row two above it (rings of
   four rows of ``"mlri"`` and three of the hash's sums; the same bits as refining
-  whole planes): 33 MP/s at 24 MP on two cores, 1.7x the time of ``"mlri"`` and
-  2.1x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-11-28), and 4 % of the output
+  whole planes): 76 MP/s at 24 MP on two cores, 1.4x the time of ``"mlri"`` and
+  2.5x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), and 4 % of the output
   in extra memory.
 - ``"raisr_fast"``: ``"raisr"`` with a hash of orientation and shape alone. Its 32
   filters are chosen by the CFA position, the quadrant of the doubled orientation of
@@ -102,7 +102,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   CBSD68, 36.20 on Urban24: within 0.2 dB of ``"raisr"`` on each subset and 0.6-0.9
   dB above every classical peer we run. On the grey zone plate less false colour than
   ``"mlri"`` (11939 against 13662; zipper 35.9 % against 37.2 %). 90 MP/s at 24 MP
-  on two cores, 1.2x the time of ``"mlri"``, 2.9x LibRaw's AHD and 1.3x as fast as
+  on two cores, 1.2x the time of ``"mlri"``, 2.9x LibRaw's AHD and 1.2x as fast as
   ``"raisr"`` (``benchmarks/demosaic.py``, 2026-12-05), in 4 % of the output in
   extra memory.
 - ``"ri_cd"``: ``"mlri"``'s green (residual interpolation along rows and columns,
@@ -149,9 +149,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   slightly less false colour than ``"mlri"`` (13163 against 13662) but 2.5 times
   ``"raisr_cd"``'s. ``"mlri"`` streams down tiles as tall as the image, as it does
   alone; its rows are refined in chunks of 64 rows, where ``"rcd"`` and the filters
-  run on sub-tiles 384 columns wide: 36-38 MP/s at 24 MP on two cores (1.16-1.25x
-  LibRaw's AHD, 2.7-2.9x the time of ``"mlri"``, in two runs of
-  ``benchmarks/demosaic.py`` on 2026-12-05) and 11 % of the output in extra memory.
+  run on sub-tiles 384 columns wide: 45 MP/s at 24 MP on two cores (1.45x LibRaw's
+  AHD, 2.3x the time of ``"mlri"``; ``benchmarks/demosaic.py``, 2026-12-05) and
+  11 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"fusion_refined"``: ``"fusion"`` refined by a second stage, a cascade: the 32
@@ -163,8 +163,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   the scikit-image seven, 40.17 on CBSD68, 36.58 on Urban24 (+0.14 and +0.09 dB over
   ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.07 on the held-out
   training photographs), with a little less false colour and zipper on the grey
-  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 35 MP/s at 24 MP on
-  two cores, 1.07x the time of ``"fusion"`` and 1.15x LibRaw's AHD
+  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 41 MP/s at 24 MP on
+  two cores, 1.09x the time of ``"fusion"`` and 1.33x LibRaw's AHD
   (``benchmarks/demosaic.py``, 2026-12-05), 11 % of the output in extra memory. Not flip-symmetric. Outputs are clamped to the
   range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently

@@ -6,7 +6,7 @@
 //! the structure tensor's angle, strength and coherence. A filter chosen
 //! pixel by pixel has to be fetched pixel by pixel, and 288 filters' taps
 //! (83 KB) do not stay in the first-level cache: that refinement costs
-//! about 70 % of MLRI's own time. Most of what it gains comes from the CFA
+//! about 40 % of MLRI's own time, this one 17 %. Most of what it gains comes from the CFA
 //! position and the edge's orientation (in a NumPy model trained on the
 //! same photographs, four orientations kept all but 0.1-0.2 dB of the
 //! eight-angle, nine-shape hash on the validation subsets; splitting each
