@@ -165,8 +165,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   training photographs), with a little less false colour and zipper on the grey
   charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 41 MP/s at 24 MP on
   two cores, 1.09x the time of ``"fusion"`` and 1.33x LibRaw's AHD
-  (``benchmarks/demosaic.py``, 2026-12-05), 11 % of the output in extra memory. Not flip-symmetric. Outputs are clamped to the
-  range of the input mosaic.
+  (``benchmarks/demosaic.py``, 2026-12-05), 11 % of the output in extra memory. Not
+  flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
   benchmarks/demosaic.py quality``: the seven scikit-image images, the 68 CBSD68
