@@ -128,10 +128,10 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 90 MP/s,
   ``"mlri"`` 104). Less false colour and zipper on the grey charts than any other
   residual-interpolation method (zone plate 5309 and 35.6 % against
-  ``"raisr_fast"``'s 11939 and 35.9 %). Splitting its 16 orientation classes by shape
-  gained 0.05-0.06 dB on CBSD68, Urban24 and the held-out photographs, for 9 % more
-  false colour on the zone plate (it was 4862). On the nine held-out training
-  photographs 0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are
+  ``"raisr_fast"``'s 11939 and 35.9 %). Its classes split each orientation by shape:
+  0.05-0.06 dB more than orientation alone on CBSD68, Urban24 and the held-out
+  photographs, for 9 % more false colour on the zone plate. On the nine held-out
+  training photographs 0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are
   clamped to the range of the input mosaic.
 - ``"fusion"``: a learned adaptive fusion of ``"mlri"`` and ``"rcd"``. No
   single classical method leads everywhere: residual interpolation wins where the
