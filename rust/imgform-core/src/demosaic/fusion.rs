@@ -1,68 +1,50 @@
-//! The learned fusion of MLRI and RCD
-//! ([`super::Method::Fusion`]): RAISR's filters over MLRI that also see the
-//! second base, run so that no base does more work than it does alone.
+//! The learned fusion of MLRI and RCD ([`super::Method::Fusion`]): RAISR's
+//! filters over MLRI that also see how RCD differs from it.
 //!
-//! MLRI streams down tiles as tall as the image with a halo of 30 pixels; RCD
-//! and the filters work on planes of small tiles with a halo of 12. Run as
-//! one plane kernel on small tiles, MLRI recomputed its wide halo around
-//! every 128 x 384 tile (1.8 times its own work) and all of them kept full
-//! tile planes (19 % of the output in memory). Here MLRI streams down the
-//! tall tile as it does alone; its rows gather into chunks of [`CHUNK_ROWS`]
-//! output rows (2 more on each side for the filters' hash), and each chunk is
-//! refined in sub-tiles [`SUB_COLS`] wide, where RCD and the filters
-//! ([`Raisr`]) see the MLRI rows as a [`Given`] base. Every output pixel gets
-//! the same arithmetic on the same values as in any other cut, so the bits do
-//! not depend on the tiling nor on the thread count. (The filters over MLRI
-//! alone need no second base's planes: they refine MLRI's rows as they stream
-//! out, [`super::refined`].)
+//! All three stream down tiles as tall as the image, a row at a time. MLRI
+//! hands over each row it completes; RCD is stepped down the same tile
+//! until it has the same row ([`Rcd::step`]), and the filters keep the
+//! last rows of both, as the filters over MLRI alone do
+//! ([`super::refined`]), refining each row once the row two below it has
+//! come. Each stage keeps only the rows later stages still read, in rings:
+//! RCD's dozen and the filters' few fit in a core's own cache beside
+//! MLRI's.
+//!
+//! Before, RCD and the filters ran on planes of small sub-tiles over
+//! chunks of MLRI's rows: RCD recomputed its halo of 10 rows above and
+//! below every 64-row chunk, every value was copied three times, and the
+//! planes took ~5 MB a thread. The arithmetic per pixel is the same, so
+//! the bits are too.
 
 use super::mlri::{Buffers, Mlri};
-use super::raisr::{self, Given, Raisr, Secondary, REACH};
-use super::ring::{cache_aligned, ALIGN_PAD};
-use super::tiled::{Emit, Load, StreamKernel, Tile, TileKernel};
+use super::raisr::{Filters, REACH, WINDOWS};
+use super::rcd::{self, Rcd, R_OUT};
+use super::refined::Window;
+use super::ring::Ring;
+use super::tiled::{Emit, Load, StreamKernel, Tile};
 
-/// Output rows per chunk: RCD recomputes 12 halo rows
-/// above and below each chunk (38 % more rows at 64), while its planes,
-/// the filters' and the chunk's grow with it.
-const CHUNK_ROWS: usize = 64;
-/// Output columns per sub-tile: RCD's own tile width,
-/// whose planes stay in cache.
-const SUB_COLS: usize = 384;
-
-/// MLRI refined by filters that also see `S`.
-pub(super) struct Fusion<S> {
+/// MLRI refined by filters that also see RCD.
+pub(super) struct Fusion {
     pub(super) mlri: Mlri,
-    pub(super) refine: Raisr<Given, S>,
+    pub(super) rcd: Rcd,
+    pub(super) filters: Filters,
 }
 
-impl<S: Secondary> Fusion<S> {
-    /// The halo of a sub-tile: the secondary's plus the filters' reach.
-    const SUB_HALO: usize = <Raisr<Given, S> as TileKernel>::HALO;
-}
-
-pub(super) struct State<S: Secondary> {
+pub(super) struct State {
     mlri: Buffers,
-    chunk: Chunk<S>,
+    rcd: rcd::Stream,
+    rows: Window,
+    /// RCD's rows minus MLRI's, each clamped first: what the filters see of
+    /// the second base.
+    diff: [Ring; 3],
 }
 
-/// The buffers of one chunk and of its sub-tiles.
-struct Chunk<S: Secondary> {
-    /// MLRI's rows of the chunk, from [`REACH`] rows above its first output
-    /// row to as many below its last (tall-tile columns).
-    base: [Vec<f32>; 3],
-    /// How many rows of `base` are filled.
-    filled: usize,
-    /// The raw rows of the chunk and its sub-tiles' halo.
-    raw: Vec<f32>,
-    /// The chunk's refined rows (tall-tile columns).
-    out: [Vec<f32>; 3],
-    /// One sub-tile's raw plane.
-    sub_raw: Vec<f32>,
-    refine: raisr::State<[Vec<f32>; 3], S::State>,
-}
+/// Rows of the difference kept: the output row's three, and the row below
+/// them whose arrival completes it.
+const DIFF_ROWS: usize = 2 * REACH;
 
-impl<S: Secondary> StreamKernel for Fusion<S> {
-    type State = State<S>;
+impl StreamKernel for Fusion {
+    type State = State;
     const HALO: usize = <Mlri as StreamKernel>::HALO + REACH;
     const ROWS: usize = <Mlri as StreamKernel>::ROWS;
     const COLS: usize = <Mlri as StreamKernel>::COLS;
@@ -72,173 +54,123 @@ impl<S: Secondary> StreamKernel for Fusion<S> {
         <Mlri as StreamKernel>::rows(height, across, threads)
     }
 
-    fn state(&self, stride: usize, rows: usize) -> State<S> {
-        let sub_stride = SUB_COLS + 2 * Self::SUB_HALO;
-        let sub_len = sub_stride * (CHUNK_ROWS + 2 * Self::SUB_HALO);
-        let planes = |rows: usize| [0; 3].map(|_| vec![0.0f32; stride * rows]);
+    fn state(&self, stride: usize, rows: usize) -> State {
         State {
             mlri: self.mlri.state(stride, rows),
-            chunk: Chunk {
-                base: planes(CHUNK_ROWS + 2 * REACH),
-                filled: 0,
-                raw: vec![0.0; stride * (CHUNK_ROWS + 2 * Self::SUB_HALO)],
-                out: planes(CHUNK_ROWS),
-                sub_raw: vec![0.0; sub_len + ALIGN_PAD],
-                refine: TileKernel::state(&self.refine, sub_stride, sub_len),
-            },
+            rcd: self.rcd.stream_state(stride),
+            rows: Window::new(stride),
+            diff: [0; 3].map(|_| Ring::new(stride, DIFF_ROWS, 0)),
         }
     }
 
     #[inline(always)]
-    fn stream<E: Emit, L: Load>(&self, st: &mut State<S>, t: &Tile, raw: &L, out: &mut E) {
-        let State { mlri, chunk } = st;
-        chunk.filled = 0;
-        let mut chunks = Chunks {
-            refine: &self.refine,
-            chunk,
+    fn stream<E: Emit, L: Load>(&self, st: &mut State, t: &Tile, raw: &L, out: &mut E) {
+        let State {
+            mlri,
+            rcd,
+            rows,
+            diff,
+        } = st;
+        rows.fit(t.stride);
+        for ring in diff.iter_mut() {
+            ring.fit(t.stride);
+        }
+        // RCD's tile starts `R_OUT` rows above MLRI's first row, so that its
+        // first row is MLRI's.
+        let top = <Mlri as StreamKernel>::HALO - R_OUT;
+        let mut fused = Fused {
+            fusion: self,
             t,
+            rcd_tile: Tile {
+                stride: t.stride,
+                rows: t.rows - 2 * top,
+                y0: t.y0 + top as isize,
+            },
+            top,
+            steps: 0,
+            rcd,
+            rows,
+            diff,
             raw,
             out,
-            next: Self::HALO,
         };
-        // MLRI, run on the same tile, emits `REACH` rows and columns more
-        // than the tile's output: its halo is that much narrower.
-        self.mlri.stream(mlri, t, raw, &mut chunks);
-        chunks.flush();
+        self.mlri.stream(mlri, t, raw, &mut fused);
     }
 }
 
-/// Gathers MLRI's rows and refines each chunk once it is complete.
-struct Chunks<'a, S: Secondary, L, E> {
-    refine: &'a Raisr<Given, S>,
-    chunk: &'a mut Chunk<S>,
+/// Takes MLRI's rows, steps RCD to the same row, and hands on each output
+/// row once the row two below it has come.
+struct Fused<'a, L, E> {
+    fusion: &'a Fusion,
     t: &'a Tile,
+    /// RCD's tile: `t` from row `top` on.
+    rcd_tile: Tile,
+    top: usize,
+    /// RCD's steps so far.
+    steps: usize,
+    rcd: &'a mut rcd::Stream,
+    rows: &'a mut Window,
+    diff: &'a mut [Ring; 3],
     raw: &'a L,
     out: &'a mut E,
-    /// The tile row of the next chunk's first output row.
-    next: usize,
 }
 
-impl<S: Secondary, L: Load, E: Emit> Emit for Chunks<'_, S, L, E> {
+impl<L: Load, E: Emit> Emit for Fused<'_, L, E> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, rows: [&[f32]; 3]) {
-        let c = &mut *self.chunk;
-        debug_assert_eq!(ty, self.next - REACH + c.filled);
-        let i = c.filled * self.t.stride..(c.filled + 1) * self.t.stride;
-        for (p, row) in c.base.iter_mut().zip(rows) {
-            p[i.clone()].copy_from_slice(row);
+        let (k, t) = (self.fusion, self.t);
+        let f = &k.filters;
+        let halo = <Fusion as StreamKernel>::HALO;
+        let row = self.step_to(ty);
+        let second = k.rcd.row(self.rcd, row);
+        let y = self.rows.push(f, halo - REACH, ty, rows);
+        let (lo, hi) = f.bounds;
+        for ((d, s), c) in self.diff.iter_mut().zip(second).zip(&self.rows.base) {
+            let d = d.row_mut(ty);
+            for ((d, s), c) in d.iter_mut().zip(s).zip(c.row(ty)) {
+                *d = s.max(lo).min(hi) - c;
+            }
         }
-        c.filled += 1;
-        if c.filled == CHUNK_ROWS + 2 * REACH {
-            self.flush();
-        }
-    }
-}
-
-impl<S: Secondary, L: Load, E: Emit> Chunks<'_, S, L, E> {
-    /// The halo of a sub-tile ([`Fusion::SUB_HALO`]).
-    const SUB_HALO: usize = Fusion::<S>::SUB_HALO;
-
-    /// Refines and emits the chunk's output rows (those MLRI has given with
-    /// their [`REACH`] rows below), then keeps the rows the next chunk's
-    /// hash reads above it.
-    #[inline(always)]
-    fn flush(&mut self) {
-        let Some(n) = self.chunk.filled.checked_sub(2 * REACH).filter(|&n| n > 0) else {
+        let Some(y) = y else {
             return;
         };
-        let stride = self.t.stride;
-        self.load_raw(n);
-        let halo = <Fusion<S> as StreamKernel>::HALO;
-        let mut x0 = halo;
-        while x0 < stride - halo {
-            let cols = SUB_COLS.min(stride - halo - x0);
-            self.sub_tile(n, x0, cols);
-            x0 += cols;
-        }
-        let c = &mut *self.chunk;
-        for r in 0..n {
-            let row = r * stride..(r + 1) * stride;
-            self.out
-                .emit(self.next + r, c.out.each_ref().map(|p| &p[row.clone()]));
-        }
-        for p in &mut c.base {
-            p.copy_within(n * stride..(n + 2 * REACH) * stride, 0);
-        }
-        c.filled = 2 * REACH;
-        self.next += n;
-    }
-
-    /// The raw rows of `n` output rows from `self.next` and the sub-tiles'
-    /// halo above and below.
-    #[inline(always)]
-    fn load_raw(&mut self, n: usize) {
-        let stride = self.t.stride;
-        let raw = &mut self.chunk.raw[..stride * (n + 2 * Self::SUB_HALO)];
-        for (r, row) in raw.chunks_exact_mut(stride).enumerate() {
-            self.raw.load(self.next - Self::SUB_HALO + r, row);
-        }
-    }
-
-    /// Refines the sub-tile of `n` output rows from `self.next` and `cols`
-    /// output columns from tall-tile column `x0` (even, as the halos are,
-    /// so sub-tile columns keep the CFA parity).
-    #[inline(always)]
-    fn sub_tile(&mut self, n: usize, x0: usize, cols: usize) {
-        let (stride, c) = (self.t.stride, &mut *self.chunk);
-        let sub = Tile {
-            stride: cols + 2 * Self::SUB_HALO,
-            rows: n + 2 * Self::SUB_HALO,
-            y0: self.t.y0 + (self.next - Self::SUB_HALO) as isize,
-        };
-        let sub_raw = &mut cache_aligned(&mut c.sub_raw)[..sub.stride * sub.rows];
-        let whole = Rect {
-            rows: sub.rows,
-            cols: sub.stride,
-        };
-        whole.copy(
-            (sub_raw, sub.stride, 0),
-            (&c.raw, stride, x0 - Self::SUB_HALO),
-        );
-        // The filters read MLRI `REACH` rows and columns around the output.
-        let (top, reach) = (Self::SUB_HALO - REACH, Rect::around(n, cols, REACH));
-        for (dst, src) in c.refine.given().iter_mut().zip(&c.base) {
-            let at = top * sub.stride + top;
-            reach.copy((dst, sub.stride, at), (src, stride, x0 - REACH));
-        }
-        let planes = TileKernel::run(self.refine, &mut c.refine, &sub, sub_raw);
-        let inner = Rect::around(n, cols, 0);
-        for (dst, src) in c.out.iter_mut().zip(planes) {
-            let at = Self::SUB_HALO * sub.stride + Self::SUB_HALO;
-            inner.copy((dst, stride, x0), (src, sub.stride, at));
-        }
+        let Window {
+            base,
+            sums,
+            class,
+            out,
+            ..
+        } = &mut *self.rows;
+        let (first, second) = (Window::windows(base, y), Window::windows(self.diff, y));
+        let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|w| {
+            if w < WINDOWS {
+                first[w]
+            } else {
+                second[w - WINDOWS]
+            }
+        });
+        let (kind, class) = (t.kind(f.phase, y), &mut class[..t.stride]);
+        f.hash_row(kind, halo, Window::sums(sums, y), class);
+        let [own, green, other] = out;
+        let dst = [own, green, other].map(|r| &mut r[..t.stride]);
+        f.correct_row(kind, halo, class, dst, &both);
+        self.out.emit(y, out.each_ref().map(|r| &r[..t.stride]));
     }
 }
 
-/// A rectangle of rows and columns copied between planes of different
-/// strides.
-struct Rect {
-    rows: usize,
-    cols: usize,
-}
-
-impl Rect {
-    /// `n` rows of `cols` columns and `reach` more on every side.
-    fn around(n: usize, cols: usize, reach: usize) -> Self {
-        Rect {
-            rows: n + 2 * reach,
-            cols: cols + 2 * reach,
-        }
-    }
-
-    /// Copies the rectangle at index `at` of a plane of the given stride
-    /// from `src` into `dst`.
+impl<L: Load, E: Emit> Fused<'_, L, E> {
+    /// Steps RCD down to tile row `ty`: its row of RCD's tile.
     #[inline(always)]
-    fn copy(&self, dst: (&mut [f32], usize, usize), src: (&[f32], usize, usize)) {
-        let ((d, d_stride, d_at), (s, s_stride, s_at)) = (dst, src);
-        for r in 0..self.rows {
-            let (d0, s0) = (d_at + r * d_stride, s_at + r * s_stride);
-            d[d0..d0 + self.cols].copy_from_slice(&s[s0..s0 + self.cols]);
+    fn step_to(&mut self, ty: usize) -> usize {
+        let (rcd, top) = (&self.fusion.rcd, self.top);
+        let row = ty - top;
+        while self.steps <= row + R_OUT {
+            let j = self.steps;
+            rcd.step(self.rcd, &self.rcd_tile, j, |dst| {
+                self.raw.load(j + top, dst)
+            });
+            self.steps += 1;
         }
+        row
     }
 }

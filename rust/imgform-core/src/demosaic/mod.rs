@@ -753,18 +753,15 @@ fn run_refined<T, M, O, K, S, B>(
 }
 
 /// The kernel of [`Method::Fusion`].
-type FusionKernel = fusion::Fusion<raisr::Against<Rcd>>;
+type FusionKernel = fusion::Fusion;
 
 /// [`Method::Fusion`]'s kernel for `raw` (whose range its filters clamp
 /// to: a [`Ranged`] mosaic finds it once for every stage).
 fn fusion_kernel<T: Sample>(raw: &impl Mosaic, phase: Phase, isa: Isa) -> FusionKernel {
     fusion::Fusion {
         mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
-        refine: raisr::Raisr {
-            base: raisr::Given,
-            second: raisr::Against(Rcd::new(phase, T::FULL_SCALE)),
-            filters: filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa),
-        },
+        rcd: Rcd::new(phase, T::FULL_SCALE),
+        filters: filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa),
     }
 }
 

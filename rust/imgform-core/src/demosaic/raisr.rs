@@ -19,17 +19,16 @@
 //! chroma, green, the other chroma), so one set of filters serves all four
 //! Bayer phases. The known colour of each site is never touched.
 //!
-//! The same machinery fuses two bases ([`Against`]): the filters then also
-//! see the second base's difference from the first over the 3x3 window, 27
-//! features more, and learn per class how far to trust either (the learned
-//! fusion of MLRI and RCD, [`super::Method::Fusion`]).
+//! The same machinery fuses two bases ([`super::fusion`]): the filters then
+//! also see the second base's difference from the first over the 3x3
+//! window, 27 features more, and learn per class how far to trust either
+//! (the learned fusion of MLRI and RCD, [`super::Method::Fusion`]).
 //!
 //! The filters are trained by `python -m imgform_rs.training.demosaic` on
 //! openly licensed images that are not the benchmark's (see the docs) and
 //! shipped in `raisr_weights.bin` and `fusion_weights.bin`, whose layout
 //! [`Weights::parse`] reads.
 
-use super::tiled::{Tile, TileKernel};
 use super::{Isa, Phase, RowKind};
 use std::ops::Range;
 use std::sync::OnceLock;
@@ -379,9 +378,9 @@ fn hash_avx2(
 }
 
 /// A filter bank with what applying it needs: the hash's scale and the
-/// clamping bounds. Its methods work a row at a time, so the same code
-/// refines the planes of a tile ([`Raisr`]) and MLRI's rows as they stream
-/// out ([`super::refined`]).
+/// clamping bounds. Its methods work a row at a time, on a base's rows as
+/// they stream out, alone ([`super::refined`]) or beside a second base's
+/// ([`super::fusion`]).
 pub(super) struct Filters<B: 'static = Weights> {
     pub(super) phase: Phase,
     /// `1 / FULL_SCALE` of the sample type, so the hash sees [0, 1] data.
@@ -419,79 +418,6 @@ impl Bank for Weights {
     fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]) {
         f.hash_row(row.kind, row.halo, row.sums, class);
         f.correct_row(row.kind, row.halo, class, dst, row.windows);
-    }
-}
-
-/// The base kernel refined by the filter bank, which may also see a
-/// second base ([`Against`]).
-pub(super) struct Raisr<B, S> {
-    pub(super) base: B,
-    pub(super) second: S,
-    pub(super) filters: Filters,
-}
-
-pub(super) struct State<B, S> {
-    base: B,
-    second: S,
-    /// The second base minus the (clamped) first, clamped as the first.
-    diff: [Vec<f32>; 3],
-    /// One row of the gradients of green.
-    grad: [Vec<f32>; 2],
-    /// Horizontal 3-sums of the gradient products; the 3x3 sums of the
-    /// structure tensor add three of them vertically.
-    sums: [Vec<f32>; 3],
-    /// The class of each column of the current row.
-    class: Vec<u32>,
-    clamped: [Vec<f32>; 3],
-    out: [Vec<f32>; 3],
-}
-
-/// What the filters see besides the base.
-pub(super) trait Secondary: Sync {
-    type State;
-    /// The second base's halo.
-    const HALO: usize;
-    fn state(&self, stride: usize, len: usize) -> Self::State;
-    /// The second base's planes over the tile.
-    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3];
-}
-
-/// A second base, whose difference from the first the filters see.
-pub(super) struct Against<K>(pub(super) K);
-
-impl<K: TileKernel> Secondary for Against<K> {
-    type State = K::State;
-    const HALO: usize = K::HALO;
-    fn state(&self, stride: usize, len: usize) -> K::State {
-        self.0.state(stride, len)
-    }
-    #[inline(always)]
-    fn run<'s>(&self, st: &'s mut K::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3] {
-        self.0.run(st, t, raw)
-    }
-}
-
-/// A first base computed elsewhere: its planes are filled before each run
-/// ([`State::given`]), as the fusion does with MLRI's streamed rows.
-pub(super) struct Given;
-
-impl TileKernel for Given {
-    type State = [Vec<f32>; 3];
-    const HALO: usize = 0;
-    fn state(&self, _: usize, len: usize) -> Self::State {
-        [0; 3].map(|_| vec![0.0; len])
-    }
-    #[inline(always)]
-    fn run<'s>(&self, st: &'s mut Self::State, _: &Tile, _: &[f32]) -> [&'s [f32]; 3] {
-        let [own, green, other] = st;
-        [own, green, other]
-    }
-}
-
-impl<S> State<[Vec<f32>; 3], S> {
-    /// The planes of a [`Given`] base, to fill before a run.
-    pub(super) fn given(&mut self) -> &mut [Vec<f32>; 3] {
-        &mut self.base
     }
 }
 
@@ -615,99 +541,6 @@ fn apply8_avx2<const N: usize>(
         _mm256_permute2f128_ps::<0x20>(low, high),
         _mm256_permute2f128_ps::<0x31>(low, high),
     ]
-}
-
-impl<B: TileKernel, S: Secondary> TileKernel for Raisr<B, S> {
-    type State = State<B::State, S::State>;
-    /// The bases' halo plus the 2 pixels the hash reaches ([`REACH`]).
-    const HALO: usize = if B::HALO > S::HALO { B::HALO } else { S::HALO } + REACH;
-
-    fn state(&self, stride: usize, len: usize) -> Self::State {
-        let plane = || vec![0.0f32; len];
-        let row = || vec![0.0f32; stride];
-        State {
-            base: self.base.state(stride, len),
-            second: self.second.state(stride, len),
-            diff: [plane(), plane(), plane()],
-            grad: [row(), row()],
-            sums: [plane(), plane(), plane()],
-            class: vec![0; stride],
-            clamped: [plane(), plane(), plane()],
-            out: [plane(), plane(), plane()],
-        }
-    }
-
-    /// Inlined, as every kernel is, into the tile loop compiled for AVX2:
-    /// a call boundary here ran the base and the filters in baseline SSE2.
-    #[inline(always)]
-    fn run<'s>(&self, st: &'s mut Self::State, t: &Tile, raw: &[f32]) -> [&'s [f32]; 3] {
-        let State {
-            base,
-            second,
-            diff,
-            grad,
-            sums,
-            class,
-            clamped,
-            out,
-        } = st;
-        let f = &self.filters;
-        let len = t.stride * t.rows;
-        for (c, p) in clamped.iter_mut().zip(self.base.run(base, t, raw)) {
-            f.clamp(&p[..len], &mut c[..len]);
-        }
-        let second = self.second.run(second, t, raw);
-        for ((d, p), c) in diff.iter_mut().zip(second).zip(&*clamped) {
-            let (lo, hi) = f.bounds;
-            for ((d, p), c) in d[..len].iter_mut().zip(&p[..len]).zip(&c[..len]) {
-                *d = p.max(lo).min(hi) - c;
-            }
-        }
-        let planes = [&clamped[0][..], &clamped[1][..], &clamped[2][..]];
-        let halo = Self::HALO;
-        let row = |ty: usize| ty * t.stride..(ty + 1) * t.stride;
-        let (green, s) = (planes[1], halo - 1);
-        for ty in s..t.rows - s {
-            let g = [ty - 1, ty, ty + 1].map(|r| &green[row(r)]);
-            f.tensor_row(g, s, grad, sums.each_mut().map(|p| &mut p[row(ty)]));
-        }
-        let class = &mut class[..t.stride];
-        for ty in halo..t.rows - halo {
-            let tensor = sums
-                .each_ref()
-                .map(|p| [ty - 1, ty, ty + 1].map(|r| &p[row(r)]));
-            let kind = t.kind(f.phase, ty);
-            f.hash_row(kind, halo, tensor, class);
-            let first = window_rows(planes, t.stride, ty);
-            let [o_own, o_green, o_other] = &mut *out;
-            let dst = [
-                &mut o_own[row(ty)],
-                &mut o_green[row(ty)],
-                &mut o_other[row(ty)],
-            ];
-            let d = window_rows([&diff[0][..], &diff[1][..], &diff[2][..]], t.stride, ty);
-            let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|k| {
-                if k < WINDOWS {
-                    first[k]
-                } else {
-                    d[k - WINDOWS]
-                }
-            });
-            f.correct_row(kind, halo, class, dst, &both);
-        }
-        let [own, green, other] = out;
-        [own, green, other]
-    }
-}
-
-/// The rows of the windows (see [`Taps`]) of tile row `ty` of `planes`:
-/// window `3 * r + p` is plane `p` on row `ty + r - 1`.
-#[inline(always)]
-fn window_rows(planes: [&[f32]; 3], stride: usize, ty: usize) -> [&[f32]; WINDOWS] {
-    std::array::from_fn(|k| {
-        let r = ty + k / 3 - 1;
-        &planes[k % 3][r * stride..(r + 1) * stride]
-    })
 }
 
 /// Pixels the hash reaches beyond the output: 1 for the 3x3 sums of the

@@ -6,16 +6,16 @@
 //!
 //! The filters and their hash read MLRI two rows above and below an output
 //! row and nothing else, so a ring of the last four MLRI rows and one of
-//! the last three rows of the hash's sums are all they keep: each row MLRI
-//! hands over extends the sums by a row and completes the output row two
-//! above it, which is refined and handed on at once. Gathering MLRI's rows
-//! into chunks and refining them as planes of sub-tiles, as the fusion must
-//! for its second base ([`super::fusion`]), copied every value three times
-//! and kept ~4 MB of planes per thread; this keeps ~0.3 MB. The arithmetic
-//! per pixel is the planes' ([`Filters`]), so the bits are the same.
+//! the last three rows of the hash's sums are all they keep ([`Window`]):
+//! each row MLRI hands over extends the sums by a row and completes the
+//! output row two above it, which is refined and handed on at once.
+//! Gathering MLRI's rows into chunks and refining them as planes of
+//! sub-tiles copied every value three times and kept ~4 MB of planes per
+//! thread; this keeps ~0.3 MB. The fusion keeps a [`Window`] too, beside
+//! its second base's rows ([`super::fusion`]).
 
 use super::mlri::Mlri;
-use super::raisr::{Bank, Filters, Row, REACH};
+use super::raisr::{Bank, Filters, Row, REACH, WINDOWS};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -35,16 +35,82 @@ const SUM_ROWS: usize = 3;
 
 pub(super) struct State<S> {
     base_state: S,
-    /// MLRI's rows (own chroma, green, other chroma), clamped.
-    base: [Ring; 3],
+    rows: Window,
+}
+
+/// What refining a streamed base keeps: its last rows, clamped, the
+/// structure tensor's sums, and room for a refined row. The fusion keeps
+/// one too, besides its second base's rows.
+pub(super) struct Window {
+    /// The base's rows (own chroma, green, other chroma), clamped.
+    pub(super) base: [Ring; 3],
     /// The horizontal 3-sums of the gradient products (xx, xy, yy).
-    sums: [Ring; 3],
+    pub(super) sums: [Ring; 3],
     /// One row of the gradients of green.
     grad: [Vec<f32>; 2],
     /// The class of each column of the output row.
-    class: Vec<u32>,
+    pub(super) class: Vec<u32>,
     /// The refined output row.
-    out: [Vec<f32>; 3],
+    pub(super) out: [Vec<f32>; 3],
+}
+
+impl Window {
+    pub(super) fn new(stride: usize) -> Self {
+        let row = || vec![0.0f32; stride];
+        Window {
+            base: [0; 3].map(|_| Ring::new(stride, BASE_ROWS, 0)),
+            sums: [0; 3].map(|_| Ring::new(stride, SUM_ROWS, 0)),
+            grad: [row(), row()],
+            class: vec![0; stride],
+            out: [row(), row(), row()],
+        }
+    }
+
+    /// Fits the rows to a tile `stride` wide.
+    pub(super) fn fit(&mut self, stride: usize) {
+        for ring in self.base.iter_mut().chain(self.sums.iter_mut()) {
+            ring.fit(stride);
+        }
+    }
+
+    /// Takes the base's tile row `ty` (the base's rows starting at tile
+    /// row `first`) and extends the hash's sums; the output row it
+    /// completes, two above it, if any.
+    #[inline(always)]
+    pub(super) fn push<B>(
+        &mut self,
+        f: &Filters<B>,
+        first: usize,
+        ty: usize,
+        rows: [&[f32]; 3],
+    ) -> Option<usize> {
+        for (ring, row) in self.base.iter_mut().zip(rows) {
+            f.clamp(row, ring.row_mut(ty));
+        }
+        // The hash's sums start a row below the base's first row
+        // (gradients across rows), the output two below that.
+        if ty >= first + 2 {
+            let y = ty - 1;
+            let g = [y - 1, y, y + 1].map(|r| self.base[1].row(r));
+            let sums = self.sums.each_mut().map(|s| s.row_mut(y));
+            f.tensor_row(g, first + 1, &mut self.grad, sums);
+        }
+        (ty >= first + 2 + REACH).then(|| ty - REACH)
+    }
+
+    /// The tensor's 3x3 sums at row `y`: the horizontal sums of the rows
+    /// above, at and below it.
+    #[inline(always)]
+    pub(super) fn sums(sums: &[Ring; 3], y: usize) -> [[&[f32]; 3]; 3] {
+        sums.each_ref().map(|s| [y - 1, y, y + 1].map(|r| s.row(r)))
+    }
+
+    /// The windows of row `y` of a plane's rows `rows` ([`Taps`]'s order:
+    /// window `3 * r + p` is plane `p` on row `y + r - 1`).
+    #[inline(always)]
+    pub(super) fn windows(rows: &[Ring; 3], y: usize) -> [&[f32]; WINDOWS] {
+        std::array::from_fn(|k| rows[k % 3].row(y + k / 3 - 1))
+    }
 }
 
 impl<B: Bank, K: StreamKernel> StreamKernel for Refined<B, K> {
@@ -59,40 +125,21 @@ impl<B: Bank, K: StreamKernel> StreamKernel for Refined<B, K> {
     }
 
     fn state(&self, stride: usize, rows: usize) -> Self::State {
-        let row = || vec![0.0f32; stride];
         State {
             base_state: self.base.state(stride, rows),
-            base: [0; 3].map(|_| Ring::new(stride, BASE_ROWS, 0)),
-            sums: [0; 3].map(|_| Ring::new(stride, SUM_ROWS, 0)),
-            grad: [row(), row()],
-            class: vec![0; stride],
-            out: [row(), row(), row()],
+            rows: Window::new(stride),
         }
     }
 
     #[inline(always)]
     fn stream<E: Emit, L: Load>(&self, st: &mut Self::State, t: &Tile, raw: &L, out: &mut E) {
-        let State {
-            base_state,
-            base,
-            sums,
-            grad,
-            class,
-            out: row,
-        } = st;
-        for ring in base.iter_mut().chain(sums.iter_mut()) {
-            ring.fit(t.stride);
-        }
+        let State { base_state, rows } = st;
+        rows.fit(t.stride);
         let mut rows = Rows::<B, E> {
-            first: K::HALO,
             halo: Self::HALO,
             filters: &self.filters,
             t,
-            base,
-            sums,
-            grad,
-            class: &mut class[..t.stride],
-            row: row.each_mut().map(|r| &mut r[..t.stride]),
+            rows,
             out,
         };
         // The base, run on the same tile, emits `REACH` rows and columns
@@ -104,62 +151,38 @@ impl<B: Bank, K: StreamKernel> StreamKernel for Refined<B, K> {
 /// Takes MLRI's rows and hands on each output row once the row two below
 /// it has come.
 struct Rows<'a, B: 'static, E> {
-    /// The base's halo (its first row and column) and the output's.
-    first: usize,
+    /// The output's halo; the base's is [`REACH`] narrower.
     halo: usize,
     filters: &'a Filters<B>,
     t: &'a Tile,
-    base: &'a mut [Ring; 3],
-    sums: &'a mut [Ring; 3],
-    grad: &'a mut [Vec<f32>; 2],
-    class: &'a mut [u32],
-    row: [&'a mut [f32]; 3],
+    rows: &'a mut Window,
     out: &'a mut E,
 }
 
 impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, rows: [&[f32]; 3]) {
-        let f = self.filters;
-        for (ring, row) in self.base.iter_mut().zip(rows) {
-            f.clamp(row, ring.row_mut(ty));
-        }
-        // The base's first row is tile row `first`; the hash's sums start a
-        // row below it (gradients across rows), the output two below that.
-        let first = self.first;
-        if ty >= first + 2 {
-            let y = ty - 1;
-            let g = [y - 1, y, y + 1].map(|r| self.base[1].row(r));
-            let sums = self.sums.each_mut().map(|s| s.row_mut(y));
-            f.tensor_row(g, first + 1, self.grad, sums);
-        }
-        if ty >= first + 2 + REACH {
-            self.refine(ty - REACH);
-        }
-    }
-}
-
-impl<B: Bank, E: Emit> Rows<'_, B, E> {
-    /// Refines tile row `y` and hands it on.
-    #[inline(always)]
-    fn refine(&mut self, y: usize) {
-        let (f, halo) = (self.filters, self.halo);
-        let kind = self.t.kind(f.phase, y);
-        let sums = self
-            .sums
-            .each_ref()
-            .map(|s| [y - 1, y, y + 1].map(|r| s.row(r)));
-        let windows: [&[f32]; 9] = std::array::from_fn(|k| self.base[k % 3].row(y + k / 3 - 1));
-        let [own, green, other] = &mut self.row;
-        let dst = [own, green, other].map(|r| &mut **r);
-        let row = Row {
-            kind,
-            halo,
+        let (f, halo, t) = (self.filters, self.halo, self.t);
+        let Some(y) = self.rows.push(f, halo - REACH, ty, rows) else {
+            return;
+        };
+        let Window {
+            base,
             sums,
+            class,
+            out,
+            ..
+        } = &mut *self.rows;
+        let windows = Window::windows(base, y);
+        let row = Row {
+            kind: t.kind(f.phase, y),
+            halo,
+            sums: Window::sums(sums, y),
             windows: &windows,
         };
-        B::refine_row(f, row, self.class, dst);
-        let [own, green, other] = &self.row;
-        self.out.emit(y, [own, green, other]);
+        let [own, green, other] = out;
+        let dst = [own, green, other].map(|r| &mut r[..t.stride]);
+        B::refine_row(f, row, &mut class[..t.stride], dst);
+        self.out.emit(y, out.each_ref().map(|r| &r[..t.stride]));
     }
 }

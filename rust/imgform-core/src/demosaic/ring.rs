@@ -81,6 +81,73 @@ impl Ring {
     }
 }
 
+/// Step `j` of a sweep down a tile, one row of raw data further each step.
+#[derive(Clone, Copy)]
+pub(super) struct Step(pub(super) usize);
+
+impl Step {
+    /// The row a stage computes at this step, `lag` rows behind the raw
+    /// data, if it is one of its rows (from `first` on).
+    #[inline(always)]
+    pub(super) fn due_from(self, lag: usize, first: usize) -> Option<usize> {
+        self.0.checked_sub(lag).filter(|&ty| ty >= first)
+    }
+
+    /// [`Step::due_from`] for a stage of reach `r`, which lags `r` rows.
+    #[inline(always)]
+    pub(super) fn due(self, r: usize) -> Option<usize> {
+        self.due_from(r, r)
+    }
+}
+
+/// Ring depth for a stage computing row `j - from` at step `j` whose last
+/// reader computes row `j - to`, reading `back` rows above it.
+pub(super) const fn depth(from: usize, to: usize, back: usize) -> usize {
+    to + back - from + 1
+}
+
+/// A plane's rows by tile row: a whole plane of rows `stride` long, or a
+/// [`Ring`] of its last rows (whose own stride is the same).
+pub(crate) trait Rows {
+    fn row_of(&self, ty: usize, stride: usize) -> &[f32];
+    fn row_of_mut(&mut self, ty: usize, stride: usize) -> &mut [f32];
+}
+
+impl Rows for [f32] {
+    #[inline(always)]
+    fn row_of(&self, ty: usize, stride: usize) -> &[f32] {
+        &self[ty * stride..(ty + 1) * stride]
+    }
+    #[inline(always)]
+    fn row_of_mut(&mut self, ty: usize, stride: usize) -> &mut [f32] {
+        &mut self[ty * stride..(ty + 1) * stride]
+    }
+}
+
+impl Rows for Vec<f32> {
+    #[inline(always)]
+    fn row_of(&self, ty: usize, stride: usize) -> &[f32] {
+        self[..].row_of(ty, stride)
+    }
+    #[inline(always)]
+    fn row_of_mut(&mut self, ty: usize, stride: usize) -> &mut [f32] {
+        self[..].row_of_mut(ty, stride)
+    }
+}
+
+impl Rows for Ring {
+    #[inline(always)]
+    fn row_of(&self, ty: usize, stride: usize) -> &[f32] {
+        debug_assert_eq!(stride, self.stride);
+        self.row(ty)
+    }
+    #[inline(always)]
+    fn row_of_mut(&mut self, ty: usize, stride: usize) -> &mut [f32] {
+        debug_assert_eq!(stride, self.stride);
+        self.row_mut(ty)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -16,7 +16,7 @@
 //! as it is done; its tiles can then be much taller, so fewer halo rows
 //! are recomputed, with memory that does not grow with their height.
 
-use super::ring::{cache_aligned, ALIGN_PAD};
+use super::ring::{cache_aligned, Rows, ALIGN_PAD};
 use super::{Isa, Mosaic, Phase, RgbSink, RowKind};
 use crate::image::{mirror, ImageView, Sample};
 use rayon::prelude::*;
@@ -49,40 +49,45 @@ impl Tile {
     /// columns `s .. stride - s`.
     pub(crate) fn span(&self, ty: usize, s: usize) -> Span {
         Span {
-            stride: self.stride as isize,
-            base: (ty * self.stride + s) as isize,
+            stride: self.stride,
+            ty,
+            s,
             n: self.stride - 2 * s,
         }
     }
 }
 
-/// The columns one stage fills in one tile row; see [`Tile::span`].
+/// The columns one stage fills in one tile row; see [`Tile::span`]. It
+/// reads and writes whole planes and rings alike ([`Rows`]), so a stage's
+/// code serves a method run on tiles and one streaming down them.
 #[derive(Clone, Copy)]
 pub(crate) struct Span {
-    stride: isize,
-    base: isize,
+    stride: usize,
+    ty: usize,
+    s: usize,
     pub(crate) n: usize,
 }
 
 impl Span {
     /// Plane `p` seen `dy` rows down and `dx` columns right of the span.
     #[inline(always)]
-    pub(crate) fn at(self, p: &[f32], dy: isize, dx: isize) -> &[f32] {
-        let start = (self.base + dy * self.stride + dx) as usize;
-        &p[start..start + self.n]
+    pub(crate) fn at<R: Rows + ?Sized>(self, p: &R, dy: isize, dx: isize) -> &[f32] {
+        let start = (self.s as isize + dx) as usize;
+        let ty = (self.ty as isize + dy) as usize;
+        &p.row_of(ty, self.stride)[start..start + self.n]
     }
 
     /// The span's indices in a plane (for planes of masks).
     #[inline(always)]
     pub(crate) fn range(self) -> std::ops::Range<usize> {
-        self.base as usize..self.base as usize + self.n
+        let base = self.ty * self.stride + self.s;
+        base..base + self.n
     }
 
     /// Plane `p`'s own row, writable.
     #[inline(always)]
-    pub(crate) fn out(self, p: &mut [f32]) -> &mut [f32] {
-        let start = self.base as usize;
-        &mut p[start..start + self.n]
+    pub(crate) fn out<R: Rows + ?Sized>(self, p: &mut R) -> &mut [f32] {
+        &mut p.row_of_mut(self.ty, self.stride)[self.s..self.s + self.n]
     }
 }
 
