@@ -462,7 +462,8 @@ fn apply<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (f32, 
 #[inline]
 fn apply_avx2<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (f32, f32) {
     use std::arch::x86_64::*;
-    let acc = lanes_avx2(taps, rows, x);
+    // SAFETY: this function runs with AVX2, which `lanes_avx2` needs.
+    let acc = unsafe { lanes_avx2(taps, rows, x) };
     let h = _mm_hadd_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
     let h = _mm_hadd_ps(h, h);
     (_mm_cvtss_f32(h), _mm_cvtss_f32(_mm_movehdup_ps(h)))
@@ -470,10 +471,18 @@ fn apply_avx2<const N: usize>(taps: &Taps<N>, rows: &[&[f32]; N], x: usize) -> (
 
 /// The eight lanes of [`apply`] before the sums of its halves: the first
 /// correction's four partial sums, then the second's.
+///
+/// Always inlined, so not a `target_feature` function (which cannot be):
+/// compiled as one of its own and called per pixel, it checked its windows'
+/// bounds and reloaded their pointers at every call and loaded each window
+/// in two steps, a load and an insert, where inlined it is one broadcast.
+/// 9 % less time for the fusion at 24 MP (Rust harness, same bits).
+///
+/// # Safety
+/// The caller runs with AVX2.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn lanes_avx2<const N: usize>(
+#[inline(always)]
+unsafe fn lanes_avx2<const N: usize>(
     taps: &Taps<N>,
     rows: &[&[f32]; N],
     x: usize,
@@ -530,7 +539,8 @@ fn apply8_avx2<const N: usize>(
     let (rows, class) = (&windows, &class[x..x + 8]);
     let mut a = [_mm256_setzero_ps(); 8];
     for (i, a) in a.iter_mut().enumerate() {
-        *a = lanes_avx2(weights.filter::<N>(class[i]), rows, i + 1);
+        // SAFETY: as above.
+        *a = unsafe { lanes_avx2(weights.filter::<N>(class[i]), rows, i + 1) };
     }
     // Per 128-bit half: pairs of lanes of pixels (0, 1), then their sums
     // for pixels 0..4 (first correction, low half; second, high half).
