@@ -539,7 +539,7 @@ fn apply8_avx2<const N: usize>(
     let (rows, class) = (&windows, &class[x..x + 8]);
     let mut a = [_mm256_setzero_ps(); 8];
     for (i, a) in a.iter_mut().enumerate() {
-        // SAFETY: as above.
+        // SAFETY: this function runs with AVX2.
         *a = unsafe { lanes_avx2(weights.filter::<N>(class[i]), rows, i + 1) };
     }
     // Per 128-bit half: pairs of lanes of pixels (0, 1), then their sums
