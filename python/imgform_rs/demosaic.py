@@ -124,9 +124,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   the cheaper chroma loses, and the result is within 0.04 dB of ``"raisr_fast"`` on
   each validation subset (39.65 dB on the scikit-image seven, 39.82 on CBSD68, 36.18
   on Urban24; 0.62-0.85 dB above every classical peer we run on each) at 0.70x its
-  time: 128 MP/s at 24 MP on two cores, 4.2x LibRaw's AHD, in 4.2 % of the output in
-  extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 90 MP/s,
-  ``"mlri"`` 104). Less false colour and zipper on the grey charts than any other
+  time: 129 MP/s at 24 MP on two cores, 4.15x LibRaw's AHD, in 3.4 % of the output
+  in extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 90 MP/s,
+  ``"mlri"`` 105). Less false colour and zipper on the grey charts than any other
   residual-interpolation method (zone plate 5309 and 35.6 % against
   ``"raisr_fast"``'s 11939 and 35.9 %). Its classes split each orientation by shape:
   0.05-0.06 dB more than orientation alone on CBSD68, Urban24 and the held-out
@@ -147,11 +147,11 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   seven, 40.03 on CBSD68, 36.49 on Urban24: 0.9-1.3 dB above every classical peer
   we run, still 1.3-1.6 dB below the deep demosaicnet. On the grey zone plate
   slightly less false colour than ``"mlri"`` (13163 against 13662) but 2.5 times
-  ``"raisr_cd"``'s. ``"mlri"`` streams down tiles as tall as the image, as it does
-  alone; its rows are refined in chunks of 64 rows, where ``"rcd"`` and the filters
-  run on sub-tiles 384 columns wide: 45 MP/s at 24 MP on two cores (1.45x LibRaw's
-  AHD, 2.3x the time of ``"mlri"``; ``benchmarks/demosaic.py``, 2026-12-05) and
-  11 % of the output in extra memory.
+  ``"raisr_cd"``'s. ``"mlri"``, ``"rcd"`` and the filters all stream down tiles as
+  tall as the image, a row at a time, each keeping only the rows later stages still
+  read: 54 MP/s at 24 MP on two cores (1.73x LibRaw's AHD, 1.9x the time of
+  ``"mlri"``; ``benchmarks/demosaic.py``, 2026-12-05) and 4.2 % of the output in
+  extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"fusion_refined"``: ``"fusion"`` refined by a second stage, a cascade: the 32
@@ -163,9 +163,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   the scikit-image seven, 40.17 on CBSD68, 36.58 on Urban24 (+0.14 and +0.09 dB over
   ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.07 on the held-out
   training photographs), with a little less false colour and zipper on the grey
-  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 41 MP/s at 24 MP on
-  two cores, 1.09x the time of ``"fusion"`` and 1.33x LibRaw's AHD
-  (``benchmarks/demosaic.py``, 2026-12-05), 11 % of the output in extra memory. Not
+  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 49 MP/s at 24 MP on
+  two cores, 1.10x the time of ``"fusion"`` and 1.57x LibRaw's AHD
+  (``benchmarks/demosaic.py``, 2026-12-05), 4.4 % of the output in extra memory. Not
   flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
@@ -207,8 +207,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   X-Trans ``"bilinear"`` 32.77 and LibRaw's Markesteijn (through rawpy) 38.42 with 3
   passes, 38.34 with 1. Per image: astronaut 36.06, coffee 35.15, chelsea 39.70,
   rocket 33.51, immunohistochemistry 39.40, retina 51.66, motorcycle_left 34.91.
-  Speed on a 24 MP uint16 mosaic, 2 cores: 29.2 MP/s, LibRaw's 3-pass 3.7 MP/s in
-  the same run (7.9x).
+  Speed on a 24 MP uint16 mosaic, 2 cores: 31.8 MP/s, LibRaw's 3-pass 4.0 MP/s in
+  the same run (8.1x).
 
 Patterns:
 
