@@ -528,3 +528,47 @@ impl Rcd {
         [&st.own[..], st.green.row(ty), &st.other[..]]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stream computes each row as the tile's planes do: the fusion's
+    /// bits, and the weights trained over them, rest on it.
+    #[test]
+    fn the_stream_gives_the_tile_planes_bits() {
+        let (stride, rows) = (48, 40);
+        let raw: Vec<f32> = (0..stride * rows)
+            .map(|i| ((i * 7919 % 1013) as f32 * 0.37).sin() * 500.0 + 600.0)
+            .collect();
+        for phase in [Phase { ry: 0, rx: 0 }, Phase { ry: 1, rx: 1 }] {
+            let rcd = Rcd::new(phase, 1000.0);
+            let t = Tile {
+                stride,
+                rows,
+                y0: 3,
+            };
+            let mut planes = TileKernel::state(&rcd, stride, raw.len());
+            let [own, green, other] = rcd.run(&mut planes, &t, &raw).map(<[f32]>::to_vec);
+            let mut stream = rcd.stream_state(stride);
+            for j in 0..rows {
+                rcd.step(&mut stream, &t, j, |dst| {
+                    dst.copy_from_slice(&raw[j * stride..(j + 1) * stride]);
+                });
+                let Some(ty) = Step(j).due(R_OUT) else {
+                    continue;
+                };
+                let cols = ty * stride + R_OUT..(ty + 1) * stride - R_OUT;
+                let got = rcd.row(&stream, ty).map(|r| &r[R_OUT..stride - R_OUT]);
+                for (p, (got, plane)) in got.iter().zip([&own, &green, &other]).enumerate() {
+                    let want = &plane[cols.clone()];
+                    let same = got
+                        .iter()
+                        .zip(want)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "plane {p}, row {ty}, {phase:?}");
+                }
+            }
+        }
+    }
+}
