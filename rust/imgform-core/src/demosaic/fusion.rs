@@ -134,27 +134,19 @@ impl<L: Load, E: Emit> Emit for Fused<'_, L, E> {
         let Some(y) = y else {
             return;
         };
-        let Window {
-            base,
-            sums,
-            class,
-            out,
-            ..
-        } = &mut *self.rows;
-        let (first, second) = (Window::windows(base, y), Window::windows(self.diff, y));
-        let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|w| {
-            if w < WINDOWS {
-                first[w]
-            } else {
-                second[w - WINDOWS]
-            }
+        let second = Window::windows(self.diff, y);
+        self.rows.refine(t, y, self.out, |first, sums, class, dst| {
+            let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|w| {
+                if w < WINDOWS {
+                    first[w]
+                } else {
+                    second[w - WINDOWS]
+                }
+            });
+            let kind = t.kind(f.phase, y);
+            f.hash_row(kind, halo, sums, class);
+            f.correct_row(kind, halo, class, dst, &both);
         });
-        let (kind, class) = (t.kind(f.phase, y), &mut class[..t.stride]);
-        f.hash_row(kind, halo, Window::sums(sums, y), class);
-        let [own, green, other] = out;
-        let dst = [own, green, other].map(|r| &mut r[..t.stride]);
-        f.correct_row(kind, halo, class, dst, &both);
-        self.out.emit(y, out.each_ref().map(|r| &r[..t.stride]));
     }
 }
 

@@ -470,54 +470,44 @@ impl Rcd {
     /// ([`TileKernel::run`]), so the bits are the same.
     #[inline(always)]
     pub(super) fn step(&self, st: &mut Stream, t: &Tile, j: usize, load: impl FnOnce(&mut [f32])) {
-        let Stream {
-            raw: c,
-            sq,
-            sqd,
-            vh,
-            vhd,
-            pq,
-            pqd,
-            lpf,
-            green,
-            x,
-            own,
-            other,
-            chroma,
-        } = st;
-        load(c.row_mut(j));
+        load(st.raw.row_mut(j));
         let j = Step(j);
-        for (dirs, sq, [share, fine]) in [(CARDINAL, sq, [vh, vhd]), (DIAGONAL, sqd, [pq, pqd])] {
+        let directions = [
+            (CARDINAL, &mut st.sq, [&mut st.vh, &mut st.vhd]),
+            (DIAGONAL, &mut st.sqd, [&mut st.pq, &mut st.pqd]),
+        ];
+        for (dirs, [a, b], [share, fine]) in directions {
             if let Some(ty) = j.due(R_SQUARES) {
                 let sp = t.span(ty, R_SQUARES);
-                let [a, b] = sq;
-                squares(sp, c, dirs, [sp.out(a), sp.out(b)]);
+                squares(sp, &st.raw, dirs, [sp.out(a), sp.out(b)]);
             }
             if let Some(ty) = j.due(R_SHARE) {
                 let sp = t.span(ty, R_SHARE);
-                self.share(sp, [&sq[0], &sq[1]], dirs, sp.out(share));
+                self.share(sp, [&*a, &*b], dirs, sp.out(share));
             }
             if let Some(ty) = j.due(R_REFINED) {
                 let sp = t.span(ty, R_REFINED);
                 refined(sp, &*share, neutral(dirs), sp.out(fine));
             }
         }
+        let c = &st.raw;
         if let Some(ty) = j.due(R_LOWPASS) {
             let sp = t.span(ty, R_LOWPASS);
-            lowpass(sp, c, sp.out(lpf));
+            lowpass(sp, c, sp.out(&mut st.lpf));
         }
         if let Some(ty) = j.due(R_GREEN) {
-            let (sp, m) = (t.span(ty, R_GREEN), self.mask(chroma, t, ty, R_GREEN));
-            self.green(sp, [c, lpf, vhd], m, sp.out(green));
+            let (sp, m) = (t.span(ty, R_GREEN), self.mask(&st.chroma, t, ty, R_GREEN));
+            self.green(sp, [c, &st.lpf, &st.vhd], m, sp.out(&mut st.green));
         }
         if let Some(ty) = j.due(R_DIAGONAL) {
             let sp = t.span(ty, R_DIAGONAL);
-            self.diagonal(sp, [c, green, pqd], sp.out(x));
+            self.diagonal(sp, [c, &st.green, &st.pqd], sp.out(&mut st.x));
         }
         if let Some(ty) = j.due(R_OUT) {
-            let (sp, m) = (t.span(ty, R_OUT), self.mask(chroma, t, ty, R_OUT));
-            let out = [&mut own[R_OUT..], &mut other[R_OUT..]];
-            self.chroma(sp, [c, x, green, vhd], m, out.map(|o| &mut o[..sp.n]));
+            let (sp, m) = (t.span(ty, R_OUT), self.mask(&st.chroma, t, ty, R_OUT));
+            let out = [&mut st.own[R_OUT..], &mut st.other[R_OUT..]];
+            let planes = [c, &st.x, &st.green, &st.vhd];
+            self.chroma(sp, planes, m, out.map(|o| &mut o[..sp.n]));
         }
     }
 

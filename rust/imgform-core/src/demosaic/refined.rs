@@ -105,6 +105,30 @@ impl Window {
         sums.each_ref().map(|s| [y - 1, y, y + 1].map(|r| s.row(r)))
     }
 
+    /// Refines output row `y` by `refine`, which gets the base's windows,
+    /// the tensor's sums, room for the classes and the row to write, and
+    /// hands the row on to `out`.
+    #[inline(always)]
+    pub(super) fn refine<E: Emit>(
+        &mut self,
+        t: &Tile,
+        y: usize,
+        out: &mut E,
+        refine: impl FnOnce([&[f32]; WINDOWS], [[&[f32]; 3]; 3], &mut [u32], [&mut [f32]; 3]),
+    ) {
+        let Window {
+            base,
+            sums,
+            class,
+            out: row,
+            ..
+        } = self;
+        let dst = row.each_mut().map(|r| &mut r[..t.stride]);
+        let class = &mut class[..t.stride];
+        refine(Self::windows(base, y), Self::sums(sums, y), class, dst);
+        out.emit(y, row.each_ref().map(|r| &r[..t.stride]));
+    }
+
     /// The windows of row `y` of a plane's rows `rows` ([`Taps`]'s order:
     /// window `3 * r + p` is plane `p` on row `y + r - 1`).
     #[inline(always)]
@@ -166,23 +190,15 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
         let Some(y) = self.rows.push(f, halo - REACH, ty, rows) else {
             return;
         };
-        let Window {
-            base,
-            sums,
-            class,
-            out,
-            ..
-        } = &mut *self.rows;
-        let windows = Window::windows(base, y);
-        let row = Row {
-            kind: t.kind(f.phase, y),
-            halo,
-            sums: Window::sums(sums, y),
-            windows: &windows,
-        };
-        let [own, green, other] = out;
-        let dst = [own, green, other].map(|r| &mut r[..t.stride]);
-        B::refine_row(f, row, &mut class[..t.stride], dst);
-        self.out.emit(y, out.each_ref().map(|r| &r[..t.stride]));
+        self.rows
+            .refine(t, y, self.out, |windows, sums, class, dst| {
+                let row = Row {
+                    kind: t.kind(f.phase, y),
+                    halo,
+                    sums,
+                    windows: &windows,
+                };
+                B::refine_row(f, row, class, dst);
+            });
     }
 }
