@@ -98,6 +98,17 @@ impl StreamKernel for Fusion {
     }
 }
 
+/// The raw rows of a tile from row `.1` on: RCD's tile, which starts below
+/// MLRI's.
+struct Below<'a, L>(&'a L, usize);
+
+impl<L: Load> Load for Below<'_, L> {
+    #[inline(always)]
+    fn load(&self, ty: usize, dst: &mut [f32]) {
+        self.0.load(ty + self.1, dst);
+    }
+}
+
 /// Takes MLRI's rows, steps RCD to the same row, and hands on each output
 /// row once the row two below it has come.
 struct Fused<'a, L, E> {
@@ -135,18 +146,15 @@ impl<L: Load, E: Emit> Emit for Fused<'_, L, E> {
             return;
         };
         let second = Window::windows(self.diff, y);
-        self.rows.refine(t, y, self.out, |first, sums, class, dst| {
-            let both: [&[f32]; 2 * WINDOWS] = std::array::from_fn(|w| {
-                if w < WINDOWS {
-                    first[w]
-                } else {
-                    second[w - WINDOWS]
-                }
-            });
-            let kind = t.kind(f.phase, y);
-            f.hash_row(kind, halo, sums, class);
-            f.correct_row(kind, halo, class, dst, &both);
-        });
+        let p = self.rows.parts(t, y);
+        let mut both: [&[f32]; 2 * WINDOWS] = [&[]; 2 * WINDOWS];
+        for (w, row) in both.iter_mut().zip(p.windows.into_iter().chain(second)) {
+            *w = row;
+        }
+        let kind = t.kind(f.phase, y);
+        f.hash_row(kind, halo, p.sums, p.class);
+        f.correct_row(kind, halo, p.class, p.dst, &both);
+        self.rows.hand_on(t, y, self.out);
     }
 }
 
@@ -158,9 +166,7 @@ impl<L: Load, E: Emit> Fused<'_, L, E> {
         let row = ty - top;
         while self.steps <= row + R_OUT {
             let j = self.steps;
-            rcd.step(self.rcd, &self.rcd_tile, j, |dst| {
-                self.raw.load(j + top, dst)
-            });
+            rcd.step(self.rcd, &self.rcd_tile, j, &Below(self.raw, top));
             self.steps += 1;
         }
         row

@@ -13,7 +13,7 @@
 //! bit-identical results, which keeps the four Bayer phases consistent.
 
 use super::ring::{depth, Ring, Rows, Step};
-use super::tiled::{Span, Tile, TileKernel};
+use super::tiled::{Load, Span, Tile, TileKernel};
 use super::{chroma_masks, select, Phase};
 
 /// RCD's tolerance on data scaled to `[0, 1]`; scaled by the sample type's
@@ -463,14 +463,14 @@ impl Rcd {
         }
     }
 
-    /// Step `j` down tile `t`: takes raw row `j` (`load` fills it) and
+    /// Step `j` down tile `t`: takes raw row `j` (from `raw`) and
     /// computes every stage's row that is then due, the last stage's
     /// being row `j - R_OUT`, which [`Rcd::row`] then gives. Each row gets
     /// the arithmetic of the same row of a tile's planes
     /// ([`TileKernel::run`]), so the bits are the same.
     #[inline(always)]
-    pub(super) fn step(&self, st: &mut Stream, t: &Tile, j: usize, load: impl FnOnce(&mut [f32])) {
-        load(st.raw.row_mut(j));
+    pub(super) fn step<L: Load>(&self, st: &mut Stream, t: &Tile, j: usize, raw: &L) {
+        raw.load(j, st.raw.row_mut(j));
         let j = Step(j);
         let directions = [
             (CARDINAL, &mut st.sq, [&mut st.vh, &mut st.vhd]),
@@ -523,6 +523,15 @@ impl Rcd {
 mod tests {
     use super::*;
 
+    /// A tile's raw rows from a plane.
+    struct Plane<'a>(&'a [f32], usize);
+
+    impl Load for Plane<'_> {
+        fn load(&self, ty: usize, dst: &mut [f32]) {
+            dst.copy_from_slice(&self.0[ty * self.1..(ty + 1) * self.1]);
+        }
+    }
+
     /// The stream computes each row as the tile's planes do: the fusion's
     /// bits, and the weights trained over them, rest on it.
     #[test]
@@ -542,9 +551,7 @@ mod tests {
             let [own, green, other] = rcd.run(&mut planes, &t, &raw).map(<[f32]>::to_vec);
             let mut stream = rcd.stream_state(stride);
             for j in 0..rows {
-                rcd.step(&mut stream, &t, j, |dst| {
-                    dst.copy_from_slice(&raw[j * stride..(j + 1) * stride]);
-                });
+                rcd.step(&mut stream, &t, j, &Plane(&raw, stride));
                 let Some(ty) = Step(j).due(R_OUT) else {
                     continue;
                 };

@@ -54,6 +54,16 @@ pub(super) struct Window {
     pub(super) out: [Vec<f32>; 3],
 }
 
+/// What refining an output row reads and writes ([`Window::parts`]), all
+/// `t.stride` long: the base's windows, the tensor's sums, room for the
+/// classes and the row to write.
+pub(super) struct Parts<'a> {
+    pub(super) windows: [&'a [f32]; WINDOWS],
+    pub(super) sums: [[&'a [f32]; 3]; 3],
+    pub(super) class: &'a mut [u32],
+    pub(super) dst: [&'a mut [f32]; 3],
+}
+
 impl Window {
     pub(super) fn new(stride: usize) -> Self {
         let row = || vec![0.0f32; stride];
@@ -105,28 +115,29 @@ impl Window {
         sums.each_ref().map(|s| [y - 1, y, y + 1].map(|r| s.row(r)))
     }
 
-    /// Refines output row `y` by `refine`, which gets the base's windows,
-    /// the tensor's sums, room for the classes and the row to write, and
-    /// hands the row on to `out`.
+    /// What refining output row `y` reads and writes. Then
+    /// [`Window::hand_on`].
     #[inline(always)]
-    pub(super) fn refine<E: Emit>(
-        &mut self,
-        t: &Tile,
-        y: usize,
-        out: &mut E,
-        refine: impl FnOnce([&[f32]; WINDOWS], [[&[f32]; 3]; 3], &mut [u32], [&mut [f32]; 3]),
-    ) {
+    pub(super) fn parts(&mut self, t: &Tile, y: usize) -> Parts<'_> {
         let Window {
             base,
             sums,
             class,
-            out: row,
+            out,
             ..
         } = self;
-        let dst = row.each_mut().map(|r| &mut r[..t.stride]);
-        let class = &mut class[..t.stride];
-        refine(Self::windows(base, y), Self::sums(sums, y), class, dst);
-        out.emit(y, row.each_ref().map(|r| &r[..t.stride]));
+        Parts {
+            windows: Self::windows(base, y),
+            sums: Self::sums(sums, y),
+            class: &mut class[..t.stride],
+            dst: out.each_mut().map(|r| &mut r[..t.stride]),
+        }
+    }
+
+    /// Hands the refined row `y` on to `out`.
+    #[inline(always)]
+    pub(super) fn hand_on<E: Emit>(&self, t: &Tile, y: usize, out: &mut E) {
+        out.emit(y, self.out.each_ref().map(|r| &r[..t.stride]));
     }
 
     /// The windows of row `y` of a plane's rows `rows` ([`Taps`]'s order:
@@ -190,15 +201,14 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
         let Some(y) = self.rows.push(f, halo - REACH, ty, rows) else {
             return;
         };
-        self.rows
-            .refine(t, y, self.out, |windows, sums, class, dst| {
-                let row = Row {
-                    kind: t.kind(f.phase, y),
-                    halo,
-                    sums,
-                    windows: &windows,
-                };
-                B::refine_row(f, row, class, dst);
-            });
+        let p = self.rows.parts(t, y);
+        let row = Row {
+            kind: t.kind(f.phase, y),
+            halo,
+            sums: p.sums,
+            windows: &p.windows,
+        };
+        B::refine_row(f, row, p.class, p.dst);
+        self.rows.hand_on(t, y, self.out);
     }
 }
