@@ -11,6 +11,11 @@
 //! normalised gradient difference. Both forms are equal; this one is
 //! exactly `a` when `a = b`, and a flip of the image swaps the pair into
 //! bit-identical results, which keeps the four Bayer phases consistent.
+//!
+//! Each stage is a function of one row, reading planes and rings alike
+//! ([`Rows`]): run stage by stage over a tile's planes ([`TileKernel`]), or
+//! a step at a time down a tall tile, keeping only the rows later stages
+//! still read ([`Rcd::step`], for the fusion).
 
 use super::ring::{depth, Ring, Rows, Step};
 use super::tiled::{Load, Span, Tile, TileKernel};
