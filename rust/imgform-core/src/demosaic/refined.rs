@@ -140,8 +140,9 @@ impl Window {
         out.emit(y, self.out.each_ref().map(|r| &r[..t.stride]));
     }
 
-    /// The windows of row `y` of a plane's rows `rows` (the order of [`super::raisr`]'s taps:
-    /// window `3 * r + p` is plane `p` on row `y + r - 1`).
+    /// The windows of row `y` of a plane's rows `rows`, in the order of
+    /// [`super::raisr`]'s taps: window `3 * r + p` is plane `p` on row
+    /// `y + r - 1`.
     #[inline(always)]
     pub(super) fn windows(rows: &[Ring; 3], y: usize) -> [&[f32]; WINDOWS] {
         std::array::from_fn(|k| rows[k % 3].row(y + k / 3 - 1))
