@@ -45,13 +45,13 @@ pub(super) struct Window {
     /// The base's rows (own chroma, green, other chroma), clamped.
     pub(super) base: [Ring; 3],
     /// The horizontal 3-sums of the gradient products (xx, xy, yy).
-    pub(super) sums: [Ring; 3],
+    sums: [Ring; 3],
     /// One row of the gradients of green.
     grad: [Vec<f32>; 2],
     /// The class of each column of the output row.
-    pub(super) class: Vec<u32>,
+    class: Vec<u32>,
     /// The refined output row.
-    pub(super) out: [Vec<f32>; 3],
+    out: [Vec<f32>; 3],
 }
 
 /// What refining an output row reads and writes ([`Window::parts`]), all
@@ -111,7 +111,7 @@ impl Window {
     /// The tensor's 3x3 sums at row `y`: the horizontal sums of the rows
     /// above, at and below it.
     #[inline(always)]
-    pub(super) fn sums(sums: &[Ring; 3], y: usize) -> [[&[f32]; 3]; 3] {
+    fn sums(sums: &[Ring; 3], y: usize) -> [[&[f32]; 3]; 3] {
         sums.each_ref().map(|s| [y - 1, y, y + 1].map(|r| s.row(r)))
     }
 
