@@ -19,7 +19,7 @@
 use super::mlri::{Buffers, Mlri};
 use super::raisr::{Filters, REACH, WINDOWS};
 use super::rcd::{self, Rcd, R_OUT};
-use super::refined::Window;
+use super::refined::{plane, plane_mut, planes_ring, Window};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -35,13 +35,9 @@ pub(super) struct State {
     rcd: rcd::Stream,
     rows: Window,
     /// RCD's rows minus MLRI's, each clamped first: what the filters see of
-    /// the second base.
-    diff: [Ring; 3],
+    /// the second base, its planes in each row as in [`Window`]'s.
+    diff: Ring,
 }
-
-/// Rows of the difference kept: the output row's three, and the row below
-/// them whose arrival completes it.
-const DIFF_ROWS: usize = 2 * REACH;
 
 impl StreamKernel for Fusion {
     type State = State;
@@ -59,7 +55,7 @@ impl StreamKernel for Fusion {
             mlri: self.mlri.state(stride, rows),
             rcd: self.rcd.stream_state(stride),
             rows: Window::new(stride),
-            diff: [0; 3].map(|_| Ring::new(stride, DIFF_ROWS, 0)),
+            diff: planes_ring(stride),
         }
     }
 
@@ -72,9 +68,6 @@ impl StreamKernel for Fusion {
             diff,
         } = st;
         rows.fit(t.stride);
-        for ring in diff.iter_mut() {
-            ring.fit(t.stride);
-        }
         // RCD's tile starts `R_OUT` rows above MLRI's first row, so that its
         // first row is MLRI's.
         let top = <Mlri as StreamKernel>::HALO - R_OUT;
@@ -121,7 +114,7 @@ struct Fused<'a, L, E> {
     steps: usize,
     rcd: &'a mut rcd::Stream,
     rows: &'a mut Window,
-    diff: &'a mut [Ring; 3],
+    diff: &'a mut Ring,
     raw: &'a L,
     out: &'a mut E,
 }
@@ -136,24 +129,22 @@ impl<L: Load, E: Emit> Emit for Fused<'_, L, E> {
         let second = k.rcd.row(self.rcd, row);
         let y = self.rows.push(f, halo - REACH, ty, rows);
         let (lo, hi) = f.bounds;
-        for ((d, s), c) in self.diff.iter_mut().zip(second).zip(&self.rows.base) {
-            let d = d.row_mut(ty);
-            for ((d, s), c) in d.iter_mut().zip(s).zip(c.row(ty)) {
+        let (d, c) = (self.diff.row_mut(ty), self.rows.base.row(ty));
+        for (p, s) in second.into_iter().enumerate() {
+            let (d, c) = (plane_mut(d, p, t.stride), plane(c, p, t.stride));
+            for ((d, s), c) in d.iter_mut().zip(s).zip(c) {
                 *d = s.max(lo).min(hi) - c;
             }
         }
         let Some(y) = y else {
             return;
         };
-        let second = Window::windows(self.diff, y);
         let p = self.rows.parts(t, y);
-        let mut both: [&[f32]; 2 * WINDOWS] = [&[]; 2 * WINDOWS];
-        for (w, row) in both.iter_mut().zip(p.windows.into_iter().chain(second)) {
-            *w = row;
-        }
+        let [a, b, c] = p.rows;
+        let [d, e, g] = Window::rows(self.diff, y);
         let kind = t.kind(f.phase, y);
         f.hash_row(kind, halo, p.sums, p.class);
-        f.correct_row(kind, halo, p.class, p.dst, &both);
+        f.correct_row::<{ 2 * WINDOWS }>(kind, halo, p.class, p.dst, &[a, b, c, d, e, g]);
         self.rows.hand_on(t, y, self.out);
     }
 }

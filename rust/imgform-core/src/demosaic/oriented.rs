@@ -170,6 +170,7 @@ impl Bank for Oriented {
             halo,
             sums,
             windows,
+            ..
         } = row;
         let end = class.len() - halo;
         let k = f.bank.coherence;

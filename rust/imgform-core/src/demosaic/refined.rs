@@ -14,8 +14,10 @@
 //! thread; this keeps ~0.3 MB. The fusion keeps a [`Window`] too, beside
 //! its second base's rows ([`super::fusion`]).
 
+use super::fusion::Fusion;
 use super::mlri::Mlri;
-use super::raisr::{Bank, Filters, Row, REACH, WINDOWS};
+use super::oriented::Oriented;
+use super::raisr::{Bank, Filters, Row, PITCH, REACH, WINDOWS};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -42,8 +44,10 @@ pub(super) struct State<S> {
 /// structure tensor's sums, and room for a refined row. The fusion keeps
 /// one too, besides its second base's rows.
 pub(super) struct Window {
-    /// The base's rows (own chroma, green, other chroma), clamped.
-    pub(super) base: [Ring; 3],
+    /// The base's rows, clamped, each holding its own chroma, green and
+    /// other chroma [`PITCH`] apart (see [`plane`]), as the hashed filters
+    /// read them.
+    pub(super) base: Ring,
     /// The horizontal 3-sums of the gradient products (xx, xy, yy).
     sums: [Ring; 3],
     /// One row of the gradients of green.
@@ -52,35 +56,66 @@ pub(super) struct Window {
     class: Vec<u32>,
     /// The refined output row.
     out: [Vec<f32>; 3],
+    /// The tile's stride: the length of each plane of a row of `base`.
+    stride: usize,
 }
 
 /// What refining an output row reads and writes ([`Window::parts`]), all
-/// `t.stride` long: the base's windows, the tensor's sums, room for the
-/// classes and the row to write.
+/// `t.stride` long but the rows: the base's windows and their rows, the
+/// tensor's sums, room for the classes and the row to write.
 pub(super) struct Parts<'a> {
     pub(super) windows: [&'a [f32]; WINDOWS],
+    pub(super) rows: [&'a [f32]; 3],
     pub(super) sums: [[&'a [f32]; 3]; 3],
     pub(super) class: &'a mut [u32],
     pub(super) dst: [&'a mut [f32]; 3],
+}
+
+/// Plane `p` (own chroma, green, other chroma), `n` long, of a row of a
+/// ring holding a base's planes [`PITCH`] apart.
+#[inline(always)]
+pub(super) fn plane(row: &[f32], p: usize, n: usize) -> &[f32] {
+    &row[p * PITCH..p * PITCH + n]
+}
+
+/// [`plane`] to write.
+#[inline(always)]
+pub(super) fn plane_mut(row: &mut [f32], p: usize, n: usize) -> &mut [f32] {
+    &mut row[p * PITCH..p * PITCH + n]
+}
+
+/// The widest tile of a refined base is MLRI's, with the halo of the
+/// fusion refined in turn, the deepest of them: the pitch holds it.
+const _: () = assert!(
+    <Mlri as StreamKernel>::COLS + 2 * <Refined<Oriented, Fusion> as StreamKernel>::HALO <= PITCH
+);
+
+/// A ring of a base's last rows, their planes [`PITCH`] apart, for tiles
+/// at most `stride` wide.
+pub(super) fn planes_ring(stride: usize) -> Ring {
+    debug_assert!(stride <= PITCH, "tiles {stride} wide exceed the pitch");
+    Ring::new(3 * PITCH, BASE_ROWS, 0)
 }
 
 impl Window {
     pub(super) fn new(stride: usize) -> Self {
         let row = || vec![0.0f32; stride];
         Window {
-            base: [0; 3].map(|_| Ring::new(stride, BASE_ROWS, 0)),
+            base: planes_ring(stride),
             sums: [0; 3].map(|_| Ring::new(stride, SUM_ROWS, 0)),
             grad: [row(), row()],
             class: vec![0; stride],
             out: [row(), row(), row()],
+            stride,
         }
     }
 
     /// Fits the rows to a tile `stride` wide.
     pub(super) fn fit(&mut self, stride: usize) {
-        for ring in self.base.iter_mut().chain(self.sums.iter_mut()) {
+        for ring in self.sums.iter_mut() {
             ring.fit(stride);
         }
+        self.stride = stride;
     }
 
     /// Takes the base's tile row `ty` (the base's rows starting at tile
@@ -94,14 +129,15 @@ impl Window {
         ty: usize,
         rows: [&[f32]; 3],
     ) -> Option<usize> {
-        for (ring, row) in self.base.iter_mut().zip(rows) {
-            f.clamp(row, ring.row_mut(ty));
+        let dst = self.base.row_mut(ty);
+        for (p, row) in rows.into_iter().enumerate() {
+            f.clamp(row, plane_mut(dst, p, row.len()));
         }
         // The hash's sums start a row below the base's first row
         // (gradients across rows), the output two below that.
         if ty >= first + 2 {
             let y = ty - 1;
-            let g = [y - 1, y, y + 1].map(|r| self.base[1].row(r));
+            let g = [y - 1, y, y + 1].map(|r| plane(self.base.row(r), 1, self.stride));
             let sums = self.sums.each_mut().map(|s| s.row_mut(y));
             f.tensor_row(g, first + 1, &mut self.grad, sums);
         }
@@ -127,7 +163,8 @@ impl Window {
             ..
         } = self;
         Parts {
-            windows: Self::windows(base, y),
+            windows: Self::windows(base, y, t.stride),
+            rows: Self::rows(base, y),
             sums: Self::sums(sums, y),
             class: &mut class[..t.stride],
             dst: out.each_mut().map(|r| &mut r[..t.stride]),
@@ -140,12 +177,18 @@ impl Window {
         out.emit(y, self.out.each_ref().map(|r| &r[..t.stride]));
     }
 
-    /// The windows of row `y` of a plane's rows `rows`, in the order of
-    /// [`super::raisr`]'s taps: window `3 * r + p` is plane `p` on row
-    /// `y + r - 1`.
+    /// The windows of row `y` of a ring of planes' rows (see [`plane`]),
+    /// `n` long, in the order of [`super::raisr`]'s taps: window `3 * r +
+    /// p` is plane `p` on row `y + r - 1`.
     #[inline(always)]
-    pub(super) fn windows(rows: &[Ring; 3], y: usize) -> [&[f32]; WINDOWS] {
-        std::array::from_fn(|k| rows[k % 3].row(y + k / 3 - 1))
+    fn windows(ring: &Ring, y: usize, n: usize) -> [&[f32]; WINDOWS] {
+        std::array::from_fn(|k| plane(ring.row(y + k / 3 - 1), k % 3, n))
+    }
+
+    /// The rows of those windows: the rows above, at and below row `y`.
+    #[inline(always)]
+    pub(super) fn rows(ring: &Ring, y: usize) -> [&[f32]; 3] {
+        [y - 1, y, y + 1].map(|r| ring.row(r))
     }
 }
 
@@ -208,6 +251,7 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
             halo,
             sums: p.sums,
             windows: &p.windows,
+            rows: &p.rows,
         };
         B::refine_row(f, row, p.class, p.dst);
         self.rows.hand_on(t, y, self.out);
