@@ -133,39 +133,42 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   photographs, for 9 % more false colour on the zone plate. On the nine held-out
   training photographs 0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are
   clamped to the range of the input mosaic.
-- ``"fusion"``: a learned adaptive fusion of ``"mlri"`` and ``"rcd"``. No
+- ``"fusion"``: a learned adaptive fusion of ``"ri_cd"`` and ``"rcd"``. No
   single classical method leads everywhere: residual interpolation wins where the
   colour channels are weakly correlated (saturated colours), colour differences where
   they are strongly correlated (most photographs). Here the filters of ``"raisr"``
-  refine ``"mlri"`` and also see the ``"rcd"`` output's difference from it over
+  refine ``"ri_cd"`` and also see the ``"rcd"`` output's difference from it over
   the 3x3 window (53 features per pixel), so that per CFA position and class of local
   structure they learn how far to trust either and how to correct both. The filters
   (120 KB) are trained by ``python -m imgform_rs.training.demosaic --method fusion``
   on 293 openly licensed photographs (:mod:`imgform_rs.training.sets`, set
   ``"photos"``), never on the benchmark's images. Not flip-symmetric. Outputs are
-  clamped to the range of the input mosaic. Mean CPSNR 40.08 dB on the scikit-image
-  seven, 40.03 on CBSD68, 36.49 on Urban24: 0.9-1.3 dB above every classical peer
-  we run, still 1.3-1.6 dB below the deep demosaicnet. On the grey zone plate
-  slightly less false colour than ``"mlri"`` (13163 against 13662) but 2.5 times
-  ``"raisr_cd"``'s. ``"mlri"``, ``"rcd"`` and the filters all stream down tiles as
-  tall as the image, a row at a time, each keeping only the rows later stages still
-  read: 54 MP/s at 24 MP on two cores (1.73x LibRaw's AHD, 1.9x the time of
-  ``"mlri"``; ``benchmarks/demosaic.py``, 2026-12-05) and 4.2 % of the output in
-  extra memory.
+  clamped to the range of the input mosaic. Mean CPSNR 40.06 dB on the scikit-image
+  seven, 39.96 on CBSD68, 36.42 on Urban24: 0.9-1.3 dB above every classical peer
+  we run, still 1.3-1.6 dB below the deep demosaicnet. On the grey zone plate less
+  false colour than ``"mlri"`` (7898 against 13662) but 1.5 times ``"raisr_cd"``'s.
+  Until 2026-12-05 its first base was ``"mlri"``: 0.02-0.07 dB more on each subset,
+  at 1.3 times the time and with 1.7 times the false colour (13163). ``"ri_cd"``,
+  ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
+  time, each keeping only the rows later stages still read: 68 MP/s at 24 MP on two
+  cores (2.23x LibRaw's AHD, 2.3x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
+  2026-12-05) and 4.3 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"fusion_refined"``: ``"fusion"`` refined by a second stage, a cascade: the 32
   orientation- and shape-hashed filters of ``"raisr_fast"`` trained over
   ``"fusion"``'s output (``python -m imgform_rs.training.demosaic --method
   fusion_refined``; 6 KB), applied to its rows as they stream out, with rings of a
-  few rows (0.1 MiB more memory). The second stage sees what the first leaves: a
-  correction learned on the residual of the fusion itself. Mean CPSNR 40.07 dB on
-  the scikit-image seven, 40.17 on CBSD68, 36.58 on Urban24 (+0.14 and +0.09 dB over
+  few rows (0.5 MiB more memory). The second stage sees what the first leaves: a
+  correction learned on the residual of the fusion itself. Mean CPSNR 40.05 dB on
+  the scikit-image seven, 40.09 on CBSD68, 36.51 on Urban24 (+0.13 and +0.09 dB over
   ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.07 on the held-out
-  training photographs), with a little less false colour and zipper on the grey
-  charts (zone plate 13157 and 39.5 %, against 13163 and 41.8 %). 49 MP/s at 24 MP on
-  two cores, 1.10x the time of ``"fusion"`` and 1.57x LibRaw's AHD
-  (``benchmarks/demosaic.py``, 2026-12-05), 4.4 % of the output in extra memory. Not
+  training photographs), with a little less zipper on the grey charts (zone plate
+  false colour 8027 and zipper 39.1 %, against 7898 and 41.8 %). Over the former
+  ``"mlri"``-based fusion it gives up 0.02 / 0.08 / 0.07 dB for 1.23 times the speed
+  and 0.61 times the zone plate's false colour (13157). 60 MP/s at 24 MP on two
+  cores, 1.13x the time of ``"fusion"`` and 1.98x LibRaw's AHD
+  (``benchmarks/demosaic.py``, 2026-12-05), 4.7 % of the output in extra memory. Not
   flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
@@ -176,8 +179,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
   method                    scikit 7    CBSD68  Urban24
   ========================  ==========  ======  =======
-  ``"fusion_refined"``      40.07       40.17   36.58
-  ``"fusion"``              40.08       40.03   36.49
+  ``"fusion_refined"``      40.05       40.09   36.51
+  ``"fusion"``              40.06       39.96   36.42
   ``"raisr"``               39.90       39.92   36.29
   ``"raisr_fast"``          39.69       39.84   36.20
   ``"raisr_cd"`` (best)     39.65       39.82   36.18

@@ -131,13 +131,13 @@ pub enum Method {
     /// validation subset), at 0.70x its time. Not flip-symmetric.
     /// Outputs are clamped to the input's range.
     RaisrCd,
-    /// A learned adaptive fusion of [`Method::Mlri`] and [`Method::Rcd`]:
-    /// filters as [`Method::Raisr`]'s over MLRI that also see RCD's
-    /// difference from MLRI over the 3x3 window. MLRI's residual
-    /// interpolation wins where the colour channels are weakly correlated,
-    /// RCD's colour differences where they are strongly correlated; per class of local structure the filters
-    /// learn how far to trust either. Not flip-symmetric. Outputs are
-    /// clamped to the input's range.
+    /// A learned adaptive fusion of [`Method::RiCd`] and [`Method::Rcd`]:
+    /// filters as [`Method::Raisr`]'s over "ri_cd" that also see RCD's
+    /// difference from it over the 3x3 window. Residual interpolation wins
+    /// where the colour channels are weakly correlated, RCD's colour
+    /// differences where they are strongly correlated; per class of local
+    /// structure the filters learn how far to trust either. Not
+    /// flip-symmetric. Outputs are clamped to the input's range.
     Fusion,
     /// [`Method::Fusion`] refined by a second stage, a cascade: the
     /// orientation- and shape-hashed filters of [`Method::RaisrFast`]
@@ -209,7 +209,7 @@ impl Method {
 
     /// The most accurate method, which the name "quality" selects, whatever
     /// its speed: by the mean over the validation subsets, the learned
-    /// fusion of MLRI and RCD refined by a second stage, ahead of the
+    /// fusion of "ri_cd" and RCD refined by a second stage, ahead of the
     /// fusion alone on CBSD68 and Urban24 and level with it on the seven.
     pub const QUALITY: Method = Method::FusionRefined;
 
@@ -753,13 +753,13 @@ fn run_refined<T, M, O, K, S, B>(
 }
 
 /// The kernel of [`Method::Fusion`].
-type FusionKernel = fusion::Fusion;
+type FusionKernel = fusion::Fusion<differences::Differences>;
 
 /// [`Method::Fusion`]'s kernel for `raw` (whose range its filters clamp
 /// to: a [`Ranged`] mosaic finds it once for every stage).
 fn fusion_kernel<T: Sample>(raw: &impl Mosaic, phase: Phase, isa: Isa) -> FusionKernel {
     fusion::Fusion {
-        mlri: mlri::Mlri::new(phase, T::FULL_SCALE),
+        base: differences::Differences::new(phase, T::FULL_SCALE),
         rcd: Rcd::new(phase, T::FULL_SCALE),
         filters: filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa),
     }

@@ -22,7 +22,7 @@
 //! The same machinery fuses two bases ([`super::fusion`]): the filters then
 //! also see the second base's difference from the first over the 3x3
 //! window, 27 features more, and learn per class how far to trust either
-//! (the learned fusion of MLRI and RCD, [`super::Method::Fusion`]).
+//! (the learned fusion of "ri_cd" and RCD, [`super::Method::Fusion`]).
 //!
 //! The filters are trained by `python -m imgform_rs.training.demosaic` on
 //! openly licensed images that are not the benchmark's (see the docs) and
@@ -174,7 +174,7 @@ impl Weights {
         Self::shipped(&WEIGHTS, include_bytes!("raisr_weights.bin"), WINDOWS)
     }
 
-    /// The shipped filter bank of the fusion of MLRI and RCD.
+    /// The shipped filter bank of the fusion of "ri_cd" and RCD.
     pub(crate) fn fusion() -> &'static Weights {
         static WEIGHTS: OnceLock<Weights> = OnceLock::new();
         Self::shipped(&WEIGHTS, include_bytes!("fusion_weights.bin"), 2 * WINDOWS)

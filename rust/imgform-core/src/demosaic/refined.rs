@@ -14,6 +14,7 @@
 //! thread; this keeps ~0.3 MB. The fusion keeps a [`Window`] too, beside
 //! its second base's rows ([`super::fusion`]).
 
+use super::differences::Differences;
 use super::fusion::Fusion;
 use super::mlri::Mlri;
 use super::oriented::Oriented;
@@ -84,10 +85,16 @@ pub(super) fn plane_mut(row: &mut [f32], p: usize, n: usize) -> &mut [f32] {
     &mut row[p * PITCH..p * PITCH + n]
 }
 
-/// The widest tile of a refined base is MLRI's, with the halo of the
-/// fusion refined in turn, the deepest of them: the pitch holds it.
+/// Whether the tiles of `K` (halo included) fit the rows' pitch.
+const fn fits<K: StreamKernel>() -> bool {
+    K::COLS + 2 * K::HALO <= PITCH
+}
+
+// Every refined base's tiles fit, the fusion's (the deepest) too.
 const _: () = assert!(
-    <Mlri as StreamKernel>::COLS + 2 * <Refined<Oriented, Fusion> as StreamKernel>::HALO <= PITCH
+    fits::<Refined<Oriented, Mlri>>()
+        && fits::<Refined<Oriented, Differences>>()
+        && fits::<Refined<Oriented, Fusion<Differences>>>()
 );
 
 /// A ring of a base's last rows, their planes [`PITCH`] apart, for tiles
