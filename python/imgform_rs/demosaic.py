@@ -150,8 +150,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   Until 2026-12-05 its first base was ``"mlri"``: 0.02-0.07 dB more on each subset,
   at 1.3 times the time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
-  time, each keeping only the rows later stages still read: 68 MP/s at 24 MP on two
-  cores (2.23x LibRaw's AHD, 2.3x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
+  time, each keeping only the rows later stages still read: 65 MP/s at 24 MP on two
+  cores (2.12x LibRaw's AHD, 2.5x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
   2026-12-05) and 4.3 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
@@ -166,9 +166,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   training photographs), with a little less zipper on the grey charts (zone plate
   false colour 8027 and zipper 39.1 %, against 7898 and 41.8 %). Over the former
   ``"mlri"``-based fusion it gives up 0.02 / 0.08 / 0.07 dB for 1.23 times the speed
-  and 0.61 times the zone plate's false colour (13157). 60 MP/s at 24 MP on two
-  cores, 1.13x the time of ``"fusion"`` and 1.98x LibRaw's AHD
-  (``benchmarks/demosaic.py``, 2026-12-05), 4.7 % of the output in extra memory. Not
+  and 0.61 times the zone plate's false colour (13157). 57 MP/s at 24 MP on two
+  cores, 1.13x the time of ``"fusion"`` and 1.88x LibRaw's AHD
+  (``benchmarks/demosaic.py``, 2026-12-05), 4.6 % of the output in extra memory. Not
   flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
