@@ -147,8 +147,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   seven, 39.96 on CBSD68, 36.42 on Urban24: 0.9-1.3 dB above every classical peer
   we run, still 1.3-1.6 dB below the deep demosaicnet. On the grey zone plate less
   false colour than ``"mlri"`` (7898 against 13662) but 1.5 times ``"raisr_cd"``'s.
-  Until 2026-12-05 its first base was ``"mlri"``: 0.02-0.07 dB more on each subset,
-  at 1.3 times the time and with 1.7 times the false colour (13163). ``"ri_cd"``,
+  Over ``"mlri"`` instead it scores 0.02-0.07 dB more on each subset, at 1.3 times
+  the time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
   time, each keeping only the rows later stages still read: 65 MP/s at 24 MP on two
   cores (2.12x LibRaw's AHD, 2.5x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
@@ -164,9 +164,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   the scikit-image seven, 40.09 on CBSD68, 36.51 on Urban24 (+0.13 and +0.09 dB over
   ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.07 on the held-out
   training photographs), with a little less zipper on the grey charts (zone plate
-  false colour 8027 and zipper 39.1 %, against 7898 and 41.8 %). Over the former
-  ``"mlri"``-based fusion it gives up 0.02 / 0.08 / 0.07 dB for 1.23 times the speed
-  and 0.61 times the zone plate's false colour (13157). 57 MP/s at 24 MP on two
+  false colour 8027 and zipper 39.1 %, against 7898 and 41.8 %). Over a fusion based
+  on ``"mlri"`` it would score 0.02 / 0.08 / 0.07 dB more, at 1.23 times the time and
+  with 1.64 times the zone plate's false colour (13157). 57 MP/s at 24 MP on two
   cores, 1.13x the time of ``"fusion"`` and 1.88x LibRaw's AHD
   (``benchmarks/demosaic.py``, 2026-12-05), 4.6 % of the output in extra memory. Not
   flip-symmetric. Outputs are clamped to the range of the input mosaic.

@@ -59,8 +59,8 @@ method, trained on                                                 held out
 ``"fusion_refined"`` over that ``"fusion"`` (shipped)              37.40
 =================================================================  =========
 
-The fusion was over ``"mlri"`` until the last two rows: over ``"ri_cd"`` the cascade
-runs 1.23 times as fast (58 MP/s at 24 MP on two cores, where 50 were asked for) and
+The fusion is over ``"ri_cd"`` (the last two rows) rather than ``"mlri"``: the cascade
+runs 1.23 times as fast (58 MP/s at 24 MP on two cores, where 50 are asked for) and
 leaves 0.61 times the false colour on the grey zone plate, for 0.14 dB less held out
 and 0.02-0.08 dB less on each validation subset. A full hash (288 classes) for the
 second stage instead of orientation and shape scored the same (within 0.02 dB on

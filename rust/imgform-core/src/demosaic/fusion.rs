@@ -2,13 +2,13 @@
 //! RAISR's filters over [`super::differences`] (MLRI's green,
 //! colour-difference chroma) that also see how RCD differs from it.
 //!
-//! The first base may be any kernel that streams its rows. It was MLRI:
-//! over "ri_cd", retrained, "fusion_refined" runs 1.23 times as fast (403
-//! against 496 ms at 24 MP, Rust harness), so at 58 MP/s rather than 48,
-//! and leaves 0.61 times the false colour on the grey zone plate (8027
-//! against 13157: MLRI's chroma aliases there), for 0.02 / 0.08 / 0.07 dB
-//! less on the three validation subsets and 0.14 dB less on the held-out
-//! training photographs.
+//! The first base may be any kernel that streams its rows. Over MLRI
+//! itself, retrained, "fusion_refined" scores 0.02 / 0.08 / 0.07 dB more
+//! on the three validation subsets and 0.14 dB more on the held-out
+//! training photographs, but takes 1.23 times as long (496 against 403 ms
+//! at 24 MP, Rust harness: 48 MP/s where 50 are asked for) and leaves 1.64
+//! times the false colour on the grey zone plate (13157 against 8027:
+//! MLRI's chroma aliases there).
 //!
 //! All three stream down tiles as tall as the image, a row at a time. The
 //! base hands over each row it completes; RCD is stepped down the same
