@@ -19,9 +19,9 @@
 //! RCD's ~65 rows (0.4 MB a thread at 24 MP) and the filters' ~20 add a
 //! fifth to the base's own, where planes of the tile would double it.
 
-use super::raisr::{Filters, REACH, WINDOWS};
+use super::raisr::{plane, plane_mut, Filters, REACH, WINDOWS};
 use super::rcd::{self, Rcd, R_OUT};
-use super::refined::{plane, plane_mut, planes_ring, Window};
+use super::refined::{planes_ring, Window};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -57,7 +57,7 @@ impl<K: StreamKernel> StreamKernel for Fusion<K> {
             base: self.base.state(stride, rows),
             rcd: self.rcd.stream_state(stride),
             rows: Window::new(stride),
-            diff: planes_ring(stride),
+            diff: planes_ring(),
         }
     }
 

@@ -52,6 +52,20 @@ pub(super) const WINDOWS: usize = 9;
 pub(super) const PITCH: usize = 1664;
 /// The most rows a filter's windows lie on: three for each of two bases.
 const MAX_ROWS: usize = 6;
+
+/// Plane `p` (own chroma, green, other chroma), `n` long, of a row of a
+/// ring holding a base's planes [`PITCH`] apart.
+#[inline(always)]
+pub(super) fn plane(row: &[f32], p: usize, n: usize) -> &[f32] {
+    &row[p * PITCH..p * PITCH + n]
+}
+
+/// [`plane`] to write.
+#[inline(always)]
+pub(super) fn plane_mut(row: &mut [f32], p: usize, n: usize) -> &mut [f32] {
+    &mut row[p * PITCH..p * PITCH + n]
+}
+
 /// Angle bins of the structure tensor's orientation (fixed by [`angle_bin`]).
 const ANGLES: usize = 8;
 /// Strength and coherence bins: fixed, so the thresholds are arrays and the
@@ -690,7 +704,7 @@ impl Filters<Weights> {
         let end = class.len() - halo;
         let mut x = halo;
         debug_assert_eq!(3 * rows.len(), N);
-        let src = [0, 1, 2].map(|p| &rows[1][p * PITCH..p * PITCH + class.len()]);
+        let src = [0, 1, 2].map(|p| plane(rows[1], p, class.len()));
         #[cfg(target_arch = "x86_64")]
         if self.isa != Isa::Baseline {
             let dst = [&mut *own, &mut *green, &mut *other];

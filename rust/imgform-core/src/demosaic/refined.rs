@@ -18,7 +18,7 @@ use super::differences::Differences;
 use super::fusion::Fusion;
 use super::mlri::Mlri;
 use super::oriented::Oriented;
-use super::raisr::{Bank, Filters, Row, PITCH, REACH, WINDOWS};
+use super::raisr::{plane, plane_mut, Bank, Filters, Row, PITCH, REACH, WINDOWS};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -46,8 +46,8 @@ pub(super) struct State<S> {
 /// one too, besides its second base's rows.
 pub(super) struct Window {
     /// The base's rows, clamped, each holding its own chroma, green and
-    /// other chroma [`PITCH`] apart (see [`plane`]), as the hashed filters
-    /// read them.
+    /// other chroma [`PITCH`] apart (see [`super::raisr::plane`]), as the
+    /// hashed filters read them.
     pub(super) base: Ring,
     /// The horizontal 3-sums of the gradient products (xx, xy, yy).
     sums: [Ring; 3],
@@ -72,19 +72,6 @@ pub(super) struct Parts<'a> {
     pub(super) dst: [&'a mut [f32]; 3],
 }
 
-/// Plane `p` (own chroma, green, other chroma), `n` long, of a row of a
-/// ring holding a base's planes [`PITCH`] apart.
-#[inline(always)]
-pub(super) fn plane(row: &[f32], p: usize, n: usize) -> &[f32] {
-    &row[p * PITCH..p * PITCH + n]
-}
-
-/// [`plane`] to write.
-#[inline(always)]
-pub(super) fn plane_mut(row: &mut [f32], p: usize, n: usize) -> &mut [f32] {
-    &mut row[p * PITCH..p * PITCH + n]
-}
-
 /// Whether the tiles of `K` (halo included) fit the rows' pitch.
 const fn fits<K: StreamKernel>() -> bool {
     K::COLS + 2 * K::HALO <= PITCH
@@ -97,10 +84,9 @@ const _: () = assert!(
         && fits::<Refined<Oriented, Fusion<Differences>>>()
 );
 
-/// A ring of a base's last rows, their planes [`PITCH`] apart, for tiles
-/// at most `stride` wide.
-pub(super) fn planes_ring(stride: usize) -> Ring {
-    debug_assert!(stride <= PITCH, "tiles {stride} wide exceed the pitch");
+/// A ring of a base's last rows, their planes [`PITCH`] apart (every
+/// tile fits: see [`fits`]).
+pub(super) fn planes_ring() -> Ring {
     Ring::new(3 * PITCH, BASE_ROWS, 0)
 }
 
@@ -108,7 +94,7 @@ impl Window {
     pub(super) fn new(stride: usize) -> Self {
         let row = || vec![0.0f32; stride];
         Window {
-            base: planes_ring(stride),
+            base: planes_ring(),
             sums: [0; 3].map(|_| Ring::new(stride, SUM_ROWS, 0)),
             grad: [row(), row()],
             class: vec![0; stride],
