@@ -59,6 +59,11 @@ def test_the_kernel_applies_the_filters_the_training_script_fitted(method):
     feats, _ = tr.samples(truth, bases, position)
     want = np.einsum("nf,nkf->nk", feats, filters[cls])
     blue, chroma = tr.interior(position >= 2, 0), tr.interior(position % 2 == 1, 0)
+    if method in tr.BOUNDED:
+        bounded = tr.bound_chroma(want, chroma)
+        # The bound acts on this crop, and the kernel applies it.
+        assert (bounded != want).any()
+        want = bounded
 
     def missing(rgb):
         """The two missing colours of each interior pixel, in the kernel's order."""

@@ -143,12 +143,15 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   (120 KB) are trained by ``python -m imgform_rs.training.demosaic --method fusion``
   on 293 openly licensed photographs (:mod:`imgform_rs.training.sets`, set
   ``"photos"``), never on the benchmark's images. Not flip-symmetric. Outputs are
-  clamped to the range of the input mosaic. Mean CPSNR 40.06 dB on the scikit-image
-  seven, 39.96 on CBSD68, 36.42 on Urban24: 0.9-1.3 dB above every classical peer
-  we run, still 1.3-1.6 dB below the deep demosaicnet. On the grey zone plate less
-  false colour than ``"mlri"`` (7898 against 13662) but 1.5 times ``"raisr_cd"``'s.
-  Over ``"mlri"`` instead it scores 0.02-0.07 dB more on each subset, at 1.3 times
-  the time and with 1.7 times the false colour (13163). ``"ri_cd"``,
+  clamped to the range of the input mosaic. Mean CPSNR 40.05 dB on the scikit-image
+  seven, 39.95 on CBSD68, 36.41 on Urban24: 0.9-1.3 dB above every classical peer
+  we run, still 1.3-1.6 dB below the deep demosaicnet. Where the mosaic aliases,
+  ``"rcd"``'s colours stray, so the filters see its differences clamped (to 32/255 of
+  the full scale) and move no missing colour's difference from green more than 8/255
+  from ``"ri_cd"``'s: on the grey zone plate 5833 of false colour (``"mlri"`` 13662,
+  ``"raisr_cd"`` 5309; 7898 unbounded) for 0.01 dB on each subset. Over ``"mlri"``
+  instead (unbounded) it scores 0.02-0.07 dB more on each subset, at 1.3 times the
+  time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
   time, each keeping only the rows later stages still read: 65 MP/s at 24 MP on two
   cores (2.12x LibRaw's AHD, 2.5x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
@@ -160,13 +163,15 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"fusion"``'s output (``python -m imgform_rs.training.demosaic --method
   fusion_refined``; 6 KB), applied to its rows as they stream out, with rings of a
   few rows (0.5 MiB more memory). The second stage sees what the first leaves: a
-  correction learned on the residual of the fusion itself. Mean CPSNR 40.05 dB on
-  the scikit-image seven, 40.09 on CBSD68, 36.51 on Urban24 (+0.13 and +0.09 dB over
-  ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.07 on the held-out
-  training photographs), with a little less zipper on the grey charts (zone plate
-  false colour 8027 and zipper 39.1 %, against 7898 and 41.8 %). Over a fusion based
-  on ``"mlri"`` it would score 0.02 / 0.08 / 0.07 dB more, at 1.23 times the time and
-  with 1.64 times the zone plate's false colour (13157). 57 MP/s at 24 MP on two
+  correction learned on the residual of the fusion itself. Mean CPSNR 40.04 dB on
+  the scikit-image seven, 40.07 on CBSD68, 36.50 on Urban24 (+0.12 and +0.09 dB over
+  ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.08 on the held-out
+  training photographs). Bounded as ``"fusion"`` is (its moves of each missing
+  colour's difference from green within 8/255 of the fusion's), it leaves 6015 of
+  false colour on the grey zone plate, below ``"rcd_menon"``'s 6091 (8027
+  unbounded, for 0.01-0.02 dB more). Over a fusion based on ``"mlri"`` (unbounded) it
+  would score 0.02 / 0.08 / 0.07 dB more, at 1.23 times the time and with 1.64 times
+  the zone plate's false colour (13157). 57 MP/s at 24 MP on two
   cores, 1.13x the time of ``"fusion"`` and 1.88x LibRaw's AHD
   (``benchmarks/demosaic.py``, 2026-12-05), 4.6 % of the output in extra memory. Not
   flip-symmetric. Outputs are clamped to the range of the input mosaic.
@@ -179,8 +184,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
   method                    scikit 7    CBSD68  Urban24
   ========================  ==========  ======  =======
-  ``"fusion_refined"``      40.05       40.09   36.51
-  ``"fusion"``              40.06       39.96   36.42
+  ``"fusion_refined"``      40.04       40.07   36.50
+  ``"fusion"``              40.05       39.95   36.41
   ``"raisr"``               39.90       39.92   36.29
   ``"raisr_fast"``          39.69       39.84   36.20
   ``"raisr_cd"`` (best)     39.65       39.82   36.18

@@ -3,12 +3,20 @@
 //! colour-difference chroma) that also see how RCD differs from it.
 //!
 //! The first base may be any kernel that streams its rows. Over MLRI
-//! itself, retrained, "fusion_refined" scores 0.02 / 0.08 / 0.07 dB more
-//! on the three validation subsets and 0.14 dB more on the held-out
-//! training photographs, but takes 1.23 times as long (496 against 403 ms
-//! at 24 MP, Rust harness: 48 MP/s where 50 are asked for) and leaves 1.64
-//! times the false colour on the grey zone plate (13157 against 8027:
-//! MLRI's chroma aliases there).
+//! itself, retrained (both without the bounds below), "fusion_refined"
+//! scores 0.02 / 0.08 / 0.07 dB more on the three validation subsets and
+//! 0.14 dB more on the held-out training photographs, but takes 1.23 times
+//! as long (496 against 403 ms at 24 MP, Rust harness: 48 MP/s where 50
+//! are asked for) and leaves 1.64 times the false colour on the grey zone
+//! plate (13157 against 8027: MLRI's chroma aliases there).
+//!
+//! Two bounds keep RCD's aliased colours out: the filters see RCD's
+//! differences from the base clamped to [`SECOND_LIMIT`], and move no
+//! missing colour's difference from green further than
+//! [`super::raisr::CHROMA_LIMIT`] from the base's ([`Filters::bound_chroma`];
+//! the cascade's second stage is bounded the same way). On the grey zone
+//! plate "fusion_refined" then leaves 6015 of false colour instead of 8027,
+//! for 0.01-0.02 dB on each validation subset.
 //!
 //! All three stream down tiles as tall as the image, a row at a time. The
 //! base hands over each row it completes; RCD is stepped down the same
@@ -19,17 +27,27 @@
 //! RCD's ~65 rows (0.4 MB a thread at 24 MP) and the filters' ~20 add a
 //! fifth to the base's own, where planes of the tile would double it.
 
-use super::raisr::{plane, plane_mut, Filters, REACH, WINDOWS};
+use super::raisr::{plane, plane_mut, plane_row, Filters, REACH, WINDOWS};
 use super::rcd::{self, Rcd, R_OUT};
 use super::refined::{planes_ring, Window};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
+
+/// How far RCD may differ from the base in what the filters see, per
+/// colour, as a fraction of the full scale (the training script clamps
+/// the same). Where the mosaic aliases, on fine grey detail, RCD's colours
+/// stray far from the base's and the filters, fitted on photographs where
+/// differences that large are rare, pass them on as false colour.
+pub(super) const SECOND_LIMIT: f32 = 32.0 / 255.0;
 
 /// A base that streams its rows, refined by filters that also see RCD.
 pub(super) struct Fusion<K> {
     pub(super) base: K,
     pub(super) rcd: Rcd,
     pub(super) filters: Filters,
+    /// The sample type's full scale, which [`SECOND_LIMIT`] is a fraction
+    /// of.
+    pub(super) full_scale: f32,
 }
 
 pub(super) struct State<S> {
@@ -131,22 +149,25 @@ impl<K: StreamKernel, L: Load, E: Emit> Emit for Fused<'_, K, L, E> {
         let second = k.rcd.row(self.rcd, row);
         let y = self.rows.push(f, halo - REACH, ty, rows);
         let (lo, hi) = f.bounds;
+        let limit = SECOND_LIMIT * k.full_scale;
         let (d, c) = (self.diff.row_mut(ty), self.rows.base.row(ty));
         for (p, s) in second.into_iter().enumerate() {
             let (d, c) = (plane_mut(d, p, t.stride), plane(c, p, t.stride));
             for ((d, s), c) in d.iter_mut().zip(s).zip(c) {
-                *d = s.max(lo).min(hi) - c;
+                *d = (s.max(lo).min(hi) - c).max(-limit).min(limit);
             }
         }
         let Some(y) = y else {
             return;
         };
-        let p = self.rows.parts(t, y);
+        let mut p = self.rows.parts(t, y);
         let [a, b, c] = p.rows;
         let [d, e, g] = Window::rows(self.diff, y);
         let kind = t.kind(f.phase, y);
         f.hash_row(kind, halo, p.sums, p.class);
-        f.correct_row::<{ 2 * WINDOWS }>(kind, halo, p.class, p.dst, &[a, b, c, d, e, g]);
+        let dst = p.dst.each_mut().map(|r| &mut **r);
+        f.correct_row::<{ 2 * WINDOWS }>(kind, halo, p.class, dst, &[a, b, c, d, e, g]);
+        f.bound_chroma(plane_row(b, t.stride), p.dst, halo..t.stride - halo);
         self.rows.hand_on(t, y, self.out);
     }
 }

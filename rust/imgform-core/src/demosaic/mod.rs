@@ -719,9 +719,12 @@ where
         }
         Method::FusionRefined => {
             let raw = &Ranged::new(raw);
-            let base = fusion_kernel::<T>(raw, phase, isa);
             let bank = oriented::Oriented::fusion_refined();
-            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
+            let k = refined::Refined {
+                base: fusion_kernel::<T>(raw, phase, isa),
+                filters: bounded::<T, _>(filters::<T, _>(bank, raw, phase, isa)),
+            };
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
     }
 }
@@ -761,7 +764,8 @@ fn fusion_kernel<T: Sample>(raw: &impl Mosaic, phase: Phase, isa: Isa) -> Fusion
     fusion::Fusion {
         base: differences::Differences::new(phase, T::FULL_SCALE),
         rcd: Rcd::new(phase, T::FULL_SCALE),
-        filters: filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa),
+        filters: bounded::<T, _>(filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa)),
+        full_scale: T::FULL_SCALE,
     }
 }
 
@@ -778,6 +782,15 @@ fn filters<T: Sample, B>(
         bounds: raw.range(),
         bank,
         isa,
+        chroma_bound: None,
+    }
+}
+
+/// `f` bounded as the fusion and its cascade are ([`raisr::CHROMA_LIMIT`]).
+fn bounded<T: Sample, B>(f: raisr::Filters<B>) -> raisr::Filters<B> {
+    raisr::Filters {
+        chroma_bound: Some(raisr::CHROMA_LIMIT * T::FULL_SCALE),
+        ..f
     }
 }
 

@@ -60,6 +60,19 @@ pub(super) fn plane(row: &[f32], p: usize, n: usize) -> &[f32] {
     &row[p * PITCH..p * PITCH + n]
 }
 
+/// The three planes of such a row, `n` long.
+#[inline(always)]
+pub(super) fn plane_row(row: &[f32], n: usize) -> [&[f32]; 3] {
+    [0, 1, 2].map(|p| plane(row, p, n))
+}
+
+/// How far the fusion and its cascade may move a missing colour's
+/// difference from green away from their base's, as a fraction of the full
+/// scale ([`Filters::chroma_bound`]). Larger moves were false colour on
+/// grey detail, where the mosaic aliases, far more often than corrections:
+/// the filters were fitted on photographs, where moves that large are rare.
+pub(super) const CHROMA_LIMIT: f32 = 8.0 / 255.0;
+
 /// [`plane`] to write.
 #[inline(always)]
 pub(super) fn plane_mut(row: &mut [f32], p: usize, n: usize) -> &mut [f32] {
@@ -416,6 +429,10 @@ pub(super) struct Filters<B: 'static = Weights> {
     pub(super) bank: &'static B,
     /// Whether the filters run in AVX ([`apply_avx2`]) or scalar code.
     pub(super) isa: Isa,
+    /// How far the filters may move a missing colour's difference from
+    /// green away from the base's, in the sample type's scale (see
+    /// [`CHROMA_LIMIT`]); `None`: as far as they like.
+    pub(super) chroma_bound: Option<f32>,
 }
 
 /// What refining a row reads: the row's kind, the columns it leaves at
@@ -659,6 +676,43 @@ impl<B> Filters<B> {
             *c = hash(2 * blue + chroma, add3(&xx), add3(&xy), add3(&yy));
         }
     }
+
+    /// Bounds the filters' output `dst` over columns `cols` as
+    /// [`Filters::chroma_bound`] says, `src` being the base's row.
+    #[inline(always)]
+    pub(super) fn bound_chroma(&self, src: [&[f32]; 3], dst: [&mut [f32]; 3], cols: Range<usize>) {
+        if let Some(limit) = self.chroma_bound {
+            bound_chroma(limit, src, dst, cols);
+        }
+    }
+}
+
+/// Moves each missing colour's difference from green at most `limit` away
+/// from the base's, over `cols` of `dst` (own chroma, green, other chroma):
+/// the filters' output over `src`, the base's row. The form is the same at
+/// every site, so the loop vectorises: the filters leave the own chroma
+/// of a chroma site and the green of a green site as the base's, whose
+/// differences are then zero.
+#[inline(always)]
+fn bound_chroma(
+    limit: f32,
+    src: [&[f32]; 3],
+    [own, green, other]: [&mut [f32]; 3],
+    cols: Range<usize>,
+) {
+    let bound = |v: f32| v.max(-limit).min(limit);
+    let [so, sg, st] = src.map(|r| &r[cols.clone()]);
+    let dst = own[cols.clone()]
+        .iter_mut()
+        .zip(&green[cols.clone()])
+        .zip(&mut other[cols]);
+    for (((o, g), t), ((so, sg), st)) in dst.zip(so.iter().zip(sg).zip(st)) {
+        *o = so + bound(*o - so);
+        // The other chroma's base: the base's difference from green, on
+        // the filters' green.
+        let base = st + (g - sg);
+        *t = base + bound(*t - base);
+    }
 }
 
 impl Filters<Weights> {
@@ -897,6 +951,7 @@ mod tests {
                     bounds: (0.0, 1.0),
                     bank: w,
                     isa: Isa::Baseline,
+                    chroma_bound: None,
                 };
                 f.hash_row(kind, 3, sums, &mut scalar);
                 // SAFETY: the CPU has AVX2.
@@ -1014,5 +1069,57 @@ mod tests {
         assert_eq!(eigen(0.0, 0.0, 0.0), (0.0, 0.0));
         let (l1, c) = eigen(4.0, 0.0, 0.0);
         assert_eq!((l1, c), (4.0, 1.0));
+    }
+
+    #[test]
+    fn bound_chroma_moves_missing_differences_by_at_most_the_limit() {
+        let (n, limit) = (40, 0.1f32);
+        let wave = |k: usize, s: f32| (0..n).map(move |x| ((x * k) as f32 * s).sin() * 0.4 + 0.5);
+        let src: [Vec<f32>; 3] = [
+            wave(3, 0.7).collect(),
+            wave(5, 0.3).collect(),
+            wave(7, 0.9).collect(),
+        ];
+        // The filters' output: corrections up to 0.5, the first to green at
+        // a chroma site (even columns here) and to the own chroma at a
+        // green site, the second to the other chroma.
+        let d: Vec<(f32, f32)> = (0..n)
+            .map(|x| ((x as f32 * 1.3).sin() * 0.5, (x as f32 * 0.8).cos() * 0.5))
+            .collect();
+        let mut dst = src.clone();
+        for (x, &(d0, d1)) in d.iter().enumerate() {
+            dst[if x % 2 == 0 { 1 } else { 0 }][x] += d0;
+            dst[2][x] += d1;
+        }
+        let filtered = dst.clone();
+        let [o, g, t] = dst.each_mut().map(|r| &mut r[..]);
+        bound_chroma(limit, src.each_ref().map(|r| &r[..]), [o, g, t], 2..n - 2);
+        let eps = 1e-6;
+        for x in 0..n {
+            let [so, sg, st] = src.each_ref().map(|r| r[x]);
+            let [o, g, t] = dst.each_ref().map(|r| r[x]);
+            if !(2..n - 2).contains(&x) {
+                assert_eq!([o, g, t], filtered.each_ref().map(|r| r[x]));
+                continue;
+            }
+            // Green is the filters' everywhere, the own chroma of a chroma
+            // site the base's.
+            assert_eq!(g, filtered[1][x]);
+            let moved = |v: f32, base: f32| (v - base).abs();
+            if x % 2 == 0 {
+                assert_eq!(o, so);
+                let step = moved(t - g, st - sg);
+                assert!(step <= limit + eps, "{x}: {step}");
+                let wanted = moved(filtered[2][x] - g, st - sg);
+                assert!((step - wanted.min(limit)).abs() <= eps, "{x}");
+            } else {
+                for (v, base, wanted) in [(o, so, d[x].0), (t, st, d[x].1)] {
+                    assert!(
+                        (moved(v, base) - wanted.abs().min(limit)).abs() <= eps,
+                        "{x}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -18,7 +18,7 @@ use super::differences::Differences;
 use super::fusion::Fusion;
 use super::mlri::Mlri;
 use super::oriented::Oriented;
-use super::raisr::{plane, plane_mut, Bank, Filters, Row, PITCH, REACH, WINDOWS};
+use super::raisr::{plane, plane_mut, plane_row, Bank, Filters, Row, PITCH, REACH, WINDOWS};
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
@@ -238,7 +238,7 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
         let Some(y) = self.rows.push(f, halo - REACH, ty, rows) else {
             return;
         };
-        let p = self.rows.parts(t, y);
+        let mut p = self.rows.parts(t, y);
         let row = Row {
             kind: t.kind(f.phase, y),
             halo,
@@ -246,7 +246,9 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
             windows: &p.windows,
             rows: &p.rows,
         };
-        B::refine_row(f, row, p.class, p.dst);
+        B::refine_row(f, row, p.class, p.dst.each_mut().map(|r| &mut **r));
+        let src = plane_row(p.rows[1], t.stride);
+        f.bound_chroma(src, p.dst, halo..t.stride - halo);
         self.rows.hand_on(t, y, self.out);
     }
 }
