@@ -153,8 +153,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   instead (unbounded) it scores 0.02-0.07 dB more on each subset, at 1.3 times the
   time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
-  time, each keeping only the rows later stages still read: 65 MP/s at 24 MP on two
-  cores (2.12x LibRaw's AHD, 2.5x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
+  time, each keeping only the rows later stages still read: 66 MP/s at 24 MP on two
+  cores (2.18x LibRaw's AHD, 2.4x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
   2026-12-05) and 4.3 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
@@ -171,9 +171,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   false colour on the grey zone plate, below ``"rcd_menon"``'s 6091 (8027
   unbounded, for 0.01-0.02 dB more). Over a fusion based on ``"mlri"`` (unbounded) it
   would score 0.02 / 0.08 / 0.07 dB more, at 1.23 times the time and with 1.64 times
-  the zone plate's false colour (13157). 57 MP/s at 24 MP on two
-  cores, 1.13x the time of ``"fusion"`` and 1.88x LibRaw's AHD
-  (``benchmarks/demosaic.py``, 2026-12-05), 4.6 % of the output in extra memory. Not
+  the zone plate's false colour (13157). 59 MP/s at 24 MP on two
+  cores, 1.12x the time of ``"fusion"`` and 1.95x LibRaw's AHD
+  (``benchmarks/demosaic.py``, 2026-12-05), 4.5 % of the output in extra memory. Not
   flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
