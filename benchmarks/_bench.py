@@ -113,8 +113,8 @@ RESULTS = Path(__file__).parent / "results"
 def machine() -> dict[str, Any]:
     """What a benchmark's numbers depend on besides the code: CPU, cores,
     the instruction set our kernels ran (``IMGFORM_ISA`` may cap it), date,
-    load, Python, the commit and the versions of the peers installed (a peer
-    that is not installed is left out)."""
+    load, Python and the versions of the peers installed (a peer that is not
+    installed is left out)."""
     cpu = platform.processor() or platform.machine()
     try:
         with open("/proc/cpuinfo") as f:
@@ -133,25 +133,30 @@ def machine() -> dict[str, Any]:
         versions["LibRaw"] = ".".join(map(str, rawpy.libraw_version))
     except (ImportError, AttributeError):
         pass
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=Path(__file__).parent,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = None
     return {
         "cpu": cpu,
         "cores": os.cpu_count(),
         "instruction_set": instruction_set(),
         "platform": platform.platform(),
         "python": platform.python_version(),
-        "commit": commit,
         "versions": versions,
     }
+
+
+def commit() -> str | None:
+    """The commit checked out, with ``-dirty`` appended when tracked files differ
+    from it: a record made from uncommitted code must not pass for the commit's.
+    ``None`` outside a git checkout."""
+    try:
+        return subprocess.run(
+            ["git", "describe", "--always", "--dirty", "--abbrev=7", "--exclude=*"],
+            cwd=Path(__file__).parent,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
 
 
 class _Record(io.TextIOBase):
@@ -166,6 +171,8 @@ class _Record(io.TextIOBase):
         self.printing = ""
         self.started = datetime.datetime.now(datetime.timezone.utc)
         self.load_before = os.getloadavg() if hasattr(os, "getloadavg") else None
+        # Taken as the run starts: the code measured is the code checked out then.
+        self.commit = commit()
 
     def write(self, text: str) -> int:
         # The table's own text is in the record already, as rows.
@@ -214,6 +221,7 @@ class _Record(io.TextIOBase):
             "load_average_before": self.load_before,
             "load_average_after": os.getloadavg() if hasattr(os, "getloadavg") else None,
             **machine(),
+            "commit": self.commit,
             "opening_notes": self.opening_notes,
             "tables": self.tables,
             "closing_notes": _paragraphs("".join(self.since_table)),

@@ -250,6 +250,33 @@ def test_benchmark_tables_are_recorded(tmp_path):
     assert record["closing_notes"] == ["closing line"]
 
 
+def test_a_record_from_uncommitted_code_says_so(tmp_path):
+    script = _write_probe(tmp_path)
+    env = dict(os.environ, IMGFORM_BENCH_RESULTS=str(tmp_path / "results"))
+
+    def git(*args):
+        subprocess.run(
+            ["git", "-c", "user.name=t", "-c", "user.email=t@t", *args],
+            cwd=tmp_path,
+            check=True,
+            capture_output=True,
+        )
+
+    def recorded_commit():
+        subprocess.run(
+            [sys.executable, str(script)], cwd=tmp_path, env=env, check=True, capture_output=True
+        )
+        return json.loads((tmp_path / "results" / "probe.json").read_text())["commit"]
+
+    git("init", "-q")
+    git("add", "_bench.py", "probe.py")
+    git("commit", "-q", "-m", "probe")
+    clean = recorded_commit()
+    assert re.fullmatch(r"[0-9a-f]{7,}", clean)
+    (tmp_path / "_bench.py").write_text((tmp_path / "_bench.py").read_text() + "# edited\n")
+    assert recorded_commit() == f"{clean}-dirty"
+
+
 def test_a_failed_benchmark_keeps_the_last_record(tmp_path):
     script = _write_probe(tmp_path)
     script.write_text(script.read_text() + "raise RuntimeError('interrupted')\n")
