@@ -75,10 +75,11 @@ green more than :data:`CHROMA_LIMIT` (8/255) away from their base's
 (:func:`bound_chroma`). On the grey zone plate, where the mosaic aliases, unbounded
 they passed RCD's aliased colours on: bounded, ``"fusion_refined"`` leaves 6015 of
 false colour instead of 8027 (``"rcd_menon"`` 6091, ``"ri_cd"`` 5884), for 0.02 dB
-held out and 0.01-0.02 dB on each validation subset. On ``"fusion"`` alone,
-bounding only its features (16/255) cut its false colour by 16 % for 0.02 dB held
-out, only its output (8/255) by 22 % for 0.02 dB, and both by 26 % for 0.03 dB;
-neither alone brings the cascade below ``"rcd_menon"``.
+held out and 0.01-0.02 dB on each validation subset. On ``"fusion"`` alone (a NumPy
+model of its kernel), bounding only its features (16/255) cut its false colour by 16
+% for 0.02 dB held out, only its output (8/255) by 22 % for 0.02 dB, and both by 26
+% for 0.02 dB; neither alone brings the fusion below 6100, and the cascade adds about
+180.
 
 Menon's half of the ``"rcd_menon"`` mean added nothing the filters used: with ``"rcd"``
 alone as the second base they score as well (0.05 dB better held out, within 0.03 dB
