@@ -64,9 +64,9 @@ method, trained on                                                 held out
 The fusion is over ``"ri_cd"`` (the last four rows) rather than ``"mlri"``: unbounded
 (below), the cascade runs 1.23 times as fast (58 MP/s at 24 MP on two cores, where 50
 are asked for) and leaves 0.61 times the false colour on the grey zone plate, for 0.14
-dB less held out and 0.02-0.08 dB less on each validation subset. A full hash (288 classes) for the
-second stage instead of orientation and shape scored the same (within 0.02 dB on
-each subset) with 5 % more false colour.
+dB less held out and 0.02-0.08 dB less on each validation subset. A full hash (288
+classes) for the second stage instead of orientation and shape scored the same
+(within 0.02 dB on each subset) with 5 % more false colour.
 
 Both stages of the cascade are bounded: the fusion's features see ``"rcd"``'s
 differences from ``"ri_cd"`` clamped to :data:`SECOND_LIMIT` (32/255 of the full

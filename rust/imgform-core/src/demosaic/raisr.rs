@@ -758,7 +758,7 @@ impl Filters<Weights> {
         let end = class.len() - halo;
         let mut x = halo;
         debug_assert_eq!(3 * rows.len(), N);
-        let src = [0, 1, 2].map(|p| plane(rows[1], p, class.len()));
+        let src = plane_row(rows[1], class.len());
         #[cfg(target_arch = "x86_64")]
         if self.isa != Isa::Baseline {
             let dst = [&mut *own, &mut *green, &mut *other];
