@@ -171,10 +171,10 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   false colour on the grey zone plate, below ``"rcd_menon"``'s 6091 (8027
   unbounded, for 0.01-0.02 dB more). Over a fusion based on ``"mlri"`` (unbounded) it
   would score 0.02 / 0.08 / 0.07 dB more, at 1.23 times the time and with 1.64 times
-  the zone plate's false colour (13157). 59 MP/s at 24 MP on two
-  cores, 1.12x the time of ``"fusion"`` and 1.95x LibRaw's AHD
-  (``benchmarks/demosaic.py``, 2026-12-05), 4.5 % of the output in extra memory. Not
-  flip-symmetric. Outputs are clamped to the range of the input mosaic.
+  the zone plate's false colour (13157). 59 MP/s at 24 MP on two cores, 1.12x the
+  time of ``"fusion"`` and 1.95x LibRaw's AHD (``benchmarks/demosaic.py``,
+  2026-12-05), 4.5 % of the output in extra memory. Not flip-symmetric. Outputs are
+  clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
   benchmarks/demosaic.py quality``: the seven scikit-image images, the 68 CBSD68

@@ -45,9 +45,8 @@ pub(super) struct Fusion<K> {
     pub(super) base: K,
     pub(super) rcd: Rcd,
     pub(super) filters: Filters,
-    /// The sample type's full scale, which [`SECOND_LIMIT`] is a fraction
-    /// of.
-    pub(super) full_scale: f32,
+    /// [`SECOND_LIMIT`] in the sample type's scale.
+    pub(super) second_bound: f32,
 }
 
 pub(super) struct State<S> {
@@ -149,7 +148,7 @@ impl<K: StreamKernel, L: Load, E: Emit> Emit for Fused<'_, K, L, E> {
         let second = k.rcd.row(self.rcd, row);
         let y = self.rows.push(f, halo - REACH, ty, rows);
         let (lo, hi) = f.bounds;
-        let limit = SECOND_LIMIT * k.full_scale;
+        let limit = k.second_bound;
         let (d, c) = (self.diff.row_mut(ty), self.rows.base.row(ty));
         for (p, s) in second.into_iter().enumerate() {
             let (d, c) = (plane_mut(d, p, t.stride), plane(c, p, t.stride));

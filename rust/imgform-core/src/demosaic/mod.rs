@@ -765,7 +765,7 @@ fn fusion_kernel<T: Sample>(raw: &impl Mosaic, phase: Phase, isa: Isa) -> Fusion
         base: differences::Differences::new(phase, T::FULL_SCALE),
         rcd: Rcd::new(phase, T::FULL_SCALE),
         filters: bounded::<T, _>(filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa)),
-        full_scale: T::FULL_SCALE,
+        second_bound: fusion::SECOND_LIMIT * T::FULL_SCALE,
     }
 }
 
