@@ -118,6 +118,21 @@ def test_demosaic_dask_is_demosaic_bit_for_bit(
     np.testing.assert_array_equal(got, expected)
 
 
+@pytest.mark.parametrize("level", [None, 4095.0, 65535.0])
+def test_demosaic_dask_takes_the_white_level_of_the_whole_mosaic(level):
+    # 12-bit samples in uint16; the brightest sits in one chunk only, yet every
+    # chunk infers the mosaic's bit depth from it, as the whole image does.
+    rng = np.random.default_rng(7)
+    raw = rng.integers(100, 1500, (40, 52)).astype(np.uint16)
+    raw[31, 45] = 4000
+    chunked = da.from_array(raw, chunks=(14, 18))
+    lazy = batch.demosaic_dask(chunked, "GRBG", "quality", white_level=level)
+    expected = demosaic(raw, "GRBG", "quality", white_level=level)
+    np.testing.assert_array_equal(lazy.compute(scheduler="synchronous"), expected)
+    if level is None:
+        np.testing.assert_array_equal(expected, demosaic(raw, "GRBG", "quality", white_level=4095))
+
+
 def test_every_method_declares_a_halo():
     for method in DEMOSAIC_METHODS:
         for pattern in PATTERNS:

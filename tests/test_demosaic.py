@@ -529,3 +529,96 @@ def test_mosaic_of_any_dtype_samples_exactly(dtype, pattern, seed):
     assert got.dtype == np.dtype(dtype) and got.flags.c_contiguous
     masks = ig.channel_masks((7, 13), pattern)
     np.testing.assert_array_equal(got, rgb[masks].reshape(7, 13))
+
+
+SCALED = set(ig.SCALED_DEMOSAIC_METHODS)
+
+
+def test_the_scaled_methods_are_the_documented_ones():
+    classical = {"rcd", "rcd_menon", "ahd", "mlri", "ri_cd"}
+    assert SCALED == classical | set(LEARNED)
+
+
+@given(
+    raw=mosaics(min_side=6).map(lambda r: r.astype(np.float32) / max(float(r.max()), 1.0)),
+    p=st.sampled_from([*BAYER, "XTRANS"]),
+    exponent=st.integers(-4, 8),
+    data=st.data(),
+)
+def test_results_scale_exactly_with_the_white_level(raw, p, exponent, data):
+    # A power of two scales every float operation exactly, so the mosaic and
+    # its white level scaled together scale the result bit for bit: no method
+    # hides a threshold in absolute units.
+    method = data.draw(st.sampled_from(ig.XTRANS_DEMOSAIC_METHODS if p == "XTRANS" else METHODS))
+    s = np.float32(2.0**exponent)
+    level = float(s) if method in SCALED else None
+    expected = ig.demosaic(raw, p, method) * s
+    np.testing.assert_array_equal(ig.demosaic(raw * s, p, method, white_level=level), expected)
+    if method not in SCALED:
+        # ...and the white level changes nothing for the others.
+        np.testing.assert_array_equal(ig.demosaic(raw, p, method, white_level=7.0), expected / s)
+
+
+@pytest.mark.parametrize("method", sorted(SCALED - {"best", "quality"}))
+def test_integer_mosaics_are_taken_at_their_bit_depth(method):
+    # Raw files keep 10- to 14-bit photosites in uint16: at uint16's full
+    # scale they would look 4 to 64 times darker than they are.
+    data = pytest.importorskip("skimage.data")
+    rgb = data.astronaut()[120:248, 160:288]
+
+    def cpsnr(out, shift):
+        err = (out.astype(np.float64) / 2**shift - rgb)[10:-10, 10:-10]
+        return 10 * np.log10(255**2 / (err**2).mean())
+
+    eight = cpsnr(ig.demosaic(ig.mosaic(rgb, "RGGB"), "RGGB", method), 0)
+    for bits in (10, 12, 14):
+        shift = bits - 8
+        raw = ig.mosaic(rgb.astype(np.uint16) << shift, "RGGB")
+        out = ig.demosaic(raw, "RGGB", method)
+        given = ig.demosaic(raw, "RGGB", method, white_level=2**bits - 1)
+        np.testing.assert_array_equal(out, given)
+        assert abs(cpsnr(out, shift) - eight) < 0.05, bits
+    # 8-bit samples in uint16 are demosaicked exactly as in uint8.
+    raw8 = ig.mosaic(rgb, "RGGB")
+    np.testing.assert_array_equal(
+        ig.demosaic(raw8.astype(np.uint16), "RGGB", method),
+        ig.demosaic(raw8, "RGGB", method).astype(np.uint16),
+    )
+
+
+def test_the_learned_methods_need_the_right_white_level():
+    data = pytest.importorskip("skimage.data")
+    rgb = data.astronaut()[120:248, 160:288]
+    raw = ig.mosaic(rgb.astype(np.uint16) << 4, "RGGB")
+
+    def mse(level):
+        out = ig.demosaic(raw, "RGGB", "quality", white_level=level).astype(np.float64) / 16
+        return ((out - rgb)[10:-10, 10:-10] ** 2).mean()
+
+    # uint16's full scale for 12-bit data costs more than 0.3 dB.
+    assert mse(65535) > mse(4095) * 10**0.03
+
+
+@pytest.mark.parametrize(
+    ("level", "exc", "match"),
+    [
+        ("255", TypeError, "white_level must be a real number or None, got '255'"),
+        (True, TypeError, "white_level must be a real number"),
+        (0, ValueError, "white_level must be a finite number > 0 within float32's range, got 0"),
+        (-1.5, ValueError, "got -1.5"),
+        (np.nan, ValueError, "got nan"),
+        (np.inf, ValueError, "got inf"),
+        (1e39, ValueError, "got 1e[+]?39"),
+        (1e-50, ValueError, "got 1e-50"),
+    ],
+)
+def test_a_bad_white_level_names_what_is_accepted(level, exc, match):
+    with pytest.raises(exc, match=match):
+        ig.demosaic(Z8, "RGGB", "mlri", white_level=level)
+
+
+def test_native_layer_checks_the_white_level_too():
+    from imgform_rs import _native
+
+    with pytest.raises(ValueError, match="white_level must be a finite number > 0, got 0"):
+        _native.demosaic(np.zeros((4, 4), np.float32), "RGGB", "mlri", white_level=0.0)

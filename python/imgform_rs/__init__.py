@@ -44,6 +44,7 @@ from .cpu import instruction_set
 from .demosaic import (
     BAYER_DEMOSAIC_METHODS,
     DEMOSAIC_METHODS,
+    SCALED_DEMOSAIC_METHODS,
     XTRANS_DEMOSAIC_METHODS,
     demosaic,
     demosaic_halo,
@@ -83,6 +84,7 @@ __all__ = [
     "BAYER_DEMOSAIC_METHODS",
     "COLORS",
     "DEMOSAIC_METHODS",
+    "SCALED_DEMOSAIC_METHODS",
     "TONES",
     "XTRANS_DEMOSAIC_METHODS",
     "Alignment",

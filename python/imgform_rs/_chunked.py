@@ -150,14 +150,18 @@ def _check_mosaic(mosaic: Any, dtypes: tuple | None) -> None:
         raise TypeError(f"mosaic must be {names}, got dtype {mosaic.dtype}")
 
 
-def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
+def demosaic_dask(
+    mosaic: Any, pattern: Any, method: str = "bilinear", *, white_level: float | None = None
+) -> Any:
     """:func:`imgform_rs.demosaic` for a ``dask.array`` mosaic, chunk by chunk.
 
-    The result equals ``demosaic(mosaic.compute(), pattern, method)`` bit for
-    bit, for any chunking; chunk boundaries are moved to multiples of the CFA
-    period (2 for Bayer, 6 for X-Trans) and chunks shorter than the margin are
-    merged with a neighbour. The per-site minima and maxima are computed at
-    once (one pass over the mosaic); the demosaic itself stays lazy.
+    The result equals ``demosaic(mosaic.compute(), pattern, method,
+    white_level=white_level)`` bit for bit, for any chunking: every chunk sees
+    the mosaic's extremes, so also its default white level. Chunk boundaries
+    are moved to multiples of the CFA period (2 for Bayer, 6 for X-Trans) and
+    chunks shorter than the margin are merged with a neighbour. The per-site
+    minima and maxima are computed at once (one pass over the mosaic); the
+    demosaic itself stays lazy.
 
     Parameters
     ----------
@@ -167,6 +171,8 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
         As for :func:`imgform_rs.demosaic`.
     method : str
         One of :data:`imgform_rs.DEMOSAIC_METHODS`.
+    white_level : float, optional
+        As for :func:`imgform_rs.demosaic`.
 
     Returns
     -------
@@ -177,10 +183,11 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
     ImportError
         Without Dask (``pip install imgform-rs[dask]``).
     TypeError
-        For something other than a dask array of a supported dtype, or a
-        method that is not a str.
+        For something other than a dask array of a supported dtype, a
+        method that is not a str, or a white level that is not a number.
     ValueError
-        For another shape, an unknown method or pattern.
+        For another shape, an unknown method or pattern, or a white level
+        :func:`imgform_rs.demosaic` refuses.
 
     Examples
     --------
@@ -198,10 +205,10 @@ def demosaic_dask(mosaic: Any, pattern: Any, method: str = "bilinear") -> Any:
     halo = demosaic_halo(method, pat)
     # Fail now, not in a worker: one tile through the native checks refuses
     # a method that cannot demosaic this pattern (X-Trans).
-    demosaic(np.zeros((6, 6), mosaic.dtype), pat, method)
+    demosaic(np.zeros((6, 6), mosaic.dtype), pat, method, white_level=white_level)
 
     def block_fn(block: np.ndarray) -> np.ndarray:
-        return demosaic(block, pat, method)
+        return demosaic(block, pat, method, white_level=white_level)
 
     return map_cfa(mosaic, period, halo, period, block_fn, mosaic.dtype)
 

@@ -200,12 +200,14 @@ def simulate_sensor(
 DEMOSAIC_METHODS: tuple[str, ...]
 BAYER_DEMOSAIC_METHODS: tuple[str, ...]
 XTRANS_DEMOSAIC_METHODS: tuple[str, ...]
+SCALED_DEMOSAIC_METHODS: tuple[str, ...]
 
 def demosaic(
     raw: npt.NDArray[Any],
     pattern: str | npt.NDArray[np.int64],
     method: str = "bilinear",
     *,
+    white_level: float | None = None,
     out: npt.NDArray[Any] | None = None,
 ) -> npt.NDArray[Any]: ...
 def demosaic_halo(method: str, pattern: str | npt.NDArray[np.int64]) -> int: ...

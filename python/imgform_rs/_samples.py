@@ -31,7 +31,10 @@ NATIVE = (np.dtype(np.uint8), np.dtype(np.uint16), np.dtype(np.float32))
 ACCEPTED = "an integer or float array (uint8, uint16, float32 natively, others converted)"
 
 _U16_MAX = np.iinfo(np.uint16).max
-_F32_MAX = float(np.finfo(np.float32).max)
+F32_MAX = float(np.finfo(np.float32).max)
+"""The largest finite float32."""
+F32_TINY = float(np.finfo(np.float32).tiny)
+"""The smallest normal float32."""
 
 
 def check_dtype(dtype: np.dtype, name: str) -> None:
@@ -69,9 +72,9 @@ def check_range(lo: float, hi: float, dtype: np.dtype, name: str) -> None:
             f"uint16, got {lo}..{hi}; offset or scale it, or pass float32"
         )
     # NaN compares false and is left to the kernels' own check.
-    if dtype.kind == "f" and max(-lo, hi) > _F32_MAX and np.isfinite(max(-lo, hi)):
+    if dtype.kind == "f" and max(-lo, hi) > F32_MAX and np.isfinite(max(-lo, hi)):
         raise ValueError(
-            f"{name} ({dtype}) holds {lo}..{hi}, beyond float32's range (±{_F32_MAX:.3e})"
+            f"{name} ({dtype}) holds {lo}..{hi}, beyond float32's range (±{F32_MAX:.3e})"
         )
 
 

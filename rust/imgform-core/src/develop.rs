@@ -324,10 +324,12 @@ fn demosaic_prepared<T: Sample>(
         prepared.load(y, 0, &mut lin);
         T::from_f32_row(row, &lin);
     });
+    // Prepared at the type's full scale, which is its white level.
     demosaic(
         ImageView::contiguous(&mosaic, w, h, 1)?,
         pattern,
         params.method,
+        Some(T::FULL_SCALE),
         rgb,
     )
 }

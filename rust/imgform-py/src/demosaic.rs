@@ -18,6 +18,7 @@ fn demosaic_typed<'py, T: Sample + Element>(
     py: Python<'py>,
     p: &CfaPattern,
     method: Method,
+    white_level: Option<f32>,
     out: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = match *arr.shape() {
@@ -29,26 +30,31 @@ fn demosaic_typed<'py, T: Sample + Element>(
         }
     };
     let src = contiguous(&arr);
-    let kernel =
-        |out: &mut [T]| demosaic_kernel(ImageView::contiguous(&src, w, h, 1)?, p, method, out);
+    let kernel = |out: &mut [T]| {
+        let raw = ImageView::contiguous(&src, w, h, 1)?;
+        demosaic_kernel(raw, p, method, white_level, out)
+    };
     Ok(detached_into_given(py, out, &[h, w, 3], kernel)?.into_any())
 }
 
 /// Demosaics a mosaic (H, W) -> (H, W, 3), same dtype, into a new array or
-/// into `out`.
+/// into `out`. `white_level` reaches the kernels as `f32` (where a value
+/// beyond its range becomes infinite and is refused there).
 #[pyfunction]
-#[pyo3(signature = (raw, pattern, method="bilinear", *, out=None))]
+#[pyo3(signature = (raw, pattern, method="bilinear", *, white_level=None, out=None))]
 fn demosaic<'py>(
     py: Python<'py>,
     raw: &Bound<'py, PyAny>,
     pattern: &Bound<'py, PyAny>,
     method: &str,
+    white_level: Option<f64>,
     out: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let p = pattern_arg(pattern)?;
     let method = Method::from_name_for(method, &p).map_err(to_pyerr)?;
     let img = AnyImage::extract(raw, "raw")?;
-    dispatch_image!(img, demosaic_typed(py, &p, method, out))
+    let level = white_level.map(|v| v as f32);
+    dispatch_image!(img, demosaic_typed(py, &p, method, level, out))
 }
 
 /// How far a method's output reaches into the mosaic (see `Method::halo`).
@@ -66,5 +72,10 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("XTRANS_DEMOSAIC_METHODS", xtrans)?;
     let bayer = PyTuple::new(m.py(), Method::names_for(false))?;
     m.add("BAYER_DEMOSAIC_METHODS", bayer)?;
+    let scaled: Vec<&str> = Method::names()
+        .into_iter()
+        .filter(|name| Method::from_name(name).is_ok_and(Method::scaled))
+        .collect();
+    m.add("SCALED_DEMOSAIC_METHODS", PyTuple::new(m.py(), scaled)?)?;
     Ok(())
 }

@@ -409,7 +409,7 @@ mod tests {
                 .collect();
             let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
             let mut out = vec![0.0f32; 3 * w * h];
-            demosaic(view, &pattern, Method::RiCd, &mut out).unwrap();
+            demosaic(view, &pattern, Method::RiCd, None, &mut out).unwrap();
             for y in 24..h - 24 {
                 for x in 24..w - 24 {
                     let site = usize::from(pattern.color_at(y, x));

@@ -1270,7 +1270,7 @@ mod tests {
                 .unwrap();
             let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
             let mut out = vec![0u16; 3 * w * h];
-            pool.install(|| demosaic(view, &pattern, Method::Mlri, &mut out))
+            pool.install(|| demosaic(view, &pattern, Method::Mlri, None, &mut out))
                 .unwrap();
             out
         };
@@ -1358,7 +1358,7 @@ mod tests {
             .collect();
         let mut out = vec![0.0f32; 3 * w * h];
         let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
-        demosaic(view, &pattern, method, &mut out).unwrap();
+        demosaic(view, &pattern, method, None, &mut out).unwrap();
         let (mut sum, mut n) = (0.0, 0.0);
         for y in 12..h - 12 {
             for x in 12..w - 12 {

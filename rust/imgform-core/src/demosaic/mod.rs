@@ -42,7 +42,7 @@ mod tiled;
 mod xtrans;
 
 use crate::cfa::{check_out_len, CfaPattern};
-use crate::error::{CoreError, Result};
+use crate::error::{positive, CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::parallel::for_each_band;
@@ -275,6 +275,33 @@ impl Method {
         }
     }
 
+    /// Whether the method's result depends on the white level (see
+    /// [`demosaic`]): RCD's and MLRI's regularisers, AHD's Lab and the
+    /// learned methods' hash and bounds are fractions of it; the others
+    /// are linear or compare samples with each other only. Exhaustive on
+    /// purpose, as [`Method::halo`] is.
+    pub fn scaled(self) -> bool {
+        match self {
+            Method::Rcd
+            | Method::RcdMenon
+            | Method::Ahd
+            | Method::Mlri
+            | Method::RiCd
+            | Method::Raisr
+            | Method::RaisrFast
+            | Method::RaisrCd
+            | Method::Fusion
+            | Method::FusionRefined => true,
+            Method::Nearest
+            | Method::Bilinear
+            | Method::Malvar2004
+            | Method::HamiltonAdams
+            | Method::Menon2007
+            | Method::Leung2011
+            | Method::Markesteijn => false,
+        }
+    }
+
     /// Every method for X-Trans mosaics.
     pub const XTRANS: [Method; 2] = [Method::Bilinear, Method::Markesteijn];
 
@@ -347,18 +374,26 @@ impl Method {
 ///
 /// Every method returns each sampled value unchanged at its own site.
 ///
+/// `white_level` is the value of a saturated sample, from which the
+/// [scaled](Method::scaled) methods take their thresholds, bounds and
+/// learned hash; `None` for [`white_level`]'s default.
+///
 /// # Errors
 /// [`CoreError::Shape`] for a multi-channel `raw`, an image smaller than
 /// 2x2 (6x6 for X-Trans) or a wrong output length;
 /// [`CoreError::InvalidArgument`] for a method that does not support the
-/// pattern (see [`Method::supports`]) or a float mosaic holding NaN or an
-/// infinity.
+/// pattern (see [`Method::supports`]), a float mosaic holding NaN or an
+/// infinity, or a white level that is not a finite number > 0.
 pub fn demosaic<T: Sample>(
     raw: ImageView<'_, T>,
     pattern: &CfaPattern,
     method: Method,
+    white_level: Option<f32>,
     out: &mut [T],
 ) -> Result<()> {
+    if let Some(level) = white_level {
+        positive("white_level", f64::from(level))?;
+    }
     if raw.channels() != 1 {
         return Err(CoreError::Shape(format!(
             "demosaic needs a single-channel mosaic of shape (H, W), got {} channels",
@@ -373,15 +408,39 @@ pub fn demosaic<T: Sample>(
         }
         return Ok(());
     };
+    let isa = Isa::detect();
     match method {
         Method::Nearest => nearest::run(&raw, phase, out),
-        _ => run_method::<T, _, _, _>(&raw, phase, method, Isa::detect(), &Convert, out),
+        _ if method.scaled() => {
+            // The range is found once, for the level and every stage after.
+            let raw = &Ranged::new(&raw);
+            let level = white_level.unwrap_or_else(|| self::white_level::<T>(raw.range().1));
+            run_method(raw, phase, method, level, isa, &Convert, out);
+        }
+        _ => run_method(&raw, phase, method, T::FULL_SCALE, isa, &Convert, out),
     }
     Ok(())
 }
 
+/// The white level of a mosaic of `T` whose largest sample is `largest`,
+/// when none is given: for integer types the smallest bit depth of at least
+/// 8 that holds `largest` (`2^bits - 1`, at most the type's full scale),
+/// since raw files keep 10-, 12- and 14-bit photosites in 16-bit arrays,
+/// where the type's full scale would make them look 4 to 64 times darker
+/// than they are; 1.0 for floats, whose data are taken on a 0..1 scale.
+pub fn white_level<T: Sample>(largest: f32) -> f32 {
+    if T::FULL_SCALE == 1.0 {
+        return 1.0;
+    }
+    let mut level = 255.0f32;
+    while level < largest && level < T::FULL_SCALE {
+        level = level * 2.0 + 1.0;
+    }
+    level.min(T::FULL_SCALE)
+}
+
 /// [`demosaic`] of any [`Mosaic`] through any [`RgbSink`], with `T` the
-/// sample type whose scale the kernels assume. Only the methods that read
+/// sample type whose full scale is the white level. Only the methods that read
 /// the mosaic through [`Mosaic::load`] alone can run so: every Bayer method
 /// but nearest (which copies samples). For the others nothing is done and
 /// `Ok(false)` returned, so that the caller can demosaic an image instead.
@@ -403,7 +462,7 @@ where
 {
     match checked_phase(raw.width(), raw.height(), pattern, method, out.len())? {
         Some(phase) if method != Method::Nearest => {
-            run_method::<T, _, _, _>(raw, phase, method, Isa::detect(), sink, out);
+            run_method(raw, phase, method, T::FULL_SCALE, Isa::detect(), sink, out);
             Ok(true)
         }
         _ => Ok(false),
@@ -655,9 +714,16 @@ impl Isa {
     }
 }
 
-fn run_method<T, M, O, K>(raw: &M, phase: Phase, method: Method, isa: Isa, sink: &K, out: &mut [O])
-where
-    T: Sample,
+/// Runs a Bayer `method` (not nearest) with `scale` as the white level.
+fn run_method<M, O, K>(
+    raw: &M,
+    phase: Phase,
+    method: Method,
+    scale: f32,
+    isa: Isa,
+    sink: &K,
+    out: &mut [O],
+) where
     M: Mosaic,
     O: Send,
     K: RgbSink<O>,
@@ -668,22 +734,22 @@ where
         Method::HamiltonAdams => hamilton_adams::run(raw, phase, isa, sink, out),
         Method::Menon2007 => tiled::run_tiled(raw, phase, &Menon2007 { phase }, isa, sink, out),
         Method::Rcd => {
-            let k = Rcd::new(phase, T::FULL_SCALE);
+            let k = Rcd::new(phase, scale);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Ahd => {
             let k = ahd::Ahd {
                 phase,
-                full_scale: T::FULL_SCALE,
+                full_scale: scale,
             };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Mlri => {
-            let k: mlri::Mlri = mlri::Mlri::new(phase, T::FULL_SCALE);
+            let k: mlri::Mlri = mlri::Mlri::new(phase, scale);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::RiCd => {
-            let k = differences::Differences::new(phase, T::FULL_SCALE);
+            let k = differences::Differences::new(phase, scale);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Leung2011 => {
@@ -694,35 +760,35 @@ where
             unreachable!("callers route nearest and X-Trans-only methods elsewhere")
         }
         Method::RcdMenon => {
-            let k = rcd_menon(phase, T::FULL_SCALE);
+            let k = rcd_menon(phase, scale);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
-            let base: mlri::Mlri = mlri::Mlri::new(phase, T::FULL_SCALE);
+            let base: mlri::Mlri = mlri::Mlri::new(phase, scale);
             let bank = raisr::Weights::raisr();
-            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
+            run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::RaisrFast => {
-            let base: mlri::Mlri = mlri::Mlri::new(phase, T::FULL_SCALE);
+            let base: mlri::Mlri = mlri::Mlri::new(phase, scale);
             let bank = oriented::Oriented::raisr_fast();
-            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
+            run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::RaisrCd => {
-            let base = differences::Differences::new(phase, T::FULL_SCALE);
+            let base = differences::Differences::new(phase, scale);
             let bank = oriented::Oriented::raisr_cd();
-            run_refined::<T, _, _, _, _, _>(raw, phase, base, bank, isa, sink, out);
+            run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::Fusion => {
             let raw = &Ranged::new(raw);
-            let k = fusion_kernel::<T>(raw, phase, isa);
+            let k = fusion_kernel(raw, phase, scale, isa);
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::FusionRefined => {
             let raw = &Ranged::new(raw);
             let bank = oriented::Oriented::fusion_refined();
             let k = refined::Refined {
-                base: fusion_kernel::<T>(raw, phase, isa),
-                filters: bounded::<T, _>(filters::<T, _>(bank, raw, phase, isa)),
+                base: fusion_kernel(raw, phase, scale, isa),
+                filters: bounded(filters(bank, raw, phase, scale, isa), scale),
             };
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
@@ -731,16 +797,17 @@ where
 
 /// `base` refined by the learned filters of `bank` ([`refined::Refined`]),
 /// with the mosaic's range found once for the filters and the clamp.
-fn run_refined<T, M, O, K, S, B>(
+#[allow(clippy::too_many_arguments)]
+fn run_refined<M, O, K, S, B>(
     raw: &M,
     phase: Phase,
     base: S,
     bank: &'static B,
+    scale: f32,
     isa: Isa,
     sink: &K,
     out: &mut [O],
 ) where
-    T: Sample,
     M: Mosaic,
     O: Send,
     K: RgbSink<O>,
@@ -750,7 +817,7 @@ fn run_refined<T, M, O, K, S, B>(
     let raw = &Ranged::new(raw);
     let k = refined::Refined {
         base,
-        filters: filters::<T, _>(bank, raw, phase, isa),
+        filters: filters(bank, raw, phase, scale, isa),
     };
     tiled::run_tiled(raw, phase, &k, isa, sink, out);
 }
@@ -760,25 +827,28 @@ type FusionKernel = fusion::Fusion<differences::Differences>;
 
 /// [`Method::Fusion`]'s kernel for `raw` (whose range its filters clamp
 /// to: a [`Ranged`] mosaic finds it once for every stage).
-fn fusion_kernel<T: Sample>(raw: &impl Mosaic, phase: Phase, isa: Isa) -> FusionKernel {
+fn fusion_kernel(raw: &impl Mosaic, phase: Phase, scale: f32, isa: Isa) -> FusionKernel {
+    let bank = raisr::Weights::fusion();
     fusion::Fusion {
-        base: differences::Differences::new(phase, T::FULL_SCALE),
-        rcd: Rcd::new(phase, T::FULL_SCALE),
-        filters: bounded::<T, _>(filters::<T, _>(raisr::Weights::fusion(), raw, phase, isa)),
-        second_bound: fusion::SECOND_LIMIT * T::FULL_SCALE,
+        base: differences::Differences::new(phase, scale),
+        rcd: Rcd::new(phase, scale),
+        filters: bounded(filters(bank, raw, phase, scale, isa), scale),
+        second_bound: fusion::SECOND_LIMIT * scale,
     }
 }
 
-/// A learned method's filter bank, with the mosaic's scale and range.
-fn filters<T: Sample, B>(
+/// A learned method's filter bank, with the mosaic's white level `scale`
+/// and range.
+fn filters<B>(
     bank: &'static B,
     raw: &impl Mosaic,
     phase: Phase,
+    scale: f32,
     isa: Isa,
 ) -> raisr::Filters<B> {
     raisr::Filters {
         phase,
-        inv_scale: 1.0 / T::FULL_SCALE,
+        inv_scale: 1.0 / scale,
         bounds: raw.range(),
         bank,
         isa,
@@ -786,10 +856,11 @@ fn filters<T: Sample, B>(
     }
 }
 
-/// `f` bounded as the fusion and its cascade are ([`raisr::CHROMA_LIMIT`]).
-fn bounded<T: Sample, B>(f: raisr::Filters<B>) -> raisr::Filters<B> {
+/// `f` bounded as the fusion and its cascade are ([`raisr::CHROMA_LIMIT`]),
+/// at the white level `scale`.
+fn bounded<B>(f: raisr::Filters<B>, scale: f32) -> raisr::Filters<B> {
     raisr::Filters {
-        chroma_bound: Some(raisr::CHROMA_LIMIT * T::FULL_SCALE),
+        chroma_bound: Some(raisr::CHROMA_LIMIT * scale),
         ..f
     }
 }

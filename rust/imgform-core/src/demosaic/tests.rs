@@ -17,7 +17,7 @@ fn texture(w: usize, h: usize) -> Vec<f32> {
 fn run<T: Sample>(raw: &[T], w: usize, h: usize, name: &str, method: Method) -> Vec<T> {
     let view = ImageView::contiguous(raw, w, h, 1).unwrap();
     let mut out = vec![T::default(); 3 * w * h];
-    demosaic(view, &pattern(name), method, &mut out).unwrap();
+    demosaic(view, &pattern(name), method, None, &mut out).unwrap();
     out
 }
 
@@ -195,7 +195,7 @@ fn non_finite_floats_are_refused_by_every_method() {
             "XTRANS"
         };
         let view = ImageView::contiguous(&raw, 6, 6, 1).unwrap();
-        let err = demosaic(view, &pattern(name), method, &mut [0.0; 108]).unwrap_err();
+        let err = demosaic(view, &pattern(name), method, None, &mut [0.0; 108]).unwrap_err();
         assert!(err.to_string().contains("inf at row 4, column 1"), "{err}");
     }
 }
@@ -241,12 +241,26 @@ fn bad_input_is_refused_with_a_reason() {
     let raw = [0u8; 4];
     let mut out = [0u8; 12];
     let view = ImageView::contiguous(&raw, 4, 1, 1).unwrap();
-    let err = demosaic(view, &pattern("RGGB"), Method::Bilinear, &mut [0u8; 12]).unwrap_err();
+    let err = demosaic(
+        view,
+        &pattern("RGGB"),
+        Method::Bilinear,
+        None,
+        &mut [0u8; 12],
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("at least 2x2"), "{err}");
     let view = ImageView::contiguous(&raw, 2, 2, 1).unwrap();
-    let err = demosaic(view, &CfaPattern::xtrans(), Method::Nearest, &mut out).unwrap_err();
+    let err = demosaic(view, &CfaPattern::xtrans(), Method::Nearest, None, &mut out).unwrap_err();
     assert!(err.to_string().contains("X-Trans"), "{err}");
-    let err = demosaic(view, &pattern("RGGB"), Method::Nearest, &mut out[..11]).unwrap_err();
+    let err = demosaic(
+        view,
+        &pattern("RGGB"),
+        Method::Nearest,
+        None,
+        &mut out[..11],
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("expected 12"), "{err}");
     let err = Method::from_name("vng").unwrap_err().to_string();
     assert!(
@@ -265,7 +279,7 @@ fn every_instruction_set_gives_the_same_bits() {
     for method in Method::ALL.into_iter().filter(|&m| m != Method::Nearest) {
         let run_with = |isa| {
             let mut out = vec![0u16; 3 * w * h];
-            run_method::<u16, _, _, _>(&view, phase, method, isa, &Convert, &mut out);
+            run_method(&view, phase, method, 65535.0, isa, &Convert, &mut out);
             out
         };
         let base = run_with(Isa::Baseline);
@@ -299,7 +313,14 @@ fn xtrans_needs_a_whole_tile_and_keeps_its_samples() {
     let raw = texture(5, 8);
     let view = ImageView::contiguous(&raw, 5, 8, 1).unwrap();
     let mut out = vec![0.0f32; 3 * 40];
-    let err = demosaic(view, &CfaPattern::xtrans(), Method::Bilinear, &mut out).unwrap_err();
+    let err = demosaic(
+        view,
+        &CfaPattern::xtrans(),
+        Method::Bilinear,
+        None,
+        &mut out,
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("6x6"), "{err}");
     let (w, h) = (9, 7);
     let raw = texture(w, h);
@@ -348,5 +369,75 @@ fn no_output_reaches_beyond_its_methods_halo() {
                 }
             }
         }
+    }
+}
+
+#[test]
+fn the_default_white_level_is_the_bit_depth_of_integer_samples() {
+    let cases = [
+        (0.0, 255.0),
+        (255.0, 255.0),
+        (256.0, 511.0),
+        (1023.0, 1023.0),
+        (4095.0, 4095.0),
+        (4096.0, 8191.0),
+        (16383.0, 16383.0),
+        (40000.0, 65535.0),
+        (65535.0, 65535.0),
+    ];
+    for (largest, level) in cases {
+        assert_eq!(white_level::<u16>(largest), level, "{largest}");
+    }
+    assert_eq!(white_level::<u8>(3.0), 255.0);
+    assert_eq!(white_level::<f32>(300.0), 1.0);
+}
+
+/// A 12-bit mosaic in `u16` is demosaicked at its bit depth by default, and
+/// 8-bit samples give the same result in either integer type.
+#[test]
+fn scaled_methods_take_the_white_level_of_the_data() {
+    let (w, h) = (21, 18);
+    let eight: Vec<u8> = texture(w, h).iter().map(|&v| (v / 4.0) as u8).collect();
+    let wide: Vec<u16> = eight.iter().map(|&v| u16::from(v)).collect();
+    let twelve: Vec<u16> = eight.iter().map(|&v| u16::from(v) * 16).collect();
+    let given = |raw: &[u16], method, level| {
+        let mut out = vec![0u16; 3 * w * h];
+        let view = ImageView::contiguous(raw, w, h, 1).unwrap();
+        demosaic(view, &pattern("GRBG"), method, level, &mut out).unwrap();
+        out
+    };
+    for method in Method::ALL.into_iter().filter(|m| m.scaled()) {
+        let narrow: Vec<u16> = run(&eight, w, h, "GRBG", method)
+            .into_iter()
+            .map(u16::from)
+            .collect();
+        assert_eq!(narrow, run(&wide, w, h, "GRBG", method), "{method:?}");
+        let inferred = run(&twelve, w, h, "GRBG", method);
+        assert_eq!(inferred, given(&twelve, method, Some(4095.0)), "{method:?}");
+        assert_ne!(
+            inferred,
+            given(&twelve, method, Some(65535.0)),
+            "{method:?}"
+        );
+    }
+}
+
+#[test]
+fn a_white_level_must_be_positive_and_finite() {
+    let raw = vec![0.5f32; 16];
+    for level in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        let view = ImageView::contiguous(&raw, 4, 4, 1).unwrap();
+        let err = demosaic(
+            view,
+            &pattern("RGGB"),
+            Method::Mlri,
+            Some(level),
+            &mut [0.0; 48],
+        );
+        let message = err.unwrap_err().to_string();
+        assert!(
+            message.contains("white_level must be a finite number > 0"),
+            "{message}"
+        );
     }
 }
