@@ -586,6 +586,22 @@ def test_integer_mosaics_are_taken_at_their_bit_depth(method):
     )
 
 
+def test_float_mosaics_beyond_one_are_taken_up_to_their_largest_sample():
+    data = pytest.importorskip("skimage.data")
+    rgb = data.astronaut()[120:248, 160:288]
+    raw = ig.mosaic(rgb, "RGGB").astype(np.float32)
+    out = ig.demosaic(raw, "RGGB", "quality")
+    np.testing.assert_array_equal(out, ig.demosaic(raw, "RGGB", "quality", white_level=raw.max()))
+
+    def mse(o):
+        return ((o - rgb)[10:-10, 10:-10] ** 2).mean()
+
+    # As well on 0..255 as on 0..1, not as if 255 times brighter.
+    unit = ig.demosaic(raw / raw.max(), "RGGB", "quality") * raw.max()
+    assert abs(mse(out) / mse(unit) - 1) < 0.01
+    assert mse(ig.demosaic(raw, "RGGB", "quality", white_level=1.0)) > mse(out) * 1.05
+
+
 def test_the_learned_methods_need_the_right_white_level():
     data = pytest.importorskip("skimage.data")
     rgb = data.astronaut()[120:248, 160:288]

@@ -298,20 +298,21 @@ def demosaic(
         for X-Trans.
     white_level : float, optional
         The value of a saturated sample, a finite number > 0. The methods of
-        :data:`SCALED_DEMOSAIC_METHODS` take their regularisers (``"rcd"``, ``"mlri"``,
-        ``"ri_cd"``), Lab scale (``"ahd"``), learned hash and bounds (the
-        ``"raisr"`` family, ``"fusion"``, ``"fusion_refined"``) as fractions of
-        it; the others do not depend on it. By default, integer mosaics are
+        :data:`SCALED_DEMOSAIC_METHODS` take their regularisers (``"rcd"``,
+        ``"mlri"``, ``"ri_cd"``), Lab scale (``"ahd"``), learned hash and bounds
+        (the ``"raisr"`` family, ``"fusion"``, ``"fusion_refined"``) as fractions
+        of it; the others do not depend on it. By default, integer mosaics are
         taken at the smallest bit depth of at least 8 that holds their largest
         sample (255, 511, ..., 65535), since raw files keep 10-, 12- and 14-bit
-        photosites in uint16 arrays; float mosaics at 1.0. Pass it for float
-        data on another scale, or for a raw file's own white level (rawpy's
-        ``white_level``). A wrong level costs the learned methods most: 12-bit
-        mosaics of the seven scikit-image images taken at uint16's full scale
-        (65535, 16 times too high) score 0.8 dB less with ``"fusion_refined"``
-        (39.23 against 40.04 dB), 1.2 with ``"fusion"`` and 1.5 with ``"raisr"``;
-        12- and 14-bit mosaics at their bit depth score as the 8-bit ones (to
-        0.01 dB).
+        photosites in uint16 arrays; float mosaics on 0..1, or up to their
+        largest sample when it exceeds 1 (data on 0..255 or 0..4095). Pass it
+        for a raw file's own white level (rawpy's ``white_level``), or for a
+        mosaic whose brightest sample is far from saturation. A wrong level
+        costs the learned methods most: 12-bit mosaics of the seven
+        scikit-image images taken at uint16's full scale (65535, 16 times too
+        high) score 0.8 dB less with ``"fusion_refined"`` (39.23 against 40.04
+        dB), 1.2 with ``"fusion"`` and 1.5 with ``"raisr"``; 12- and 14-bit
+        mosaics at their bit depth score as the 8-bit ones (to 0.01 dB).
     out : ndarray, shape (H, W, 3), same dtype as ``raw``, optional
         Where to write the result, returned instead of a new array: C-contiguous,
         writeable, sharing no memory with ``raw``. Reusing one buffer over many

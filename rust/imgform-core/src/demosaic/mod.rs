@@ -427,10 +427,12 @@ pub fn demosaic<T: Sample>(
 /// 8 that holds `largest` (`2^bits - 1`, at most the type's full scale),
 /// since raw files keep 10-, 12- and 14-bit photosites in 16-bit arrays,
 /// where the type's full scale would make them look 4 to 64 times darker
-/// than they are; 1.0 for floats, whose data are taken on a 0..1 scale.
+/// than they are. Floats are taken on a 0..1 scale, or up to `largest` if
+/// that is beyond 1: data on 0..255 or 0..4095 then demosaic as well as on
+/// 0..1, and a highlight just past 1 moves the level only as far.
 pub fn white_level<T: Sample>(largest: f32) -> f32 {
     if T::FULL_SCALE == 1.0 {
-        return 1.0;
+        return largest.max(1.0);
     }
     let mut level = 255.0f32;
     while level < largest && level < T::FULL_SCALE {

@@ -389,7 +389,8 @@ fn the_default_white_level_is_the_bit_depth_of_integer_samples() {
         assert_eq!(white_level::<u16>(largest), level, "{largest}");
     }
     assert_eq!(white_level::<u8>(3.0), 255.0);
-    assert_eq!(white_level::<f32>(300.0), 1.0);
+    assert_eq!(white_level::<f32>(0.7), 1.0);
+    assert_eq!(white_level::<f32>(300.0), 300.0);
 }
 
 /// A 12-bit mosaic in `u16` is demosaicked at its bit depth by default, and
