@@ -2,7 +2,8 @@
 RGB images, for every method of ours and every peer installed, in one run.
 
 ``python benchmarks/demosaic.py [section ...]`` runs some of the sections (speed,
-memory, quality, oracle, artefacts, xtrans), e.g. ``quality`` alone; none runs them all.
+memory, quality, noisy, oracle, artefacts, xtrans), e.g. ``quality`` alone; none runs
+them all.
 
 Speed. The mosaic is a simulated 14-bit raw (``simulate_sensor``) of
 scikit-image's astronaut resized to 6000 x 4000, so adaptive methods see real
@@ -42,6 +43,11 @@ outweigh the others:
   buildings whose regular structures alias. img_011 is achromatic (R = G = B), so
   any chroma there is pure false colour; it counts like any other image.
 
+Noisy: the same CPSNR, against the clean images, of mosaics with photon noise
+(variance proportional to the value, 2 levels at mid grey) and read noise (0.5
+level), rounded back to 8 bits and seeded per image: what a method's lead is worth
+on data like a sensor's, with no denoising by anyone.
+
 CBSD68 and Urban24 are in the shared folder ``demosaic-val`` next to the repository
 (``../shared/data/demosaic-val``; the environment variable ``IMGFORM_DEMOSAIC_VAL``
 names another), whose README and MANIFEST.tsv give their sources (cszn/FFDNet's
@@ -58,6 +64,7 @@ import sys
 import tempfile
 import time
 import warnings
+import zlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -75,7 +82,7 @@ MP = H * W / 1e6
 CROP = (800, 1250)  # 1 MP for colour-demosaicing
 IMAGES = EVALUATION_IMAGES  # held out of every training
 LIBRAW_METHODS = ["LINEAR", "VNG", "PPG", "AHD", "DCB", "DHT", "AAHD"]
-SECTIONS = ["speed", "memory", "quality", "oracle", "artefacts", "xtrans"]
+SECTIONS = ["speed", "memory", "quality", "noisy", "oracle", "artefacts", "xtrans"]
 SKIMAGE7 = "skimage7"
 # The subsets in the shared demosaic-val folder: name in the tables, subfolder.
 VALIDATION_SUBSETS = {"CBSD68": "cbsd68", "Urban24": "urban24"}
@@ -380,18 +387,27 @@ def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]
     return methods
 
 
+def clean_mosaic(rgb: np.ndarray, key: str) -> np.ndarray:
+    """The RGGB mosaic of ``rgb``, as sampled."""
+    return ig.mosaic(rgb, "RGGB")
+
+
 def score(
-    tmp: Path, methods: Methods, subsets: dict[str, dict[str, np.ndarray]]
+    tmp: Path,
+    methods: Methods,
+    subsets: dict[str, dict[str, np.ndarray]],
+    mosaic: Callable[[np.ndarray, str], np.ndarray] = clean_mosaic,
 ) -> tuple[Scores, dict[str, float]]:
-    """CPSNR of every method on every image, and each method's seconds in all.
-    An image is named ``subset-name`` to the methods: LibRaw's DNG is keyed by it,
-    so two subsets' images of the same name cannot share one."""
+    """CPSNR of every method on every image's ``mosaic``, against the image, and
+    each method's seconds in all. An image is named ``mosaic-subset-name`` to the
+    methods: LibRaw's DNG is keyed by it, so two subsets' images of the same name,
+    or one image's clean and noisy mosaics, cannot share one."""
     scores: Scores = {m: {s: {} for s in subsets} for m in methods}
     seconds = dict.fromkeys(methods, 0.0)
     for subset, images in subsets.items():
         for name, rgb in images.items():
-            key = f"{subset}-{name}"
-            raw = ig.mosaic(rgb, "RGGB")
+            key = f"{mosaic.__name__}-{subset}-{name}"
+            raw = mosaic(rgb, key)
             for m, fn in methods.items():
                 start = time.perf_counter()
                 out = fn(raw, key)
@@ -422,7 +438,7 @@ def print_seven(scores: Scores) -> None:
     print(table(["method", *names, "mean"], rows))
 
 
-def print_margins(means: dict[str, dict[str, float]], columns: list[str]) -> None:
+def print_margins(means: dict[str, dict[str, float]], columns: list[str], what: str = "") -> None:
     """Per subset, the best of ours against the best classical peer (learned
     peers such as demosaicnet left out): positive margins are ours ahead."""
     ours = [m for m in means if m.startswith("ours ")]
@@ -436,8 +452,20 @@ def print_margins(means: dict[str, dict[str, float]], columns: list[str]) -> Non
         margin = means[a][col] - means[b][col]
         label = "mean of subsets" if col == "mean" else col
         rows.append([label, a, f"{means[a][col]:.2f}", b, f"{means[b][col]:.2f}", f"{margin:+.2f}"])
-    print("\n## Best of ours against the best classical peer, per subset (CPSNR dB)\n")
+    print(f"\n## Best of ours against the best classical peer{what}, per subset (CPSNR dB)\n")
     print(table(["subset", "best of ours", "dB", "best classical peer", "dB", "margin"], rows))
+
+
+def print_means(means: dict[str, dict[str, float]], subsets: dict[str, dict]) -> list[str]:
+    """The table of subset means, sorted by their mean; the columns printed."""
+    columns = [*subsets, "mean"]
+    head = ["method", *(f"{s} ({len(subsets[s])})" for s in subsets), "mean of subsets"]
+    rows = [
+        [m, *(f"{means[m][c]:.2f}" for c in columns)]
+        for m in sorted(means, key=lambda m: -means[m]["mean"])
+    ]
+    print(table(head, rows))
+    return columns
 
 
 def quality(tmp: Path, methods: Methods) -> None:
@@ -450,15 +478,9 @@ def quality(tmp: Path, methods: Methods) -> None:
     if SKIMAGE7 in subsets:
         print_seven(scores)
     means = subset_means(scores)
-    columns = [*subsets, "mean"]
-    head = ["method", *(f"{s} ({len(subsets[s])})" for s in subsets), "mean of subsets"]
-    rows = [
-        [m, *(f"{means[m][c]:.2f}" for c in columns)]
-        for m in sorted(means, key=lambda m: -means[m]["mean"])
-    ]
     print("\n## CPSNR (dB), 8-bit protocol, RGGB, 10 px border cropped: mean over each")
     print("subset's images (image count in brackets); sorted by the mean of the subset means\n")
-    print(table(head, rows))
+    columns = print_means(means, subsets)
     print_margins(means, columns)
     count = sum(len(v) for v in subsets.values())
     mp = sum(rgb.shape[0] * rgb.shape[1] for v in subsets.values() for rgb in v.values()) / 1e6
@@ -470,6 +492,35 @@ def quality(tmp: Path, methods: Methods) -> None:
 
 # The classical bases of the oracle and the sets of them it chooses from: each
 # alone, each pair with MLRI, the best three, all five.
+#: Noise of :func:`noisy_mosaic`, in 8-bit levels: photon noise of variance
+#: ``value / SHOT`` (2 levels at mid grey) and read noise.
+SHOT, READ = 32.0, 0.5
+NOISE_SEED = 20261205
+
+
+def noisy_mosaic(rgb: np.ndarray, key: str) -> np.ndarray:
+    """The RGGB mosaic of ``rgb`` with photon and read noise (:data:`SHOT`,
+    :data:`READ`), rounded back to 8 bits; seeded by the image's key, so every
+    method sees the same samples in every run."""
+    raw = ig.mosaic(rgb, "RGGB").astype(np.float64)
+    rng = np.random.default_rng([NOISE_SEED, zlib.crc32(key.encode())])
+    sigma = np.sqrt(raw / SHOT + READ**2)
+    return np.clip(np.round(raw + sigma * rng.standard_normal(raw.shape)), 0, 255).astype(np.uint8)
+
+
+def noisy(tmp: Path, methods: Methods) -> None:
+    """CPSNR against the clean images of noisy mosaics: whether a method's lead
+    holds on data like a sensor's, where gradients and hashes also see noise."""
+    subsets = validation_images()
+    scores, _ = score(tmp, methods, subsets, noisy_mosaic)
+    means = subset_means(scores)
+    print(f"\n## CPSNR (dB) of noisy mosaics (photon noise of variance value / {SHOT:.0f}, 2")
+    print(f"levels at mid grey, read noise {READ} level, rounded to 8 bits) against the clean")
+    print("images; otherwise as the CPSNR table; sorted by the mean of the subset means\n")
+    columns = print_means(means, subsets)
+    print_margins(means, columns, " on noisy mosaics")
+
+
 ORACLE_BASES = ["mlri", "menon2007", "rcd", "leung2011", "ahd"]
 ORACLE_SETS = [
     *([b] for b in ORACLE_BASES),
@@ -641,10 +692,12 @@ def main() -> None:
             speed(Path(d))
         if "memory" in wanted:
             memory()
-        if wanted & {"quality", "artefacts"}:
+        if wanted & {"quality", "noisy", "artefacts"}:
             methods = all_methods(Path(d))
             if "quality" in wanted:
                 quality(Path(d), methods)
+            if "noisy" in wanted:
+                noisy(Path(d), methods)
             if "artefacts" in wanted:
                 artefacts(methods)
         if "oracle" in wanted:
