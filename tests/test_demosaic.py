@@ -602,6 +602,23 @@ def test_float_mosaics_beyond_one_are_taken_up_to_their_largest_sample():
     assert mse(ig.demosaic(raw, "RGGB", "quality", white_level=1.0)) > mse(out) * 1.05
 
 
+@given(
+    h=st.integers(2, 24),
+    w=st.integers(2, 24),
+    seed=st.integers(0, 2**32 - 1),
+    p=st.sampled_from([*BAYER, "XTRANS"]),
+    data=st.data(),
+)
+def test_8_bit_samples_demosaic_alike_in_uint8_and_uint16(h, w, seed, p, data):
+    assume(p != "XTRANS" or min(h, w) >= 6)
+    method = data.draw(st.sampled_from(ig.XTRANS_DEMOSAIC_METHODS if p == "XTRANS" else METHODS))
+    raw = random_raw(seed, h, w, np.uint8)
+    # The same white level, so the same values up to uint8's clamp of the
+    # methods that overshoot.
+    wide = np.minimum(ig.demosaic(raw.astype(np.uint16), p, method), 255)
+    np.testing.assert_array_equal(wide, ig.demosaic(raw, p, method))
+
+
 def test_the_learned_methods_need_the_right_white_level():
     data = pytest.importorskip("skimage.data")
     rgb = data.astronaut()[120:248, 160:288]
