@@ -48,14 +48,19 @@ def test_the_kernel_applies_the_filters_the_training_script_fitted(method):
     mosaic = np.ascontiguousarray((truth * ig.channel_masks(truth.shape[:2], "RGGB")).sum(-1))
     out = ig.demosaic(mosaic.astype(np.float32), "RGGB", method)
     blob = (KERNELS / f"{method}_weights.bin").read_bytes()
-    _, strengths, coherences, nf = (int(n) for n in np.frombuffer(blob, "<u4", 4, 8))
-    thresholds = strengths - 1 + coherences - 1
-    filters = np.frombuffer(blob, "<f4", offset=24 + 4 * thresholds).reshape(-1, 2, nf)
+    _, strengths, coherences, saturations, nf = (int(n) for n in np.frombuffer(blob, "<u4", 5, 8))
+    thresholds = np.frombuffer(blob, "<f4", strengths - 1 + coherences - 1 + saturations - 1, 28)
+    filters = np.frombuffer(blob, "<f4", offset=28 + 4 * len(thresholds)).reshape(-1, 2, nf)
+    assert saturations == (2 if method in tr.SATURATED else 1)
     if method in tr.ORIENTED:
-        cls = tr.oriented_classes(*tr.hash_inputs(base, position))
+        cls = tr.oriented_classes(base, position)
+    elif method in tr.SATURATED:
+        assert thresholds[-1] == tr.SATURATION
+        cls = tr.saturated_classes(base, position, thresholds[: strengths - 1])
+        # The crop has saturated and unsaturated pixels.
+        assert 0 < np.mean(cls >= tr.CLASSES) < 1
     else:
-        strength = np.frombuffer(blob, "<f4", strengths - 1, 24)
-        cls = tr.classes(*tr.hash_inputs(base, position), strength)
+        cls = tr.classes(*tr.hash_inputs(base, position), thresholds[: strengths - 1])
     feats, _ = tr.samples(truth, bases, position)
     want = np.einsum("nf,nkf->nk", feats, filters[cls])
     blue, chroma = tr.interior(position >= 2, 0), tr.interior(position % 2 == 1, 0)
@@ -82,7 +87,7 @@ def test_a_small_training_gives_identical_bytes_twice():
     from imgform_rs.training.demosaic import train
 
     first = train("fusion", small=True)
-    assert first.startswith(b"IGRAISR1") and len(first) > 100_000
+    assert first.startswith(b"IGRAISR2") and len(first) > 100_000
     assert train("fusion", small=True) == first
 
 

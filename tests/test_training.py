@@ -249,3 +249,44 @@ def test_the_photo_set_is_reproducible():
     assert len(first) == len(catalogue.EXTENDED)
     assert all(a.tobytes() == b.tobytes() for a, b in zip(first, again, strict=True))
     assert all(a.dtype == np.float32 and a.shape[2] == 3 for a in first)
+
+
+def test_saturate_scales_the_chroma_and_keeps_the_luma():
+    rng = np.random.default_rng(3)
+    # Muted colours, so that tripled chroma stays in range.
+    image = (0.45 + 0.1 * rng.random((20, 30, 3))).astype(np.float32)
+    ycc = image @ sets.YCBCR.T
+    assert np.allclose(sets.saturate(image, 1.0), image, atol=1e-6)
+    for gain in (1.5, 3.0):
+        out = sets.saturate(image, gain)
+        assert out.dtype == np.float32 and out.flags.c_contiguous
+        got = out @ sets.YCBCR.T
+        np.testing.assert_allclose(got[..., 0], ycc[..., 0], atol=1e-5)
+        np.testing.assert_allclose(got[..., 1:], gain * ycc[..., 1:], atol=1e-5)
+    # Grey stays grey; colours past the gamut clip to [0, 1].
+    grey = np.full((4, 4, 3), 0.4, np.float32)
+    np.testing.assert_allclose(sets.saturate(grey, 3.0), grey, atol=1e-6)
+    vivid = sets.saturate(np.float32([[[0.9, 0.1, 0.1]]]), 3.0)
+    assert vivid.min() == 0.0 and vivid.max() == 1.0
+
+
+@needs_data
+def test_the_saturated_photo_set_is_a_fifth_of_the_photos_more_colourful():
+    plain, saturated = sets.training_images("photos"), sets.training_images("saturated-photos")
+    again = sets.training_images("saturated-photos")
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(saturated, again, strict=True))
+    assert 0.12 < len(saturated) / len(plain) < 0.28
+
+    def luma(image):
+        return image @ sets.YCBCR[0]
+
+    def chroma(image):
+        return np.abs(image @ sets.YCBCR[1:].T).mean()
+
+    for image in saturated:
+        # Its photograph: the same shape and, but where colours clip, the same luma;
+        # clipping keeps some of the gain (1.5 to 3) from the mean chroma.
+        same = [p for p in plain if p.shape == image.shape]
+        source = min(same, key=lambda p: np.abs(luma(p) - luma(image)).mean())
+        assert np.median(np.abs(luma(source) - luma(image))) < 0.02
+        assert chroma(image) > 1.2 * chroma(source)

@@ -99,6 +99,7 @@ from __future__ import annotations
 
 import argparse
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -106,6 +107,11 @@ import numpy as np
 import imgform_rs as ig
 from imgform_rs.training.lstsq import NormalEquations
 from imgform_rs.training.photos import DEFAULT_DATA
+
+#: How a method classes the samples of an image: ``classify(base, position)``.
+Classify = Callable[[np.ndarray, np.ndarray], np.ndarray]
+#: Images and how to class their samples, for :func:`solve`.
+Batch = tuple[list[np.ndarray], Classify]
 
 SEED = 20170101
 FEATURES = 26
@@ -131,8 +137,13 @@ BASES = {
 }
 #: The methods whose filters are chosen by CFA position, orientation and shape alone.
 ORIENTED = {"raisr_fast", "raisr_cd", "fusion_refined"}
-#: The training set of both (:func:`imgform_rs.training.sets.training_images`).
+#: The training set of all (:func:`imgform_rs.training.sets.training_images`); the
+#: saturated classes see ``"saturated-photos"`` too.
 TRAINING_SET = "photos"
+#: The methods whose classes are split by the base's saturation
+#: (:func:`saturated_classes`) at :data:`SATURATION`.
+SATURATED = {"fusion"}
+SATURATION = np.float32(0.3)
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3
 #: Orientation bins of the oriented methods: quadrants of the doubled angle.
 ORIENTATIONS = 4
@@ -341,13 +352,40 @@ def samples(truth: np.ndarray, bases: list[np.ndarray], position: np.ndarray):
 
 
 def classes(sums, position, strength: np.ndarray) -> np.ndarray:
-    """Class index of each sample, as ``Weights::filter`` in raisr.rs."""
+    """Class index of each sample, as ``Weights::class`` in raisr.rs."""
     sxx, sxy, syy = sums
     l1, coherence = eigen(sxx, sxy, syy)
     s = (l1[:, None] >= strength).sum(1)
     c = (coherence[:, None] >= np.float32(COHERENCE_THRESHOLDS)).sum(1)
     a = angle_bin(sxx - syy, np.float32(2) * sxy)
     return ((position * ANGLES + a) * STRENGTHS + s) * COHERENCES + c
+
+
+def saturation(base: np.ndarray) -> np.ndarray:
+    """How colourful the base is around each interior pixel: the absolute values of
+    the means of ``R - G`` and ``B - G`` over a 5x5 tent (two 3x3 box sums), added,
+    as ``Saturation`` in saturation.rs computes them."""
+    red, green, blue = base[..., 0], base[..., 1], base[..., 2]
+    means = [np.abs(box3(box3(chroma - green))) for chroma in (red, blue)]
+    return interior((means[0] + means[1]) / np.float32(9) / np.float32(9), 2)
+
+
+def saturated_classes(base: np.ndarray, position: np.ndarray, strength: np.ndarray) -> np.ndarray:
+    """:func:`classes`, moved by :data:`CLASSES` where the base is saturated
+    (:func:`saturation` at least :data:`SATURATION`)."""
+    full = classes(*hash_inputs(base, position), strength)
+    return full + CLASSES * (saturation(base) >= SATURATION)
+
+
+def only_saturated(classify: Classify) -> Classify:
+    """``classify`` with its unsaturated samples left out (given a class past the
+    last, which :func:`solve` skips)."""
+
+    def saturated(base: np.ndarray, position: np.ndarray) -> np.ndarray:
+        cls = classify(base, position)
+        return np.where(cls >= CLASSES, cls, 2 * CLASSES)
+
+    return saturated
 
 
 def coherent(a: np.ndarray, c: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -357,10 +395,10 @@ def coherent(a: np.ndarray, c: np.ndarray, t: np.ndarray) -> np.ndarray:
     return (a * a + c * c) > ANISOTROPY * (t * t)
 
 
-def oriented_classes(sums, position) -> np.ndarray:
+def oriented_classes(base: np.ndarray, position: np.ndarray) -> np.ndarray:
     """Class index of each sample of an oriented method, as ``Oriented`` in
     oriented.rs: CFA position, then orientation, then shape."""
-    sxx, sxy, syy = sums
+    (sxx, sxy, syy), position = hash_inputs(base, position)
     a, c = sxx - syy, np.float32(2) * sxy
     shape = coherent(a, c, sxx + syy)
     return (position * ORIENTATIONS + orientation(a, c)) * SHAPES + shape
@@ -375,16 +413,18 @@ def strength_thresholds(images, bases: tuple[str, ...]) -> np.ndarray:
     return np.quantile(np.concatenate(l1).astype(np.float64), STRENGTH_QUANTILES).astype(np.float32)
 
 
-def solve(images, bases: tuple[str, ...], classify, nclasses: int) -> np.ndarray:
-    """Least-squares filters per class, (nclasses, 2, features) float32, the class
-    of each sample being ``classify(sums, position)``. The images are demosaicked
-    again here rather than kept from :func:`strength_thresholds`: several hundred
-    images' bases would not fit in memory."""
+def solve(batches: list[Batch], bases: tuple[str, ...], nclasses: int) -> np.ndarray:
+    """Least-squares filters per class, (nclasses, 2, features) float32, from
+    batches of images and how to class their samples: ``classify(base, position)``,
+    ``base`` the first base's output; samples of a class past the last are left
+    out. The images are demosaicked again here rather than kept from
+    :func:`strength_thresholds`: several hundred images' bases would not fit in
+    memory."""
     nf = FEATURES + SECOND_FEATURES * (len(bases) - 1)
     equations = NormalEquations(nclasses, nf, 2)
-    for rgb in images:
+    for rgb, classify in ((rgb, classify) for images, classify in batches for rgb in images):
         truth, bases_out, position = prepare(rgb, bases)
-        cls = classify(*hash_inputs(bases_out[0], position))
+        cls = classify(bases_out[0], position)
         feats, target = samples(truth, bases_out, position)
         # Sorted once, so each class's samples are one contiguous block.
         order = np.argsort(cls, kind="stable")
@@ -395,22 +435,29 @@ def solve(images, bases: tuple[str, ...], classify, nclasses: int) -> np.ndarray
     return equations.solve(RIDGE, MIN_SAMPLES)
 
 
-def encode(bins: tuple[int, int, int], thresholds: np.ndarray, filters: np.ndarray) -> bytes:
+def encode(bins: tuple[int, int, int, int], thresholds: np.ndarray, filters: np.ndarray) -> bytes:
     """The weights file (layout documented at ``Weights::parse`` in raisr.rs):
-    angle, strength and coherence bin counts, thresholds, filters."""
+    angle, strength, coherence and saturation bin counts, thresholds, filters."""
     nf = filters.shape[2]
-    header = b"IGRAISR1" + struct.pack("<4I", *bins, nf)
+    header = b"IGRAISR2" + struct.pack("<5I", *bins, nf)
     return header + thresholds.astype("<f4").tobytes() + filters.astype("<f4").tobytes()
 
 
-def views(small: bool, data: Path) -> list[np.ndarray]:
-    """The training images: the extended set's (already flipped and turned at random
-    by its augmentation), or the quick ``small`` set."""
+def views(small: bool, data: Path, name: str = TRAINING_SET) -> list[np.ndarray]:
+    """The training images: the set ``name``'s (:func:`imgform_rs.training.sets.
+    training_images`; the photographs already flipped and turned at random by its
+    augmentation), or the quick ``small`` set (for ``"saturated-photos"``, those
+    with their chroma doubled)."""
     if small:
-        return small_images()
+        images = small_images()
+        if name == "saturated-photos":
+            from imgform_rs.training.sets import saturate
+
+            return [saturate(image, 2.0) for image in images]
+        return images
     from imgform_rs.training import sets
 
-    return sets.training_images(TRAINING_SET, data)
+    return sets.training_images(name, data)
 
 
 def train(method: str = "raisr", small: bool = False, data: Path = DEFAULT_DATA) -> bytes:
@@ -419,12 +466,27 @@ def train(method: str = "raisr", small: bool = False, data: Path = DEFAULT_DATA)
     images = views(small, data)
     bases = BASES[method]
     if method in ORIENTED:
-        filters = solve(images, bases, oriented_classes, POSITIONS * ORIENTATIONS * SHAPES)
-        return encode((ORIENTATIONS, 1, SHAPES), np.float32([ANISOTROPY]), filters)
+        filters = solve([(images, oriented_classes)], bases, POSITIONS * ORIENTATIONS * SHAPES)
+        return encode((ORIENTATIONS, 1, SHAPES, 1), np.float32([ANISOTROPY]), filters)
     strength = strength_thresholds(images, bases)
-    filters = solve(images, bases, lambda s, p: classes(s, p, strength), CLASSES)
-    thresholds = np.concatenate([strength, np.float32(COHERENCE_THRESHOLDS)])
-    return encode((ANGLES, STRENGTHS, COHERENCES), thresholds, filters)
+    thresholds = [strength, np.float32(COHERENCE_THRESHOLDS)]
+    if method in SATURATED:
+        # The unsaturated classes see the photographs alone; the saturated ones
+        # those too, and the photographs made more colourful.
+        def classify(base, position):
+            return saturated_classes(base, position, strength)
+
+        saturated = views(small, data, "saturated-photos")
+        batches = [(images, classify), (saturated, only_saturated(classify))]
+        filters = solve(batches, bases, 2 * CLASSES)
+        thresholds.append(np.float32([SATURATION]))
+        return encode((ANGLES, STRENGTHS, COHERENCES, 2), np.concatenate(thresholds), filters)
+
+    def classify(base, position):
+        return classes(*hash_inputs(base, position), strength)
+
+    filters = solve([(images, classify)], bases, CLASSES)
+    return encode((ANGLES, STRENGTHS, COHERENCES, 1), np.concatenate(thresholds), filters)
 
 
 def main() -> None:

@@ -12,6 +12,10 @@
   :mod:`imgform_rs.training.synthetic` (colour fields over the photographs'
   luminance, coloured text, woven cloth);
 - ``"union"``: ``"photos"`` then ``"synthetic"``;
+- ``"saturated-photos"``: a fifth of ``"photos"`` (:data:`SATURATED_SHARE`, drawn per
+  photograph) made more colourful by :func:`saturate`, their chroma scaled by a gain
+  drawn from :data:`SATURATION_GAIN`, so that weakly correlated colours are common
+  enough for filters of their own;
 - ``"held-out"``: :data:`imgform_rs.training.catalogue.EXTENDED_HELD_OUT`,
   unaugmented, to check a trained method on photographs it has not seen; never
   train on it.
@@ -53,6 +57,12 @@ CROP_FRACTION = (0.6, 1.0)
 GAIN_STOPS = (-1.0, 0.5)
 #: Side of the synthetic text and cloth images and of the colour-field crops.
 SYNTHETIC_SIZE = 384
+#: The share of ``"saturated-photos"`` whose chroma is scaled, and the range its
+#: gain is drawn from.
+SATURATED_SHARE = 0.2
+SATURATION_GAIN = (1.5, 3.0)
+#: BT.601's luma and chroma (Cb, Cr) of RGB.
+YCBCR = np.array([[0.299, 0.587, 0.114], [-0.168736, -0.331264, 0.5], [0.5, -0.418688, -0.081312]])
 #: How many synthetic images of each kind.
 COLOUR_FIELDS, TEXTS, FABRICS = 96, 48, 48
 
@@ -94,6 +104,17 @@ def augment(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.ascontiguousarray(np.clip(crop * gain, 0.0, 1.0), dtype=np.float32)
 
 
+def saturate(image: np.ndarray, gain: float) -> np.ndarray:
+    """``image`` with its BT.601 chroma scaled by ``gain`` and its luma kept, clipped
+    to [0, 1]; float32, C-contiguous. Photographs of the wallpaper kind have
+    strongly correlated channels; scaled so, their colours are those of saturated
+    film scans, with the same structure."""
+    ycc = image.astype(np.float64) @ YCBCR.T
+    ycc[..., 1:] *= gain
+    rgb = ycc @ np.linalg.inv(YCBCR).T
+    return np.ascontiguousarray(np.clip(rgb, 0.0, 1.0), dtype=np.float32)
+
+
 def _raisr(data: Path, seed: int) -> list[np.ndarray]:
     return [cached_load(photo, data) for photo in TRAINING]
 
@@ -103,6 +124,15 @@ def _photos(data: Path, seed: int) -> list[np.ndarray]:
         augment(cached_load(photo, data), np.random.default_rng([seed, 0, index]))
         for index, photo in enumerate(catalogue.EXTENDED)
     ]
+
+
+def _saturated_photos(data: Path, seed: int) -> list[np.ndarray]:
+    saturated = []
+    for index, image in enumerate(_photos(data, seed)):
+        rng = np.random.default_rng([seed, 5, index])
+        if rng.random() < SATURATED_SHARE:
+            saturated.append(saturate(image, rng.uniform(*SATURATION_GAIN)))
+    return saturated
 
 
 def _held_out(data: Path, seed: int) -> list[np.ndarray]:
@@ -161,6 +191,7 @@ SETS: dict[str, Callable[[Path, int], list[np.ndarray]]] = {
     "photos": _photos,
     "synthetic": _synthetic,
     "union": _union,
+    "saturated-photos": _saturated_photos,
     "held-out": _held_out,
 }
 

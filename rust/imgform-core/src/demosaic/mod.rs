@@ -38,6 +38,7 @@ mod raisr;
 mod rcd;
 mod refined;
 mod ring;
+mod saturation;
 mod tiled;
 mod xtrans;
 

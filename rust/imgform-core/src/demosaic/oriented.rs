@@ -28,8 +28,8 @@
 //! edge ([`coherent`]). The filters are trained by
 //! `python -m imgform_rs.training.demosaic --method raisr_fast` and shipped
 //! in `raisr_fast_weights.bin` (the layout of [`File::read`], with one
-//! strength bin, two coherence bins and the bound of [`coherent`] as the
-//! coherence threshold).
+//! strength bin, two coherence bins, one saturation bin and the bound of
+//! [`coherent`] as the coherence threshold).
 
 use super::raisr::{add1, taps, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
 use super::{Isa, RowKind};
@@ -58,8 +58,8 @@ pub(super) struct Oriented {
 }
 
 impl Oriented {
-    /// Reads a [`File`] of [`ORIENTATIONS`] angle bins, one strength and
-    /// [`SHAPES`] coherence bins, and [`FEATURES`] features, whose numbers
+    /// Reads a [`File`] of [`ORIENTATIONS`] angle bins, one strength,
+    /// [`SHAPES`] coherence and one saturation bin, and [`FEATURES`] features, whose numbers
     /// are the bound of [`coherent`] (positive), then the filters indexed
     /// `[position][orientation][shape][missing colour][feature]`.
     ///
@@ -67,7 +67,7 @@ impl Oriented {
     pub(super) fn parse(bytes: &[u8]) -> Option<Oriented> {
         let file = File::read(bytes)?;
         let size = 1 + POSITIONS * ORIENTATIONS * SHAPES * 2 * FEATURES;
-        if file.bins != [ORIENTATIONS, 1, SHAPES] || file.features != FEATURES {
+        if file.bins != [ORIENTATIONS, 1, SHAPES, 1] || file.features != FEATURES {
             return None;
         }
         if file.numbers.len() != size {
@@ -512,7 +512,7 @@ mod tests {
         assert!(Oriented::parse(include_bytes!("raisr_weights.bin")).is_none());
         // The bound of `coherent` comes first, and must be positive.
         let mut bound = bytes.to_vec();
-        bound[24..28].copy_from_slice(&(-0.5f32).to_le_bytes());
+        bound[28..32].copy_from_slice(&(-0.5f32).to_le_bytes());
         assert!(Oriented::parse(&bound).is_none());
     }
 

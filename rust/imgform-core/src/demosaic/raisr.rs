@@ -88,7 +88,10 @@ const COHERENCES: usize = 3;
 /// CFA positions: (blue row, chroma site) pairs.
 pub(super) const POSITIONS: usize = 4;
 /// Header magic of the weights file.
-const MAGIC: &[u8; 8] = b"IGRAISR1";
+const MAGIC: &[u8; 8] = b"IGRAISR2";
+/// Classes of one saturation bin: the filters of a bank with two follow
+/// those of the unsaturated bin ([`Weights::parse`]).
+const HASHED: usize = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
 
 /// A filter rewritten as taps on the tile's planes, one [`Window`] per
 /// plane and row: window `3 * r + p` is plane `p` (own chroma, green, other
@@ -111,22 +114,26 @@ pub(crate) struct Weights {
     strength: [f32; STRENGTHS - 1],
     /// Upper bounds of the coherence bins but the last.
     coherence: [f32; COHERENCES - 1],
+    /// The lower bound of the saturated bin, when the bank has one, on the
+    /// base's local saturation ([`super::saturation`]).
+    saturation: Option<f32>,
     /// The filters' windows, `windows` per class.
     taps: Vec<Window>,
 }
 
-/// A weights file's contents: its bin counts (angle, strength, coherence),
-/// its feature count and its numbers (thresholds, then filters).
+/// A weights file's contents: its bin counts (angle, strength, coherence,
+/// saturation), its feature count and its numbers (thresholds, then
+/// filters).
 pub(super) struct File {
-    pub(super) bins: [usize; 3],
+    pub(super) bins: [usize; 4],
     pub(super) features: usize,
     pub(super) numbers: Vec<f32>,
 }
 
 impl File {
-    /// Reads the little-endian layout: the 8-byte magic `IGRAISR1`; `u32`
-    /// counts of angle, strength and coherence bins and of features; then
-    /// `f32`s. Returns `None` for a malformed file.
+    /// Reads the little-endian layout: the 8-byte magic `IGRAISR2`; `u32`
+    /// counts of angle, strength, coherence and saturation bins and of
+    /// features; then `f32`s. Returns `None` for a malformed file.
     pub(super) fn read(bytes: &[u8]) -> Option<File> {
         let body = bytes.strip_prefix(MAGIC)?;
         if body.len() % 4 != 0 {
@@ -134,22 +141,23 @@ impl File {
         }
         let mut words = body.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
         let mut count = || words.next().map(|w| u32::from_le_bytes(w) as usize);
-        let counts = [count()?, count()?, count()?, count()?];
+        let bins = [count()?, count()?, count()?, count()?];
         Some(File {
-            bins: [counts[0], counts[1], counts[2]],
-            features: counts[3],
+            bins,
+            features: count()?,
             numbers: words.map(f32::from_le_bytes).collect(),
         })
     }
 }
 
 impl Weights {
-    /// Reads a [`File`] of [`ANGLES`], [`STRENGTHS`] and [`COHERENCES`]
-    /// bins and [`FEATURES`] features for one base, [`SECOND_FEATURES`]
-    /// more for two, whose numbers are the strength then coherence
-    /// thresholds (one fewer than bins) and the filters, indexed
-    /// `[position][angle][strength][coherence][missing colour][feature]`,
-    /// position being `2 * blue_row + chroma_site`.
+    /// Reads a [`File`] of [`ANGLES`], [`STRENGTHS`], [`COHERENCES`] and
+    /// one or two saturation bins and [`FEATURES`] features for one base,
+    /// [`SECOND_FEATURES`] more for two, whose numbers are the strength,
+    /// coherence and saturation thresholds (one fewer than bins each) and
+    /// the filters, indexed `[saturation][position][angle][strength]
+    /// [coherence][missing colour][feature]`, position being `2 *
+    /// blue_row + chroma_site`.
     ///
     /// Returns `None` for a malformed file.
     pub(crate) fn parse(bytes: &[u8]) -> Option<Weights> {
@@ -163,15 +171,20 @@ impl Weights {
             f if f == FEATURES + SECOND_FEATURES => 2 * WINDOWS,
             _ => return None,
         };
-        let nfilters = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
-        let thresholds = STRENGTHS - 1 + COHERENCES - 1;
-        if bins != [ANGLES, STRENGTHS, COHERENCES]
-            || rest.len() != thresholds + nfilters * 2 * features
+        let saturations = bins[3];
+        let thresholds = STRENGTHS - 1 + COHERENCES - 1 + saturations.checked_sub(1)?;
+        if bins[..3] != [ANGLES, STRENGTHS, COHERENCES]
+            || saturations > 2
+            || rest.len() != thresholds + saturations * HASHED * 2 * features
         {
             return None;
         }
         let (strength, rest) = rest.split_at(STRENGTHS - 1);
         let (coherence, rest) = rest.split_at(COHERENCES - 1);
+        let (saturation, rest) = rest.split_at(saturations - 1);
+        if !saturation.iter().all(|t| t.is_finite()) {
+            return None;
+        }
         let taps = rest
             .chunks_exact(2 * features)
             .flat_map(|f| taps(f.split_at(features), windows))
@@ -180,6 +193,7 @@ impl Weights {
             windows,
             strength: strength.try_into().ok()?,
             coherence: coherence.try_into().ok()?,
+            saturation: saturation.first().copied(),
             taps,
         })
     }
@@ -205,6 +219,12 @@ impl Weights {
     pub(crate) fn fusion() -> &'static Weights {
         static WEIGHTS: OnceLock<Weights> = OnceLock::new();
         Self::shipped(&WEIGHTS, include_bytes!("fusion_weights.bin"), 2 * WINDOWS)
+    }
+
+    /// The saturated bin's lower bound and how many classes on its filters
+    /// start, if the bank has one.
+    pub(super) fn saturation(&self) -> Option<(f32, u32)> {
+        self.saturation.map(|t| (t, HASHED as u32))
     }
 
     /// The windows of class `class`'s filter.
@@ -880,12 +900,13 @@ mod tests {
 
     #[test]
     fn the_shipped_weights_parse() {
-        for (w, windows) in [
-            (Weights::raisr(), WINDOWS),
-            (Weights::fusion(), 2 * WINDOWS),
+        // The fusion's classes are split by saturation, RAISR's are not.
+        for (w, windows, saturations) in [
+            (Weights::raisr(), WINDOWS, 1),
+            (Weights::fusion(), 2 * WINDOWS, 2),
         ] {
-            let classes = POSITIONS * ANGLES * STRENGTHS * COHERENCES;
-            assert_eq!(w.taps.len(), classes * windows);
+            assert_eq!(w.taps.len(), saturations * HASHED * windows);
+            assert_eq!(w.saturation.is_some(), saturations == 2);
             assert!(w.taps.iter().flatten().all(|v| v.is_finite()));
         }
     }
@@ -897,8 +918,18 @@ mod tests {
         assert!(Weights::parse(&bytes[1..]).is_none());
         // A feature count of neither layout.
         let mut odd = bytes.to_vec();
-        odd[20] = 27;
+        odd[24] = 27;
         assert!(Weights::parse(&odd).is_none());
+        // No saturation bin, or three.
+        for saturations in [0, 3] {
+            let mut odd = bytes.to_vec();
+            odd[20] = saturations;
+            assert!(Weights::parse(&odd).is_none());
+        }
+        // The previous layout's magic.
+        let mut old = bytes.to_vec();
+        old[7] = b'1';
+        assert!(Weights::parse(&old).is_none());
     }
 
     /// The vector hash gives every column the scalar class, at the bins'
