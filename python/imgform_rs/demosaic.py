@@ -140,22 +140,30 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   refine ``"ri_cd"`` and also see the ``"rcd"`` output's difference from it over
   the 3x3 window (53 features per pixel), so that per CFA position and class of local
   structure they learn how far to trust either and how to correct both. The filters
-  (120 KB) are trained by ``python -m imgform_rs.training.demosaic --method fusion``
+  (240 KB) are trained by ``python -m imgform_rs.training.demosaic --method fusion``
   on 293 openly licensed photographs (:mod:`imgform_rs.training.sets`, set
-  ``"photos"``), never on the benchmark's images. Not flip-symmetric. Outputs are
-  clamped to the range of the input mosaic. Mean CPSNR 40.05 dB on the scikit-image
-  seven, 39.95 on CBSD68, 36.41 on Urban24: 0.9-1.3 dB above every classical peer
-  we run, still 1.3-1.6 dB below the deep demosaicnet. Where the mosaic aliases,
-  ``"rcd"``'s colours stray, so the filters see its differences clamped (to 32/255 of
-  the full scale) and move no missing colour's difference from green more than 8/255
-  from ``"ri_cd"``'s: on the grey zone plate 5833 of false colour (``"mlri"`` 13662,
-  ``"raisr_cd"`` 5309; 7898 unbounded) for 0.01 dB on each subset. Over ``"mlri"``
+  ``"photos"``), never on the benchmark's images. Each class of local structure is
+  split in two by how colourful the base is around the pixel (the absolute means of
+  ``R - G`` and ``B - G`` over a 5x5 tent, added, at least 0.3 of the full scale):
+  where colours are saturated the channels are weakly correlated, and those pixels
+  get filters of their own, fitted also on a fifth of the photographs with their
+  chroma scaled by 1.5-3 (set ``"saturated-photos"``). On the nine held-out
+  photographs with their chroma doubled and tripled, that adds 0.21 and 0.54 dB
+  (33.95 and 31.92 dB; ``"mlri"`` 33.76 and 31.95), with no loss at their own
+  colours. Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
+  Mean CPSNR 39.96 dB on the scikit-image seven, 39.95 on CBSD68, 36.47 on Urban24:
+  0.9-1.2 dB above every classical peer we run, still 1.3-1.6 dB below the deep
+  demosaicnet. Where the mosaic aliases, ``"rcd"``'s colours stray, so the filters
+  see its differences clamped (to 32/255 of the full scale) and move no missing
+  colour's difference from green more than 8/255 from ``"ri_cd"``'s: on the grey zone
+  plate 5743 of false colour (``"mlri"`` 13662, ``"raisr_cd"`` 5309; 7898 unbounded
+  before the saturated classes) for 0.01 dB on each subset. Over ``"mlri"``
   instead (unbounded) it scores 0.02-0.07 dB more on each subset, at 1.3 times the
   time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
-  time, each keeping only the rows later stages still read: 66 MP/s at 24 MP on two
-  cores (2.18x LibRaw's AHD, 2.4x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
-  2026-12-05) and 4.3 % of the output in extra memory.
+  time, each keeping only the rows later stages still read: 62 MP/s at 24 MP on two
+  cores (2.17x LibRaw's AHD, 2.7x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
+  2026-12-05) and 4.4 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"fusion_refined"``: ``"fusion"`` refined by a second stage, a cascade: the 32
@@ -163,17 +171,20 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"fusion"``'s output (``python -m imgform_rs.training.demosaic --method
   fusion_refined``; 6 KB), applied to its rows as they stream out, with rings of a
   few rows (0.5 MiB more memory). The second stage sees what the first leaves: a
-  correction learned on the residual of the fusion itself. Mean CPSNR 40.04 dB on
-  the scikit-image seven, 40.07 on CBSD68, 36.50 on Urban24 (+0.12 and +0.09 dB over
-  ``"fusion"`` on CBSD68 and Urban24, level on the seven; +0.08 on the held-out
-  training photographs). Bounded as ``"fusion"`` is (its moves of each missing
-  colour's difference from green within 8/255 of the fusion's), it leaves 6015 of
-  false colour on the grey zone plate, below ``"rcd_menon"``'s 6091 (8027
-  unbounded, for 0.01-0.02 dB more). Over a fusion based on ``"mlri"`` (unbounded) it
-  would score 0.02 / 0.08 / 0.07 dB more, at 1.23 times the time and with 1.64 times
-  the zone plate's false colour (13157). 59 MP/s at 24 MP on two cores, 1.12x the
-  time of ``"fusion"`` and 1.95x LibRaw's AHD (``benchmarks/demosaic.py``,
-  2026-12-05), 4.5 % of the output in extra memory. Not flip-symmetric. Outputs are
+  correction learned on the residual of the fusion itself. Mean CPSNR 39.99 dB on
+  the scikit-image seven, 40.12 on CBSD68, 36.58 on Urban24 (+0.17 and +0.11 dB over
+  ``"fusion"`` on CBSD68 and Urban24, +0.03 on the seven; +0.08 on the held-out
+  training photographs). With the fusion's saturated classes, on the held-out
+  photographs with their chroma doubled and tripled it scores 33.93 and 31.82 dB
+  (0.19 and 0.47 dB more than without; ``"mlri"`` 33.76 and 31.95, ``"raisr_cd"``
+  33.50 and 31.22). Bounded as ``"fusion"`` is (its moves of each missing colour's
+  difference from green within 8/255 of the fusion's), it leaves 5714 of false
+  colour on the grey zone plate, below ``"rcd_menon"``'s 6091. Over a fusion based on
+  ``"mlri"`` (unbounded, before the saturated classes) it would score 0.02 / 0.08 /
+  0.07 dB more, at 1.23 times the time and with 1.64 times the zone plate's false
+  colour (13157). 56 MP/s at 24 MP on two cores, 1.11x the time of ``"fusion"`` and
+  1.96x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), 4.7 % of the output in
+  extra memory. Not flip-symmetric. Outputs are
   clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
@@ -184,8 +195,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
   method                    scikit 7    CBSD68  Urban24
   ========================  ==========  ======  =======
-  ``"fusion_refined"``      40.04       40.07   36.50
-  ``"fusion"``              40.05       39.95   36.41
+  ``"fusion_refined"``      39.99       40.12   36.58
+  ``"fusion"``              39.96       39.95   36.47
   ``"raisr"``               39.90       39.92   36.29
   ``"raisr_fast"``          39.69       39.84   36.20
   ``"raisr_cd"`` (best)     39.65       39.82   36.18

@@ -15,8 +15,12 @@
 //! missing colour's difference from green further than
 //! [`super::raisr::CHROMA_LIMIT`] from the base's ([`Filters::bound_chroma`];
 //! the cascade's second stage is bounded the same way). On the grey zone
-//! plate "fusion_refined" then leaves 6015 of false colour instead of 8027,
+//! plate "fusion_refined" then left 6015 of false colour instead of 8027,
 //! for 0.01-0.02 dB on each validation subset.
+//!
+//! The classes are split by the base's local saturation
+//! ([`super::saturation`]): pixels whose colours are saturated, where the
+//! channels are weakly correlated, get filters of their own.
 //!
 //! All three stream down tiles as tall as the image, a row at a time. The
 //! base hands over each row it completes; RCD is stepped down the same
