@@ -42,6 +42,14 @@ pub trait Sample: Copy + Send + Sync + Default + PartialOrd + std::fmt::Debug + 
         Self::from_f32(v).to_f32()
     }
 
+    /// Writes the planes `r`, `g` and `b` (each at least `out.len() / 3`
+    /// long) into `out` as pixels. Types override it where a vector
+    /// shuffle beats the element-wise loop.
+    #[inline(always)]
+    fn interleave(planes: [&[Self]; 3], out: &mut [Self]) {
+        crate::interleave::each(planes, out);
+    }
+
     /// Whether the sample is a number: integers always are, so scans for
     /// NaN and infinities compile away for them.
     #[inline(always)]
@@ -109,6 +117,11 @@ impl Sample for u16 {
     #[inline(always)]
     fn quantize(v: f32) -> f32 {
         round_within(v, 0.0, 65535.0) as f32
+    }
+
+    #[inline(always)]
+    fn interleave(planes: [&[Self]; 3], out: &mut [Self]) {
+        crate::interleave::u16s(planes, out);
     }
 }
 

@@ -21,6 +21,7 @@ pub mod demosaic;
 pub mod develop;
 pub mod distortion;
 pub mod film;
+mod interleave;
 pub mod intrinsics;
 pub mod lens;
 pub mod lightfield;

@@ -35,7 +35,6 @@ use super::raisr::{plane, plane_mut, plane_row, Filters, REACH, WINDOWS};
 use super::rcd::{self, Rcd, R_OUT};
 use super::refined::{planes_ring, Window};
 use super::ring::Ring;
-use super::saturation::Saturation;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
 
 /// How far RCD may differ from the base in what the filters see, per
@@ -61,8 +60,6 @@ pub(super) struct State<S> {
     /// RCD's rows minus the base's, each clamped first: what the filters
     /// see of the second base, its planes in each row as in [`Window`]'s.
     diff: Ring,
-    /// The base's local saturation, which splits the classes.
-    saturation: Saturation,
 }
 
 impl<K: StreamKernel> StreamKernel for Fusion<K> {
@@ -82,7 +79,6 @@ impl<K: StreamKernel> StreamKernel for Fusion<K> {
             rcd: self.rcd.stream_state(stride),
             rows: Window::new(stride),
             diff: planes_ring(),
-            saturation: Saturation::new(),
         }
     }
 
@@ -93,7 +89,6 @@ impl<K: StreamKernel> StreamKernel for Fusion<K> {
             rcd,
             rows,
             diff,
-            saturation,
         } = st;
         rows.fit(t.stride);
         // RCD's tile starts `R_OUT` rows above the base's first row, so
@@ -112,7 +107,6 @@ impl<K: StreamKernel> StreamKernel for Fusion<K> {
             rcd,
             rows,
             diff,
-            saturation,
             raw,
             out,
         };
@@ -144,7 +138,6 @@ struct Fused<'a, K, L, E> {
     rcd: &'a mut rcd::Stream,
     rows: &'a mut Window,
     diff: &'a mut Ring,
-    saturation: &'a mut Saturation,
     raw: &'a L,
     out: &'a mut E,
 }
@@ -158,13 +151,7 @@ impl<K: StreamKernel, L: Load, E: Emit> Emit for Fused<'_, K, L, E> {
         let row = self.step_to(ty);
         let second = k.rcd.row(self.rcd, row);
         let first = halo - REACH;
-        let y = self.rows.push(f, first, ty, rows);
-        let saturated = f.bank.saturation();
-        if saturated.is_some() {
-            let clamped = plane_row(self.rows.base.row(ty), t.stride);
-            let kind = t.kind(f.phase, ty);
-            self.saturation.push(kind, clamped, ty, first, first);
-        }
+        let y = self.rows.push(f, first, (ty, t.kind(f.phase, ty)), rows);
         let (lo, hi) = f.bounds;
         let limit = k.second_bound;
         let (d, c) = (self.diff.row_mut(ty), self.rows.base.row(ty));
@@ -182,10 +169,7 @@ impl<K: StreamKernel, L: Load, E: Emit> Emit for Fused<'_, K, L, E> {
         let [d, e, g] = Window::rows(self.diff, y);
         let kind = t.kind(f.phase, y);
         f.hash_row(kind, halo, p.sums, p.class);
-        if let Some(bin) = saturated {
-            let cols = halo..t.stride - halo;
-            self.saturation.classes(y, bin, f.inv_scale, p.class, cols);
-        }
+        p.saturate(f, y, halo..t.stride - halo);
         let dst = p.dst.each_mut().map(|r| &mut **r);
         f.correct_row::<{ 2 * WINDOWS }>(kind, halo, p.class, dst, &[a, b, c, d, e, g]);
         f.bound_chroma(plane_row(b, t.stride), p.dst, halo..t.stride - halo);

@@ -842,7 +842,7 @@ fn fusion_kernel(raw: &impl Mosaic, phase: Phase, scale: f32, isa: Isa) -> Fusio
 
 /// A learned method's filter bank, with the mosaic's white level `scale`
 /// and range.
-fn filters<B>(
+fn filters<B: raisr::Bank>(
     bank: &'static B,
     raw: &impl Mosaic,
     phase: Phase,
@@ -856,6 +856,9 @@ fn filters<B>(
         bank,
         isa,
         chroma_bound: None,
+        saturated: bank
+            .saturation()
+            .map(|(t, offset)| (saturation::least_saturated(t, 1.0 / scale), offset)),
     }
 }
 
@@ -1155,12 +1158,7 @@ pub(crate) fn write_row<O, K: RgbSink<O>>(
 /// Writes three converted planes as R, G, B pixels.
 #[inline(always)]
 pub(crate) fn interleave<T: Sample>(packed: &Packed<T>, out: &mut [T]) {
-    let [r, g, b] = &packed.0;
-    for (o, ((r, g), b)) in out.chunks_exact_mut(3).zip(r.iter().zip(g).zip(b)) {
-        o[0] = *r;
-        o[1] = *g;
-        o[2] = *b;
-    }
+    T::interleave(packed.0.each_ref().map(|p| &p[..]), out);
 }
 
 /// One output row as three converted planes, for [`write_row`].

@@ -163,22 +163,34 @@ fn orientation(a: f32, c: f32) -> u32 {
 }
 
 impl Bank for Oriented {
+    /// None: a saturated bin would need tables of 32 classes, and its
+    /// measure cost "raisr_cd" 9 % of its speed (see
+    /// `imgform_rs.training.demosaic`).
+    fn saturation(&self) -> Option<(f32, u32)> {
+        None
+    }
+
     #[inline(always)]
-    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], mut dst: [&mut [f32]; 3]) {
+    fn classes(f: &Filters<Self>, row: &Row, class: &mut [u32]) {
+        let end = class.len() - row.halo;
+        let k = f.bank.coherence;
+        let hash = |position, xx: f32, xy: f32, yy: f32| {
+            let (a, c) = (xx - yy, 2.0 * xy);
+            let shape = usize::from(coherent(a, c, xx + yy, k));
+            Oriented::lane(position, orientation(a, c) as usize, shape) as u32
+        };
+        f.classes_row(row.kind, row.halo..end, row.sums, class, hash);
+    }
+
+    #[inline(always)]
+    fn correct(f: &Filters<Self>, row: Row, class: &[u32], mut dst: [&mut [f32]; 3]) {
         let Row {
             kind,
             halo,
-            sums,
             windows,
             ..
         } = row;
         let end = class.len() - halo;
-        let k = f.bank.coherence;
-        f.classes_row(kind, halo..end, sums, class, |position, xx, xy, yy| {
-            let (a, c) = (xx - yy, 2.0 * xy);
-            let shape = usize::from(coherent(a, c, xx + yy, k));
-            Oriented::lane(position, orientation(a, c) as usize, shape) as u32
-        });
         let tables = &f.bank.tables[usize::from(kind.blue)];
         let mut x = halo;
         let src = [windows[3], windows[4], windows[5]];

@@ -221,12 +221,6 @@ impl Weights {
         Self::shipped(&WEIGHTS, include_bytes!("fusion_weights.bin"), 2 * WINDOWS)
     }
 
-    /// The saturated bin's lower bound and how many classes on its filters
-    /// start, if the bank has one.
-    pub(super) fn saturation(&self) -> Option<(f32, u32)> {
-        self.saturation.map(|t| (t, HASHED as u32))
-    }
-
     /// The windows of class `class`'s filter.
     #[inline(always)]
     fn filter<const N: usize>(&self, class: u32) -> &Taps<N> {
@@ -453,6 +447,11 @@ pub(super) struct Filters<B: 'static = Weights> {
     /// green away from the base's, in the sample type's scale (see
     /// [`CHROMA_LIMIT`]); `None`: as far as they like.
     pub(super) chroma_bound: Option<f32>,
+    /// The least sum that makes a pixel saturated, in the sample type's
+    /// scale ([`super::saturation::least_saturated`]), and the offset of
+    /// the saturated bin's classes, if the bank has that bin
+    /// ([`Bank::saturation`]).
+    pub(super) saturated: Option<(f32, u32)>,
 }
 
 /// What refining a row reads: the row's kind, the columns it leaves at
@@ -471,17 +470,35 @@ pub(super) struct Row<'a> {
 /// A filter bank that refines rows: how it classes a row's pixels from the
 /// structure tensor's 3x3 sums and corrects them from the base's windows.
 pub(super) trait Bank: Sync + Sized + 'static {
+    /// The saturated bin's lower bound and how many classes on its filters
+    /// start, if the bank's classes are split by the base's saturation
+    /// ([`super::saturation`]).
+    fn saturation(&self) -> Option<(f32, u32)>;
+
+    /// Writes the class of every column `halo .. len - halo` of a row
+    /// into `class`, from its structure tensor; [`Bank::saturation`] then
+    /// moves the saturated ones.
+    fn classes(f: &Filters<Self>, row: &Row, class: &mut [u32]);
+
     /// Writes the columns `halo .. len - halo` of `dst` (own chroma,
     /// green, other chroma): the base's row (the windows' middle row) plus
-    /// its corrections, `class` being room for a class per column. The
-    /// other columns are left as they were.
-    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]);
+    /// the corrections of each column's class. The other columns are left
+    /// as they were.
+    fn correct(f: &Filters<Self>, row: Row, class: &[u32], dst: [&mut [f32]; 3]);
 }
 
 impl Bank for Weights {
+    fn saturation(&self) -> Option<(f32, u32)> {
+        self.saturation.map(|t| (t, HASHED as u32))
+    }
+
     #[inline(always)]
-    fn refine_row(f: &Filters<Self>, row: Row, class: &mut [u32], dst: [&mut [f32]; 3]) {
+    fn classes(f: &Filters<Self>, row: &Row, class: &mut [u32]) {
         f.hash_row(row.kind, row.halo, row.sums, class);
+    }
+
+    #[inline(always)]
+    fn correct(f: &Filters<Self>, row: Row, class: &[u32], dst: [&mut [f32]; 3]) {
         f.correct_row::<WINDOWS>(row.kind, row.halo, class, dst, row.rows);
     }
 }
@@ -983,6 +1000,7 @@ mod tests {
                     bank: w,
                     isa: Isa::Baseline,
                     chroma_bound: None,
+                    saturated: None,
                 };
                 f.hash_row(kind, 3, sums, &mut scalar);
                 // SAFETY: the CPU has AVX2.

@@ -20,7 +20,10 @@ use super::mlri::Mlri;
 use super::oriented::Oriented;
 use super::raisr::{plane, plane_mut, plane_row, Bank, Filters, Row, PITCH, REACH, WINDOWS};
 use super::ring::Ring;
+use super::saturation::Saturation;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
+use super::RowKind;
+use std::ops::Range;
 
 /// A base (MLRI, [`super::differences::Differences`] or
 /// [`super::fusion::Fusion`]) refined by the filter bank of
@@ -53,6 +56,8 @@ pub(super) struct Window {
     sums: [Ring; 3],
     /// One row of the gradients of green.
     grad: [Vec<f32>; 2],
+    /// The base's local saturation, for banks whose classes it splits.
+    saturation: Saturation,
     /// The class of each column of the output row.
     class: Vec<u32>,
     /// The refined output row.
@@ -70,6 +75,18 @@ pub(super) struct Parts<'a> {
     pub(super) sums: [[&'a [f32]; 3]; 3],
     pub(super) class: &'a mut [u32],
     pub(super) dst: [&'a mut [f32]; 3],
+    saturation: &'a Saturation,
+}
+
+impl Parts<'_> {
+    /// Moves the classes of output row `y`'s columns `cols` that are
+    /// saturated to the bank's saturated bin, if it has one.
+    #[inline(always)]
+    pub(super) fn saturate<B>(&mut self, f: &Filters<B>, y: usize, cols: Range<usize>) {
+        if let Some(bin) = f.saturated {
+            self.saturation.classes(y, bin, self.class, cols);
+        }
+    }
 }
 
 /// Whether the tiles of `K` (halo included) fit the rows' pitch.
@@ -97,6 +114,7 @@ impl Window {
             base: planes_ring(),
             sums: [0; 3].map(|_| Ring::new(stride, SUM_ROWS, 0)),
             grad: [row(), row()],
+            saturation: Saturation::new(),
             class: vec![0; stride],
             out: [row(), row(), row()],
             stride,
@@ -111,20 +129,25 @@ impl Window {
         self.stride = stride;
     }
 
-    /// Takes the base's tile row `ty` (the base's rows starting at tile
-    /// row `first`) and extends the hash's sums; the output row it
+    /// Takes the base's tile row `ty` of `kind` (the base's rows starting
+    /// at tile row `first`) and extends the hash's sums, and the
+    /// saturation's if the bank's classes need them; the output row it
     /// completes, two above it, if any.
     #[inline(always)]
     pub(super) fn push<B>(
         &mut self,
         f: &Filters<B>,
         first: usize,
-        ty: usize,
+        (ty, kind): (usize, RowKind),
         rows: [&[f32]; 3],
     ) -> Option<usize> {
         let dst = self.base.row_mut(ty);
         for (p, row) in rows.into_iter().enumerate() {
             f.clamp(row, plane_mut(dst, p, row.len()));
+        }
+        if f.saturated.is_some() {
+            let clamped = plane_row(self.base.row(ty), self.stride);
+            self.saturation.push(kind, clamped, ty, first);
         }
         // The hash's sums start a row below the base's first row
         // (gradients across rows), the output two below that.
@@ -151,6 +174,7 @@ impl Window {
         let Window {
             base,
             sums,
+            saturation,
             class,
             out,
             ..
@@ -161,6 +185,7 @@ impl Window {
             sums: Self::sums(sums, y),
             class: &mut class[..t.stride],
             dst: out.each_mut().map(|r| &mut r[..t.stride]),
+            saturation,
         }
     }
 
@@ -235,18 +260,22 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
     #[inline(always)]
     fn emit(&mut self, ty: usize, rows: [&[f32]; 3]) {
         let (f, halo, t) = (self.filters, self.halo, self.t);
-        let Some(y) = self.rows.push(f, halo - REACH, ty, rows) else {
+        let kind = t.kind(f.phase, ty);
+        let Some(y) = self.rows.push(f, halo - REACH, (ty, kind), rows) else {
             return;
         };
         let mut p = self.rows.parts(t, y);
+        let (windows, rows) = (p.windows, p.rows);
         let row = Row {
             kind: t.kind(f.phase, y),
             halo,
             sums: p.sums,
-            windows: &p.windows,
-            rows: &p.rows,
+            windows: &windows,
+            rows: &rows,
         };
-        B::refine_row(f, row, p.class, p.dst.each_mut().map(|r| &mut **r));
+        B::classes(f, &row, p.class);
+        p.saturate(f, y, halo..t.stride - halo);
+        B::correct(f, row, p.class, p.dst.each_mut().map(|r| &mut **r));
         let src = plane_row(p.rows[1], t.stride);
         f.bound_chroma(src, p.dst, halo..t.stride - halo);
         self.rows.hand_on(t, y, self.out);

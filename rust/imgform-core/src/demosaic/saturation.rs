@@ -1,6 +1,7 @@
 //! How colourful a base is around each pixel, for the fusion's saturated
-//! classes ([`super::raisr::Weights`] with two saturation bins): the
-//! absolute values of the local means of `R - G` and `B - G`, added.
+//! classes ([`super::raisr::Weights`] with two saturation bins,
+//! [`super::raisr::Bank::saturation`]): the absolute values of the local
+//! means of `R - G` and `B - G`, added.
 //!
 //! Where colours are saturated, the channels are weakly correlated, and
 //! filters fitted on photographs (whose channels mostly move together) lean
@@ -17,8 +18,10 @@
 //!
 //! The sums stream with the base's rows, as the structure tensor's do
 //! ([`super::refined::Window`]): each row that comes adds the horizontal
-//! 3-sums of its differences, completes the 3x3 sums of the row above it,
-//! and the output row two above takes its means from those.
+//! 3-sums of its differences and completes the 3x3 sums of the row above
+//! it, which are kept as their horizontal 3-sums; the output row two above
+//! adds three of those. Each sum is taken once, in the training script's
+//! order.
 
 use super::raisr::PITCH;
 use super::ring::Ring;
@@ -53,11 +56,10 @@ fn across(row: &[f32], x: usize) -> impl Iterator<Item = f32> + '_ {
     sum3(from(x - 1), from(x), from(x + 1))
 }
 
-/// The tent sums of plane `p` of three rows of 3x3 sums from column `x`
-/// on: each row's [`across`], added.
+/// The sums of plane `p` of three rows over columns `cols`, added.
 #[inline(always)]
-fn tent<'a>(rows: [&'a [f32]; 3], p: usize, x: usize) -> impl Iterator<Item = f32> + 'a {
-    let [a, b, c] = rows.map(|r| across(difference_plane(r, p), x));
+fn down<'a>(rows: [&'a [f32]; 3], p: usize, cols: Range<usize>) -> impl Iterator<Item = f32> + 'a {
+    let [a, b, c] = rows.map(|r| difference_plane(r, p)[cols.clone()].iter().copied());
     sum3(a, b, c)
 }
 
@@ -65,10 +67,11 @@ fn tent<'a>(rows: [&'a [f32]; 3], p: usize, x: usize) -> impl Iterator<Item = f3
 pub(super) struct Saturation {
     /// Each row's horizontal 3-sums of `R - G` and `B - G`.
     across: Ring,
-    /// The 3x3 sums: three rows of `across`, added.
+    /// The horizontal 3-sums of the 3x3 sums (three rows of `across`,
+    /// added): three rows of these, added, are the tent's sums.
     boxed: Ring,
-    /// Room for the first plane's tent sums of an output row.
-    tent: Vec<f32>,
+    /// Room for a plane of a row's 3x3 sums.
+    scratch: Vec<f32>,
 }
 
 impl Saturation {
@@ -76,13 +79,14 @@ impl Saturation {
         Saturation {
             across: Ring::new(2 * PITCH, DEPTH, 0),
             boxed: Ring::new(2 * PITCH, DEPTH, 0),
-            tent: vec![0.0; PITCH],
+            scratch: vec![0.0; PITCH],
         }
     }
 
     /// Takes the base's (clamped) row `ty` of `kind`, its planes own
     /// chroma, green and other chroma `n` long, the base's rows starting at
-    /// tile row `first`; columns `s .. n - s` are sound.
+    /// tile row `first` and sound in columns `first .. n - first` (a tile's
+    /// base is as narrow as it is short).
     #[inline(always)]
     pub(super) fn push(
         &mut self,
@@ -90,10 +94,9 @@ impl Saturation {
         [own, green, other]: [&[f32]; 3],
         ty: usize,
         first: usize,
-        s: usize,
     ) {
         let n = green.len();
-        let inner = s + 1..n - s - 1;
+        let inner = first + 1..n - first - 1;
         let (red, blue) = if kind.blue {
             (other, own)
         } else {
@@ -113,11 +116,17 @@ impl Saturation {
         if ty >= first + 2 {
             let y = ty - 1;
             let rows = [y - 1, y, y + 1].map(|r| self.across.row(r));
-            let dst = self.boxed.row_mut(y);
+            let (dst, boxed) = (self.boxed.row_mut(y), &mut self.scratch[..n]);
             for p in 0..2 {
-                let [a, b, c] = rows.map(|r| difference_plane(r, p)[inner.clone()].iter().copied());
-                let dst = &mut dst[p * PITCH..p * PITCH + n][inner.clone()];
-                for (d, v) in dst.iter_mut().zip(sum3(a, b, c)) {
+                for (d, v) in boxed[inner.clone()]
+                    .iter_mut()
+                    .zip(down(rows, p, inner.clone()))
+                {
+                    *d = v;
+                }
+                let x = inner.start + 1;
+                let dst = &mut dst[p * PITCH..p * PITCH + n][x..inner.end - 1];
+                for (d, v) in dst.iter_mut().zip(across(boxed, x)) {
                     *d = v;
                 }
             }
@@ -125,30 +134,60 @@ impl Saturation {
     }
 
     /// Moves the columns `cols` of output row `y`'s `class` whose tent
-    /// means, on [0, 1] data (`inv_scale` of the samples), add up to at
-    /// least `threshold` to the saturated bin, `offset` classes on. The
+    /// sums' absolute values add up to at least `least` (of
+    /// [`least_saturated`]) to the saturated bin, `offset` classes on. The
     /// sums run in the training script's order (each row's three columns,
-    /// then the rows), so the classes are its.
+    /// then the rows), so the classes are its; `cols` lie two columns
+    /// within the sound ones of [`Saturation::push`].
     #[inline(always)]
     pub(super) fn classes(
-        &mut self,
+        &self,
         y: usize,
-        (threshold, offset): (f32, u32),
-        inv_scale: f32,
+        (least, offset): (f32, u32),
         class: &mut [u32],
         cols: Range<usize>,
     ) {
         let rows = [y - 1, y, y + 1].map(|r| self.boxed.row(r));
-        let first = &mut self.tent[..cols.len()];
-        for (d, v) in first.iter_mut().zip(tent(rows, 0, cols.start)) {
-            *d = v;
-        }
-        let sums = first.iter().zip(tent(rows, 1, cols.start));
+        let sums = down(rows, 0, cols.clone()).zip(down(rows, 1, cols.clone()));
         for (k, (t0, t1)) in class[cols].iter_mut().zip(sums) {
-            let mean = (t0.abs() + t1.abs()) * inv_scale / 9.0 / 9.0;
-            *k += if mean >= threshold { offset } else { 0 };
+            *k += if t0.abs() + t1.abs() >= least {
+                offset
+            } else {
+                0
+            };
         }
     }
+}
+
+/// What the training script compares with the saturated bin's threshold:
+/// the tent sums' absolute values, added (`sum`, in the samples' scale),
+/// as means on [0, 1] data (`inv_scale` of the samples) of the tent's 81
+/// weights.
+#[inline(always)]
+fn mean(sum: f32, inv_scale: f32) -> f32 {
+    sum * inv_scale / 9.0 / 9.0
+}
+
+/// The least sum whose [`mean`] reaches `threshold`, for a positive
+/// `inv_scale`. Each rounding of [`mean`] is monotonic, so a sum is
+/// saturated exactly when it reaches this one: each pixel then takes one
+/// comparison instead of a product and two divisions.
+pub(super) fn least_saturated(threshold: f32, inv_scale: f32) -> f32 {
+    if mean(0.0, inv_scale) >= threshold {
+        return 0.0;
+    }
+    // Non-negative floats are ordered as their bits. `mean` of `lo` stays
+    // below the threshold, of `hi` at or above it (infinity's is infinite).
+    let (mut lo, mut hi) = (0u32, f32::INFINITY.to_bits());
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if mean(f32::from_bits(mid), inv_scale) >= threshold {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    f32::from_bits(hi)
 }
 
 #[cfg(test)]
@@ -175,11 +214,34 @@ mod tests {
             } else {
                 (&red, &blue)
             };
-            s.push(kind, [own, &green, other], ty, 0, 0);
+            s.push(kind, [own, &green, other], ty, 0);
         }
         let mut class = vec![5; n];
-        s.classes(2, (0.3, 100), 1.0 / scale, &mut class, 2..n - 2);
+        s.classes(
+            2,
+            (least_saturated(0.3, 1.0 / scale), 100),
+            &mut class,
+            2..n - 2,
+        );
         class
+    }
+
+    #[test]
+    fn the_least_saturated_sum_decides_as_the_means_do() {
+        for (threshold, scale) in [(0.3, 1.0), (0.3, 255.0), (0.3, 4095.0), (0.45, 65535.0)] {
+            let inv = 1.0 / scale;
+            let least = least_saturated(threshold, inv);
+            assert!(mean(least, inv) >= threshold);
+            assert!(mean(f32::from_bits(least.to_bits() - 1), inv) < threshold);
+            // Sums a few thousand steps of the last bit either side.
+            for k in 0..4000u32 {
+                for sum in [least.to_bits() + k, least.to_bits() - k].map(f32::from_bits) {
+                    assert_eq!(sum >= least, mean(sum, inv) >= threshold, "{sum}");
+                }
+            }
+        }
+        assert_eq!(least_saturated(0.0, 1.0), 0.0);
+        assert_eq!(least_saturated(-1.0, 1.0), 0.0);
     }
 
     #[test]
