@@ -53,14 +53,21 @@ def test_the_kernel_applies_the_filters_the_training_script_fitted(method):
     filters = np.frombuffer(blob, "<f4", offset=28 + 4 * len(thresholds)).reshape(-1, 2, nf)
     assert saturations == (2 if method in tr.SATURATED else 1)
     if method in tr.ORIENTED:
-        cls = tr.oriented_classes(base, position)
-    elif method in tr.SATURATED:
-        assert thresholds[-1] == tr.SATURATION
-        cls = tr.saturated_classes(base, position, thresholds[: strengths - 1])
-        # The crop has saturated and unsaturated pixels.
-        assert 0 < np.mean(cls >= tr.CLASSES) < 1
+        classify, nclasses = tr.oriented_classes, tr.ORIENTED_CLASSES
     else:
-        cls = tr.classes(*tr.hash_inputs(base, position), thresholds[: strengths - 1])
+
+        def classify(base, position):
+            return tr.classes(*tr.hash_inputs(base, position), thresholds[: strengths - 1])
+
+        nclasses = tr.CLASSES
+    if method in tr.SATURATED:
+        assert thresholds[-1] == tr.SATURATION
+        classify = tr.with_saturation(classify, nclasses)
+    cls = classify(base, position)
+    assert len(filters) == saturations * nclasses
+    if method in tr.SATURATED:
+        # The crop has saturated and unsaturated pixels.
+        assert 0 < np.mean(cls >= nclasses) < 1
     feats, _ = tr.samples(truth, bases, position)
     want = np.einsum("nf,nkf->nk", feats, filters[cls])
     blue, chroma = tr.interior(position >= 2, 0), tr.interior(position % 2 == 1, 0)

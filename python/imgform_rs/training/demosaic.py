@@ -50,6 +50,7 @@ method, trained on                                                 held out
 ``"ri_cd"`` alone (no training)                                    36.55
 ``"raisr_cd"`` over ``"ri_cd"``, orientation (16 classes)          36.98
 ``"raisr_cd"`` over ``"ri_cd"``, orientation, shape (32)           37.04
+``"raisr_cd"``, saturated classes, bounded (64; not shipped)       37.10
 ``"fusion"`` with ``"rcd_menon"``, 33 photographs and textures     37.01
 ``"fusion"`` with ``"rcd_menon"``, the 293 photographs             37.43
 ``"fusion"`` with ``"rcd_menon"``, 293 photographs, 192 synthetic  35.99
@@ -77,6 +78,18 @@ chroma (+0.43 dB against +0.59), the 3x3 mean of ``|R - G| + |B - G|`` as the me
 11 % more false colour for the same gain (aliased colour alternates in sign and
 averages out of signed means), and fitting every class on the colour-boosted
 photographs cost 0.13-0.42 dB on CBSD68.
+
+``"raisr_cd"`` (``"best"``) with its 32 classes split the same way (64, trained the
+same way: ``SATURATED`` and ``BOUNDED`` holding it) and bounded as the fusion is
+(below) gained 0.22 and 0.53 dB at doubled and tripled chroma (33.72 and 31.75;
+``"mlri"`` 33.76 and 31.95), 0.02-0.08 dB on the seven, CBSD68 and Urban24, and left
+less false colour on the zone plate (5134 against 5309), but the measure's sums
+(about half the filters' own time) and tables of 32 classes made it 9 % slower: 4.03x
+and 3.81x LibRaw's AHD in one benchmark run, where ``"best"`` must stay above 4x. It
+is not shipped; a cheaper measure would let it be. In its NumPy model, unbounded, the
+split scored 0.04 and 0.11 dB more at doubled and tripled chroma but left 5 % more
+false colour (5587 against 5333); a threshold of 0.2 cost 0.13 dB on CBSD68, one of
+0.45 gained 0.14 and 0.11 dB less at doubled and tripled chroma.
 
 The fusion is over ``"ri_cd"`` (the last four rows) rather than ``"mlri"``: unbounded
 (below), the cascade runs 1.23 times as fast (58 MP/s at 24 MP on two cores, where 50
@@ -158,7 +171,7 @@ ORIENTED = {"raisr_fast", "raisr_cd", "fusion_refined"}
 #: saturated classes see ``"saturated-photos"`` too.
 TRAINING_SET = "photos"
 #: The methods whose classes are split by the base's saturation
-#: (:func:`saturated_classes`) at :data:`SATURATION`.
+#: (:func:`with_saturation`) at :data:`SATURATION`.
 SATURATED = {"fusion"}
 SATURATION = np.float32(0.3)
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3
@@ -174,6 +187,8 @@ SHAPES = 2
 ANISOTROPY = np.float32(0.303)
 POSITIONS = 4
 CLASSES = POSITIONS * ANGLES * STRENGTHS * COHERENCES
+#: Classes of the oriented methods (per saturation bin).
+ORIENTED_CLASSES = POSITIONS * ORIENTATIONS * SHAPES
 STRENGTH_QUANTILES = (0.5, 0.85)
 COHERENCE_THRESHOLDS = (0.3, 0.6)
 #: Pixels at the border left out of training (the kernel's reach is 12).
@@ -387,20 +402,24 @@ def saturation(base: np.ndarray) -> np.ndarray:
     return interior((means[0] + means[1]) / np.float32(9) / np.float32(9), 2)
 
 
-def saturated_classes(base: np.ndarray, position: np.ndarray, strength: np.ndarray) -> np.ndarray:
-    """:func:`classes`, moved by :data:`CLASSES` where the base is saturated
-    (:func:`saturation` at least :data:`SATURATION`)."""
-    full = classes(*hash_inputs(base, position), strength)
-    return full + CLASSES * (saturation(base) >= SATURATION)
+def with_saturation(classify: Classify, nclasses: int) -> Classify:
+    """``classify`` (``nclasses`` classes) with its classes moved by ``nclasses``
+    where the base is saturated (:func:`saturation` at least :data:`SATURATION`), as
+    the kernels of :data:`SATURATED` do."""
+
+    def saturated(base: np.ndarray, position: np.ndarray) -> np.ndarray:
+        return classify(base, position) + nclasses * (saturation(base) >= SATURATION)
+
+    return saturated
 
 
-def only_saturated(classify: Classify) -> Classify:
-    """``classify`` with its unsaturated samples left out (given a class past the
-    last, which :func:`solve` skips)."""
+def only_saturated(classify: Classify, nclasses: int) -> Classify:
+    """``classify`` (of :func:`with_saturation`) with its unsaturated samples left
+    out (given a class past the last, which :func:`solve` skips)."""
 
     def saturated(base: np.ndarray, position: np.ndarray) -> np.ndarray:
         cls = classify(base, position)
-        return np.where(cls >= CLASSES, cls, 2 * CLASSES)
+        return np.where(cls >= nclasses, cls, 2 * nclasses)
 
     return saturated
 
@@ -483,27 +502,28 @@ def train(method: str = "raisr", small: bool = False, data: Path = DEFAULT_DATA)
     images = views(small, data)
     bases = BASES[method]
     if method in ORIENTED:
-        filters = solve([(images, oriented_classes)], bases, POSITIONS * ORIENTATIONS * SHAPES)
-        return encode((ORIENTATIONS, 1, SHAPES, 1), np.float32([ANISOTROPY]), filters)
-    strength = strength_thresholds(images, bases)
-    thresholds = [strength, np.float32(COHERENCE_THRESHOLDS)]
-    if method in SATURATED:
-        # The unsaturated classes see the photographs alone; the saturated ones
-        # those too, and the photographs made more colourful.
+        classify, nclasses = oriented_classes, ORIENTED_CLASSES
+        bins, thresholds = (ORIENTATIONS, 1, SHAPES), [np.float32([ANISOTROPY])]
+    else:
+        strength = strength_thresholds(images, bases)
+
         def classify(base, position):
-            return saturated_classes(base, position, strength)
+            return classes(*hash_inputs(base, position), strength)
 
-        saturated = views(small, data, "saturated-photos")
-        batches = [(images, classify), (saturated, only_saturated(classify))]
-        filters = solve(batches, bases, 2 * CLASSES)
-        thresholds.append(np.float32([SATURATION]))
-        return encode((ANGLES, STRENGTHS, COHERENCES, 2), np.concatenate(thresholds), filters)
-
-    def classify(base, position):
-        return classes(*hash_inputs(base, position), strength)
-
-    filters = solve([(images, classify)], bases, CLASSES)
-    return encode((ANGLES, STRENGTHS, COHERENCES, 1), np.concatenate(thresholds), filters)
+        nclasses = CLASSES
+        bins = (ANGLES, STRENGTHS, COHERENCES)
+        thresholds = [strength, np.float32(COHERENCE_THRESHOLDS)]
+    if method not in SATURATED:
+        filters = solve([(images, classify)], bases, nclasses)
+        return encode((*bins, 1), np.concatenate(thresholds), filters)
+    # The unsaturated classes see the photographs alone; the saturated ones those
+    # too, and the photographs made more colourful.
+    classify = with_saturation(classify, nclasses)
+    saturated = views(small, data, "saturated-photos")
+    batches = [(images, classify), (saturated, only_saturated(classify, nclasses))]
+    filters = solve(batches, bases, 2 * nclasses)
+    thresholds.append(np.float32([SATURATION]))
+    return encode((*bins, 2), np.concatenate(thresholds), filters)
 
 
 def main() -> None:
