@@ -381,6 +381,10 @@ def all_methods(tmp: Path) -> dict[str, Callable[[np.ndarray, str], np.ndarray]]
         # submodule of that name, so there is no pyeari.ri.ri.
         ri = pyeari.ri
         methods["eari-demosaic RI"] = lambda raw, name: to_u8(ri(raw, "RGGB"), 255.0)
+    else:
+        # The strongest classical peer: without it the margins are over a weaker
+        # one, so say so where the tables are read.
+        print("\nskipped eari-demosaic RI: pyeari is not installed (make bench-peers)")
     if demosaicnet is not None:
         net = demosaicnet.BayerDemosaick(pretrained=True, pad=False).eval()
         methods[DEMOSAICNET] = lambda raw, name: demosaicnet_rggb(net, raw)
