@@ -85,8 +85,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   and the motorcycle's saturated paint. ``"mlri"`` streams down tall tiles, and
   each row it hands over completes the refinement of the row two above it (rings of
   four rows of ``"mlri"`` and three of the hash's sums; the same bits as refining
-  whole planes): 76 MP/s at 24 MP on two cores, 1.4x the time of ``"mlri"`` and
-  2.5x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), and 4 % of the output
+  whole planes): 80 MP/s at 24 MP on two cores, 1.4x the time of ``"mlri"`` and
+  2.8x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), and 4 % of the output
   in extra memory.
 - ``"raisr_fast"``: ``"raisr"`` with a hash of orientation and shape alone. Its 32
   filters are chosen by the CFA position, the quadrant of the doubled orientation of
@@ -101,8 +101,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   range of the input mosaic. Mean CPSNR 39.69 dB on the scikit-image seven, 39.84 on
   CBSD68, 36.20 on Urban24: within 0.2 dB of ``"raisr"`` on each subset and 0.6-0.9
   dB above every classical peer we run. On the grey zone plate less false colour than
-  ``"mlri"`` (11939 against 13662; zipper 35.9 % against 37.2 %). 90 MP/s at 24 MP
-  on two cores, 1.2x the time of ``"mlri"``, 2.9x LibRaw's AHD and 1.2x as fast as
+  ``"mlri"`` (11939 against 13662; zipper 35.9 % against 37.2 %). 97 MP/s at 24 MP
+  on two cores, 1.1x the time of ``"mlri"``, 3.4x LibRaw's AHD and 1.2x as fast as
   ``"raisr"`` (``benchmarks/demosaic.py``, 2026-12-05), in 4 % of the output in
   extra memory.
 - ``"ri_cd"``: ``"mlri"``'s green (residual interpolation along rows and columns,
@@ -123,10 +123,10 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   imgform_rs.training.demosaic --method raisr_cd``; 6 KB): the filters recover what
   the cheaper chroma loses, and the result is within 0.04 dB of ``"raisr_fast"`` on
   each validation subset (39.65 dB on the scikit-image seven, 39.82 on CBSD68, 36.18
-  on Urban24; 0.62-0.85 dB above every classical peer we run on each) at 0.70x its
-  time: 129 MP/s at 24 MP on two cores, 4.15x LibRaw's AHD, in 3.4 % of the output
-  in extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 90 MP/s,
-  ``"mlri"`` 105). Less false colour and zipper on the grey charts than any other
+  on Urban24; 0.62-0.85 dB above every classical peer we run on each) at 0.80x its
+  time: 121 MP/s at 24 MP on two cores, 4.26x LibRaw's AHD, in 3.7 % of the output
+  in extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 97 MP/s,
+  ``"mlri"`` 109). Less false colour and zipper on the grey charts than any other
   residual-interpolation method (zone plate 5309 and 35.6 % against
   ``"raisr_fast"``'s 11939 and 35.9 %). Its classes split each orientation by shape:
   0.05-0.06 dB more than orientation alone on CBSD68, Urban24 and the held-out
@@ -162,7 +162,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
   time, each keeping only the rows later stages still read: 62 MP/s at 24 MP on two
-  cores (2.17x LibRaw's AHD, 2.7x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
+  cores (2.18x LibRaw's AHD, 2.7x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
   2026-12-05) and 4.4 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
@@ -183,7 +183,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"mlri"`` (unbounded, before the saturated classes) it would score 0.02 / 0.08 /
   0.07 dB more, at 1.23 times the time and with 1.64 times the zone plate's false
   colour (13157). 56 MP/s at 24 MP on two cores, 1.11x the time of ``"fusion"`` and
-  1.96x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), 4.7 % of the output in
+  1.97x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), 4.8 % of the output in
   extra memory. Not flip-symmetric. Outputs are
   clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently

@@ -129,7 +129,7 @@ pub enum Method {
     /// [`Method::RaisrFast`]'s orientation-hashed filters trained over
     /// [`Method::RiCd`]: they recover what the cheaper red and blue lose
     /// against MLRI's (within 0.04 dB of [`Method::RaisrFast`] on each
-    /// validation subset), at 0.70x its time. Not flip-symmetric.
+    /// validation subset), at 0.80x its time. Not flip-symmetric.
     /// Outputs are clamped to the input's range.
     RaisrCd,
     /// A learned adaptive fusion of [`Method::RiCd`] and [`Method::Rcd`]:
@@ -205,7 +205,7 @@ impl Method {
     /// the scikit-image seven alone. Mean CPSNR on the seven 39.65 dB,
     /// CBSD68 39.82, Urban24 36.18: 0.62-0.85 dB above every classical peer
     /// we run, within 0.04 dB of [`Method::RaisrFast`] on each subset at
-    /// 0.70x its time, and 0.81x MLRI's.
+    /// 0.80x its time, and 0.91x MLRI's.
     pub const BEST: Method = Method::RaisrCd;
 
     /// The most accurate method, which the name "quality" selects, whatever
