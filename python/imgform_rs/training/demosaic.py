@@ -50,7 +50,7 @@ method, trained on                                                 held out
 ``"ri_cd"`` alone (no training)                                    36.55
 ``"raisr_cd"`` over ``"ri_cd"``, orientation (16 classes)          36.98
 ``"raisr_cd"`` over ``"ri_cd"``, orientation, shape (32)           37.04
-``"raisr_cd"``, saturated classes, bounded (64; not shipped)       37.10
+``"raisr_cd"``, saturated classes, bounded (64; shipped)           37.10
 ``"fusion"`` with ``"rcd_menon"``, 33 photographs and textures     37.01
 ``"fusion"`` with ``"rcd_menon"``, the 293 photographs             37.43
 ``"fusion"`` with ``"rcd_menon"``, 293 photographs, 192 synthetic  35.99
@@ -65,10 +65,10 @@ method, trained on                                                 held out
 =================================================================  =========
 
 The fusion's classes are split in two by the base's saturation (:func:`saturation`:
-the absolute means of ``R - G`` and ``B - G`` over a 5x5 tent, added, at least
-:data:`SATURATION`). The unsaturated half is fitted on the photographs alone, the
-saturated half on those and on ``"saturated-photos"`` (a fifth of them with their
-chroma scaled by 1.5-3; :func:`only_saturated` keeps those images' other pixels
+the absolute means of ``R - G`` and ``B - G`` over the 4x4 window of CFA quads nearest
+each pixel, added, at least :data:`SATURATION`). The unsaturated half is fitted on the
+photographs alone, the saturated half on those and on ``"saturated-photos"`` (a fifth
+of them with their chroma scaled by 1.5-3; :func:`only_saturated` keeps those images' other pixels
 out). On the held-out photographs with their BT.601 chroma doubled and tripled, where
 the cascade trailed ``"mlri"`` by 0.6 dB at triple chroma, it gains 0.19 and 0.47 dB
 (33.93 and 31.82; ``"mlri"`` 33.76 and 31.95); 0.05 / 0.08 dB more on CBSD68 and
@@ -79,17 +79,19 @@ chroma (+0.43 dB against +0.59), the 3x3 mean of ``|R - G| + |B - G|`` as the me
 averages out of signed means), and fitting every class on the colour-boosted
 photographs cost 0.13-0.42 dB on CBSD68.
 
-``"raisr_cd"`` (``"best"``) with its 32 classes split the same way (64, trained the
-same way: ``SATURATED`` and ``BOUNDED`` holding it) and bounded as the fusion is
-(below) gained 0.22 and 0.53 dB at doubled and tripled chroma (33.72 and 31.75;
-``"mlri"`` 33.76 and 31.95), 0.02-0.08 dB on the seven, CBSD68 and Urban24, and left
-less false colour on the zone plate (5134 against 5309), but the measure's sums
-(about half the filters' own time) and tables of 32 classes made it 9 % slower: 4.03x
-and 3.81x LibRaw's AHD in one benchmark run, where ``"best"`` must stay above 4x. It
-is not shipped; a cheaper measure would let it be. In its NumPy model, unbounded, the
-split scored 0.04 and 0.11 dB more at doubled and tripled chroma but left 5 % more
-false colour (5587 against 5333); a threshold of 0.2 cost 0.13 dB on CBSD68, one of
-0.45 gained 0.14 and 0.11 dB less at doubled and tripled chroma.
+``"raisr_cd"`` (``"best"``) has its 32 classes split the same way (64, trained the
+same way: ``SATURATED`` and ``BOUNDED`` hold it) and is bounded as the fusion is
+(below). It gains 0.22 and 0.52 dB at doubled and tripled chroma (33.72 and 31.74;
+``"mlri"`` 33.76 and 31.95), 0.02-0.08 dB on the seven, CBSD68 and Urban24, and leaves
+less false colour on the zone plate (5040 against 5309), for about 6 % of its speed.
+Its first measure, each pixel's 5x5 tent of signed differences, scored the same but
+its sums made ``"raisr_cd"`` 9 % slower, below 4x LibRaw's AHD in a benchmark run
+(3.81x); the quads' sums are taken once per quad and corner, so the measure costs
+about a third as much (2 % of the time of "raisr_cd" against 6 %), and the fusion's scores moved by at most 0.01 dB with it (5690 of
+false colour against 5743). In its NumPy model, unbounded, the split scored 0.04 and
+0.11 dB more at doubled and tripled chroma but left 5 % more false colour (5412
+against 5333 with the quads); a threshold of 0.2 cost 0.13 dB on CBSD68, one of 0.45
+gained 0.14 and 0.11 dB less at doubled and tripled chroma (both with the tent).
 
 The fusion is over ``"ri_cd"`` (the last four rows) rather than ``"mlri"``: unbounded
 (below), the cascade runs 1.23 times as fast (58 MP/s at 24 MP on two cores, where 50
@@ -156,7 +158,7 @@ SECOND_LIMIT = np.float32(32 / 255)
 #: :func:`bound_chroma`): applied to the output, so not part of the least squares.
 CHROMA_LIMIT = np.float32(8 / 255)
 #: The methods whose kernels bound their filters' output so.
-BOUNDED = {"fusion", "fusion_refined"}
+BOUNDED = {"fusion", "fusion_refined", "raisr_cd"}
 #: The bases of each learned method: the one refined, then the one compared.
 BASES = {
     "raisr": ("mlri",),
@@ -172,7 +174,7 @@ ORIENTED = {"raisr_fast", "raisr_cd", "fusion_refined"}
 TRAINING_SET = "photos"
 #: The methods whose classes are split by the base's saturation
 #: (:func:`with_saturation`) at :data:`SATURATION`.
-SATURATED = {"fusion"}
+SATURATED = {"fusion", "raisr_cd"}
 SATURATION = np.float32(0.3)
 ANGLES, STRENGTHS, COHERENCES = 8, 3, 3
 #: Orientation bins of the oriented methods: quadrants of the doubled angle.
@@ -394,12 +396,25 @@ def classes(sums, position, strength: np.ndarray) -> np.ndarray:
 
 
 def saturation(base: np.ndarray) -> np.ndarray:
-    """How colourful the base is around each interior pixel: the absolute values of
-    the means of ``R - G`` and ``B - G`` over a 5x5 tent (two 3x3 box sums), added,
-    as ``Saturation`` in saturation.rs computes them."""
-    red, green, blue = base[..., 0], base[..., 1], base[..., 2]
-    means = [np.abs(box3(box3(chroma - green))) for chroma in (red, blue)]
-    return interior((means[0] + means[1]) / np.float32(9) / np.float32(9), 2)
+    """How colourful the base (RGGB) is around each interior pixel, as ``Saturation``
+    in saturation.rs computes it: the absolute values of the means of ``R - G`` and
+    ``B - G`` over the four CFA quads (2x2 cells, red at the top left) that meet at the
+    quads' corner nearest the pixel (a 4x4 window), added."""
+    h, w = base.shape[:2]
+    rows, cols = h // 2, w // 2
+    total = np.zeros((rows, cols), np.float32)
+    for chroma in (base[..., 0], base[..., 2]):
+        d = (chroma - base[..., 1])[: 2 * rows, : 2 * cols]
+        columns = d[0::2] + d[1::2]
+        quads = columns[:, 0::2] + columns[:, 1::2]
+        across = quads[:, :-1] + quads[:, 1:]
+        # Corner [q, p], at the top left of quad (q, p), from quads q - 1 .. q and
+        # p - 1 .. p.
+        total[1:, 1:] += np.abs(across[:-1] + across[1:])
+    # Rows 2q - 1 and 2q, columns 2p - 1 and 2p take corner [q, p].
+    means = np.zeros((h, w), np.float32)
+    means[: 2 * rows - 1, : 2 * cols - 1] = total.repeat(2, 0).repeat(2, 1)[1:, 1:]
+    return interior(means / np.float32(16), 0)
 
 
 def with_saturation(classify: Classify, nclasses: int) -> Classify:

@@ -13,7 +13,7 @@
 //! Two bounds keep RCD's aliased colours out: the filters see RCD's
 //! differences from the base clamped to [`SECOND_LIMIT`], and move no
 //! missing colour's difference from green further than
-//! [`super::raisr::CHROMA_LIMIT`] from the base's ([`Filters::bound_chroma`];
+//! [`super::raisr::CHROMA_LIMIT`] from the base's ([`super::raisr::bound`];
 //! the cascade's second stage is bounded the same way). On the grey zone
 //! plate "fusion_refined" then left 6015 of false colour instead of 8027,
 //! for 0.01-0.02 dB on each validation subset.
@@ -31,7 +31,7 @@
 //! RCD's ~65 rows (0.4 MB a thread at 24 MP) and the filters' ~20 add a
 //! fifth to the base's own, where planes of the tile would double it.
 
-use super::raisr::{plane, plane_mut, plane_row, Filters, REACH, WINDOWS};
+use super::raisr::{plane, plane_mut, Filters, REACH, WINDOWS};
 use super::rcd::{self, Rcd, R_OUT};
 use super::refined::{planes_ring, Window};
 use super::ring::Ring;
@@ -172,7 +172,6 @@ impl<K: StreamKernel, L: Load, E: Emit> Emit for Fused<'_, K, L, E> {
         p.saturate(f, y, halo..t.stride - halo);
         let dst = p.dst.each_mut().map(|r| &mut **r);
         f.correct_row::<{ 2 * WINDOWS }>(kind, halo, p.class, dst, &[a, b, c, d, e, g]);
-        f.bound_chroma(plane_row(b, t.stride), p.dst, halo..t.stride - halo);
         self.rows.hand_on(t, y, self.out);
     }
 }

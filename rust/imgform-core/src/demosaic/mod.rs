@@ -777,9 +777,13 @@ fn run_method<M, O, K>(
             run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::RaisrCd => {
-            let base = differences::Differences::new(phase, scale);
+            let raw = &Ranged::new(raw);
             let bank = oriented::Oriented::raisr_cd();
-            run_refined(raw, phase, base, bank, scale, isa, sink, out);
+            let k = refined::Refined {
+                base: differences::Differences::new(phase, scale),
+                filters: bounded(filters(bank, raw, phase, scale, isa), scale),
+            };
+            tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Fusion => {
             let raw = &Ranged::new(raw);
@@ -862,8 +866,8 @@ fn filters<B: raisr::Bank>(
     }
 }
 
-/// `f` bounded as the fusion and its cascade are ([`raisr::CHROMA_LIMIT`]),
-/// at the white level `scale`.
+/// `f` bounded as the fusion, its cascade and [`Method::RaisrCd`] are
+/// ([`raisr::CHROMA_LIMIT`]), at the white level `scale`.
 fn bounded<B>(f: raisr::Filters<B>, scale: f32) -> raisr::Filters<B> {
     raisr::Filters {
         chroma_bound: Some(raisr::CHROMA_LIMIT * scale),

@@ -21,6 +21,19 @@
 //! by side like a convolution, with no per-pixel fetch, and the tables of
 //! a row (3.5 KB) stay in cache.
 //!
+//! "raisr_cd" ("best") also splits its classes by the base's local
+//! saturation, as the fusion does ([`super::saturation`]): 64 filters, so
+//! a row's classes take 32 values, the saturated ones in the tables'
+//! second half. AVX-512 picks from both halves with one two-table permute,
+//! AVX2 with four permutes and three blends; a step of pixels none of
+//! which is saturated (88 % of the steps on the benchmark's photograph)
+//! reads the first half alone, as a bank without the split does. On the
+//! held-out photographs with their chroma tripled, the split adds 0.5 dB
+//! (0.22 dB at double chroma, 0.02-0.08 dB on the validation subsets) and
+//! costs "best" about 6 % of its time. Its corrections are bounded as the
+//! fusion's are ([`super::raisr::bound`]), in registers as they are
+//! stored.
+//!
 //! The features, the taps' windows and the training are RAISR's
 //! ([`super::raisr::taps`]); only the class differs: the quadrant of the
 //! doubled orientation of the 3x3 structure tensor of MLRI's green
@@ -28,8 +41,8 @@
 //! edge ([`coherent`]). The filters are trained by
 //! `python -m imgform_rs.training.demosaic --method raisr_fast` and shipped
 //! in `raisr_fast_weights.bin` (the layout of [`File::read`], with one
-//! strength bin, two coherence bins, one saturation bin and the bound of
-//! [`coherent`] as the coherence threshold).
+//! strength bin, two coherence bins, one or two saturation bins, and the
+//! bound of [`coherent`] as the coherence threshold).
 
 use super::raisr::{add1, taps, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
 use super::{Isa, RowKind};
@@ -43,9 +56,15 @@ const SHAPES: usize = 2;
 /// Taps per missing colour: 3 columns of each window.
 const TAPS: usize = 3 * WINDOWS;
 
-/// One tap of every class of a row: entry `2 * (SHAPES * orientation +
-/// shape) + chroma_site` (the [`Oriented::lane`]).
-type Table = [f32; 16];
+/// Entries of a [`Table`] per saturation bin: the classes of a row's
+/// pixels of one bin.
+const LANES: usize = 16;
+
+/// One tap of every class of a row: entry `LANES * saturated + 2 *
+/// (SHAPES * orientation + shape) + chroma_site` (the [`Oriented::lane`],
+/// in the saturated half when the bank has one and the pixel is
+/// saturated).
+type Table = [f32; 2 * LANES];
 
 /// The filter bank of the orientation hash, as tap tables.
 pub(super) struct Oriented {
@@ -55,34 +74,44 @@ pub(super) struct Oriented {
     tables: [[[Table; 2]; TAPS]; 2],
     /// The bound of [`coherent`].
     coherence: f32,
+    /// The lower bound of the saturated bin, if the bank has one, on the
+    /// base's local saturation ([`super::saturation`]).
+    saturation: Option<f32>,
 }
 
 impl Oriented {
     /// Reads a [`File`] of [`ORIENTATIONS`] angle bins, one strength,
-    /// [`SHAPES`] coherence and one saturation bin, and [`FEATURES`] features, whose numbers
-    /// are the bound of [`coherent`] (positive), then the filters indexed
-    /// `[position][orientation][shape][missing colour][feature]`.
+    /// [`SHAPES`] coherence and one or two saturation bins, and
+    /// [`FEATURES`] features, whose numbers are the bound of [`coherent`]
+    /// (positive) and that of the saturated bin (finite), if any, then the
+    /// filters indexed `[saturation][position][orientation][shape][missing
+    /// colour][feature]`.
     ///
     /// Returns `None` for a malformed file.
     pub(super) fn parse(bytes: &[u8]) -> Option<Oriented> {
         let file = File::read(bytes)?;
-        let size = 1 + POSITIONS * ORIENTATIONS * SHAPES * 2 * FEATURES;
-        if file.bins != [ORIENTATIONS, 1, SHAPES, 1] || file.features != FEATURES {
+        let saturations = file.bins[3];
+        let per_bin = POSITIONS * ORIENTATIONS * SHAPES;
+        if file.bins[..3] != [ORIENTATIONS, 1, SHAPES]
+            || !(1..=2).contains(&saturations)
+            || file.features != FEATURES
+            || file.numbers.len() != saturations * (1 + per_bin * 2 * FEATURES)
+        {
             return None;
         }
-        if file.numbers.len() != size {
+        let (bounds, filters) = file.numbers.split_at(saturations);
+        let (coherence, saturation) = (bounds[0], bounds.get(1).copied());
+        let finite = saturation.is_none_or(f32::is_finite);
+        if !(coherence > 0.0 && coherence.is_finite() && finite) {
             return None;
         }
-        let (&coherence, filters) = file.numbers.split_first()?;
-        if !(coherence > 0.0 && coherence.is_finite()) {
-            return None;
-        }
-        let mut tables = [[[[0.0; 16]; 2]; TAPS]; 2];
+        let mut tables = [[[[0.0; 2 * LANES]; 2]; TAPS]; 2];
         for (class, filter) in filters.chunks_exact(2 * FEATURES).enumerate() {
+            let (saturated, class) = (class / per_bin, class % per_bin);
             let per_position = ORIENTATIONS * SHAPES;
             let (position, rest) = (class / per_position, class % per_position);
             let (lane, kind) = (
-                Self::lane(position, rest / SHAPES, rest % SHAPES),
+                LANES * saturated + Self::lane(position, rest / SHAPES, rest % SHAPES),
                 &mut tables[position / 2],
             );
             // The fourth column of each window is zero: it is not a tap.
@@ -93,7 +122,11 @@ impl Oriented {
                 }
             }
         }
-        Some(Oriented { tables, coherence })
+        Some(Oriented {
+            tables,
+            coherence,
+            saturation,
+        })
     }
 
     /// A class's entry in its row's tables: the parity of its CFA
@@ -163,11 +196,8 @@ fn orientation(a: f32, c: f32) -> u32 {
 }
 
 impl Bank for Oriented {
-    /// None: a saturated bin would need tables of 32 classes, and its
-    /// measure cost "raisr_cd" 9 % of its speed (see
-    /// `imgform_rs.training.demosaic`).
     fn saturation(&self) -> Option<(f32, u32)> {
-        None
+        self.saturation.map(|t| (t, LANES as u32))
     }
 
     #[inline(always)]
@@ -183,35 +213,60 @@ impl Bank for Oriented {
     }
 
     #[inline(always)]
-    fn correct(f: &Filters<Self>, row: Row, class: &[u32], mut dst: [&mut [f32]; 3]) {
-        let Row {
+    fn correct(f: &Filters<Self>, row: Row, class: &[u32], dst: [&mut [f32]; 3]) {
+        // Only a bank with a saturated bin pays for tables twice as wide.
+        if f.bank.saturation.is_some() {
+            correct_row::<true>(f, row, class, dst);
+        } else {
+            correct_row::<false>(f, row, class, dst);
+        }
+    }
+}
+
+/// [`Bank::correct`] with tables of `2 * LANES` classes (`WIDE`) or of
+/// [`LANES`], the classes of a bank without a saturated bin.
+#[inline(always)]
+fn correct_row<const WIDE: bool>(
+    f: &Filters<Oriented>,
+    row: Row,
+    class: &[u32],
+    mut dst: [&mut [f32]; 3],
+) {
+    let Row {
+        kind,
+        halo,
+        windows,
+        ..
+    } = row;
+    let end = class.len() - halo;
+    let tables = &f.bank.tables[usize::from(kind.blue)];
+    let mut x = halo;
+    let src = [windows[3], windows[4], windows[5]];
+    #[cfg(target_arch = "x86_64")]
+    if f.isa == Isa::Avx512 {
+        let dst = dst.each_mut().map(|d| &mut **d);
+        // SAFETY: `Isa::Avx512` is only made on CPUs with the AVX-512
+        // subsets, AVX2 and FMA.
+        let cols = (x..end, f.chroma_bound);
+        x = unsafe { add_avx512::<WIDE>(tables, kind, class, src, dst, windows, cols) };
+    }
+    #[cfg(target_arch = "x86_64")]
+    if f.isa != Isa::Baseline {
+        let dst = dst.each_mut().map(|d| &mut **d);
+        // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
+        // with AVX2 and FMA.
+        let cols = (x..end, f.chroma_bound);
+        x = unsafe { add_avx2::<WIDE>(tables, kind, class, src, dst, windows, cols) };
+    }
+    for (x, &c) in class[..end].iter().enumerate().skip(x) {
+        let d = apply(tables, c as usize, windows, x);
+        add1(
             kind,
-            halo,
-            windows,
-            ..
-        } = row;
-        let end = class.len() - halo;
-        let tables = &f.bank.tables[usize::from(kind.blue)];
-        let mut x = halo;
-        let src = [windows[3], windows[4], windows[5]];
-        #[cfg(target_arch = "x86_64")]
-        if f.isa == Isa::Avx512 {
-            let dst = dst.each_mut().map(|d| &mut **d);
-            // SAFETY: `Isa::Avx512` is only made on CPUs with the AVX-512
-            // subsets, AVX2 and FMA.
-            x = unsafe { add_avx512(tables, kind, class, src, dst, windows, x..end) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if f.isa != Isa::Baseline {
-            let dst = dst.each_mut().map(|d| &mut **d);
-            // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
-            // with AVX2 and FMA.
-            x = unsafe { add_avx2(tables, kind, class, src, dst, windows, x..end) };
-        }
-        for (x, &c) in class[..end].iter().enumerate().skip(x) {
-            let d = apply(tables, c as usize, windows, x);
-            add1(kind, src, dst.each_mut().map(|d| &mut **d), x, d);
-        }
+            src,
+            dst.each_mut().map(|d| &mut **d),
+            (x, f.chroma_bound),
+            d,
+        );
     }
 }
 
@@ -248,17 +303,19 @@ fn apply(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-fn add_avx2(
+fn add_avx2<const WIDE: bool>(
     tables: &[[Table; 2]; TAPS],
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
     dst: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
-    cols: Range<usize>,
+    cols: (Range<usize>, Option<f32>),
 ) -> usize {
     // SAFETY: AVX2 and FMA are enabled here.
-    unsafe { add_lanes::<std::arch::x86_64::__m256>(tables, kind, class, src, dst, rows, cols) }
+    unsafe {
+        add_lanes::<std::arch::x86_64::__m256, WIDE>(tables, kind, class, src, dst, rows, cols)
+    }
 }
 
 /// [`add_avx2`] sixteen pixels at a time: each tap table fills a 512-bit
@@ -269,17 +326,19 @@ fn add_avx2(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 #[inline]
-fn add_avx512(
+fn add_avx512<const WIDE: bool>(
     tables: &[[Table; 2]; TAPS],
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
     dst: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
-    cols: Range<usize>,
+    cols: (Range<usize>, Option<f32>),
 ) -> usize {
     // SAFETY: the AVX-512 subsets, AVX2 and FMA are enabled here.
-    unsafe { add_lanes::<std::arch::x86_64::__m512>(tables, kind, class, src, dst, rows, cols) }
+    unsafe {
+        add_lanes::<std::arch::x86_64::__m512, WIDE>(tables, kind, class, src, dst, rows, cols)
+    }
 }
 
 /// The vector operations of the filter loop ([`add_lanes`]), at eight
@@ -297,29 +356,49 @@ trait Lanes: Copy {
     /// The classes of a step's pixels.
     type Index: Copy;
     unsafe fn classes(p: *const u32) -> Self::Index;
+    /// Whether any of the classes is in a table's second half.
+    unsafe fn saturated(index: Self::Index) -> bool;
     unsafe fn load(p: *const f32) -> Self;
-    /// A tap of each pixel's class, from the tap's table.
-    unsafe fn tap(table: &Table, index: Self::Index) -> Self;
+    /// A tap of each pixel's class, from the tap's table: its first
+    /// [`LANES`] entries, or all of them if `WIDE`.
+    unsafe fn tap<const WIDE: bool>(table: &Table, index: Self::Index) -> Self;
     unsafe fn zero() -> Self;
     /// `a * b + c`, rounded once.
     unsafe fn fmadd(a: Self, b: Self, c: Self) -> Self;
     unsafe fn add(a: Self, b: Self) -> Self;
-    /// [`add1`] for the `N` columns from `x`, the corrections as vectors.
-    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], x: usize, d: [Self; 2]);
+    /// [`add1`] for the `N` columns from `x`, the corrections as vectors
+    /// [`super::raisr::bound`] by `limit`.
+    unsafe fn store(
+        kind: RowKind,
+        src: [&[f32]; 3],
+        dst: [&mut [f32]; 3],
+        at: (usize, Option<f32>),
+        d: [Self; 2],
+    );
 }
 
 #[cfg(target_arch = "x86_64")]
 impl Lanes for std::arch::x86_64::__m256 {
     const N: usize = 8;
-    /// The classes, and bit 3 of each moved to the sign bit, which picks
-    /// the table's second half in a blend.
-    type Index = (std::arch::x86_64::__m256i, std::arch::x86_64::__m256);
+    /// The classes, and bits 3 and 4 of each moved to the sign bit, which
+    /// pick the table's eights in blends.
+    type Index = (std::arch::x86_64::__m256i, [std::arch::x86_64::__m256; 2]);
     #[inline(always)]
     unsafe fn classes(p: *const u32) -> Self::Index {
         use std::arch::x86_64::*;
         // SAFETY: by the trait's contract.
         let index = unsafe { _mm256_loadu_si256(p.cast()) };
-        (index, _mm256_castsi256_ps(_mm256_slli_epi32::<28>(index)))
+        let bit = |b: __m256i| _mm256_castsi256_ps(b);
+        let bits = [
+            bit(_mm256_slli_epi32::<28>(index)),
+            bit(_mm256_slli_epi32::<27>(index)),
+        ];
+        (index, bits)
+    }
+    #[inline(always)]
+    unsafe fn saturated((_, [_, b4]): Self::Index) -> bool {
+        // SAFETY: by the trait's contract.
+        unsafe { std::arch::x86_64::_mm256_movemask_ps(b4) != 0 }
     }
     #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
@@ -327,14 +406,23 @@ impl Lanes for std::arch::x86_64::__m256 {
         unsafe { std::arch::x86_64::_mm256_loadu_ps(p) }
     }
     #[inline(always)]
-    unsafe fn tap(table: &Table, (index, high): Self::Index) -> Self {
+    unsafe fn tap<const WIDE: bool>(table: &Table, (index, [b3, b4]): Self::Index) -> Self {
         use std::arch::x86_64::*;
-        // SAFETY: by the trait's contract; a table holds 16 values, and
+        // SAFETY: by the trait's contract; a table holds 32 values, and
         // the permutes read the classes' low 3 bits.
         unsafe {
-            let low = _mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr()), index);
-            let up = _mm256_permutevar8x32_ps(_mm256_loadu_ps(table.as_ptr().add(8)), index);
-            _mm256_blendv_ps(low, up, high)
+            let sixteen = |from: usize| {
+                let eight = |k: usize| {
+                    let v = _mm256_loadu_ps(table.as_ptr().add(from + 8 * k));
+                    _mm256_permutevar8x32_ps(v, index)
+                };
+                _mm256_blendv_ps(eight(0), eight(1), b3)
+            };
+            if WIDE {
+                _mm256_blendv_ps(sixteen(0), sixteen(LANES), b4)
+            } else {
+                sixteen(0)
+            }
         }
     }
     #[inline(always)]
@@ -353,9 +441,15 @@ impl Lanes for std::arch::x86_64::__m256 {
         unsafe { std::arch::x86_64::_mm256_add_ps(a, b) }
     }
     #[inline(always)]
-    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], x: usize, d: [Self; 2]) {
+    unsafe fn store(
+        kind: RowKind,
+        src: [&[f32]; 3],
+        dst: [&mut [f32]; 3],
+        at: (usize, Option<f32>),
+        d: [Self; 2],
+    ) {
         // SAFETY: by the trait's contract.
-        unsafe { super::raisr::add8_avx2(kind, src, dst, x, d) }
+        unsafe { super::raisr::add8_avx2(kind, src, dst, at, d) }
     }
 }
 
@@ -369,16 +463,30 @@ impl Lanes for std::arch::x86_64::__m512 {
         unsafe { std::arch::x86_64::_mm512_loadu_si512(p.cast()) }
     }
     #[inline(always)]
+    unsafe fn saturated(index: Self::Index) -> bool {
+        use std::arch::x86_64::*;
+        // SAFETY: by the trait's contract.
+        unsafe { _mm512_test_epi32_mask(index, _mm512_set1_epi32(LANES as i32)) != 0 }
+    }
+    #[inline(always)]
     unsafe fn load(p: *const f32) -> Self {
         // SAFETY: by the trait's contract.
         unsafe { std::arch::x86_64::_mm512_loadu_ps(p) }
     }
     #[inline(always)]
-    unsafe fn tap(table: &Table, index: Self::Index) -> Self {
+    unsafe fn tap<const WIDE: bool>(table: &Table, index: Self::Index) -> Self {
         use std::arch::x86_64::*;
-        // SAFETY: by the trait's contract; a table holds 16 values, and
-        // the classes are below 16.
-        unsafe { _mm512_permutexvar_ps(index, _mm512_loadu_ps(table.as_ptr())) }
+        // SAFETY: by the trait's contract; a table holds 32 values, and
+        // the classes are below 32 (below 16 unless `WIDE`).
+        unsafe {
+            let low = _mm512_loadu_ps(table.as_ptr());
+            if WIDE {
+                let high = _mm512_loadu_ps(table.as_ptr().add(LANES));
+                _mm512_permutex2var_ps(low, index, high)
+            } else {
+                _mm512_permutexvar_ps(index, low)
+            }
+        }
     }
     #[inline(always)]
     unsafe fn zero() -> Self {
@@ -398,7 +506,13 @@ impl Lanes for std::arch::x86_64::__m512 {
     /// The first correction goes to green at the chroma sites and to the
     /// own chroma elsewhere, by masks.
     #[inline(always)]
-    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], x: usize, d: [Self; 2]) {
+    unsafe fn store(
+        kind: RowKind,
+        src: [&[f32]; 3],
+        dst: [&mut [f32]; 3],
+        (x, limit): (usize, Option<f32>),
+        d: [Self; 2],
+    ) {
         use std::arch::x86_64::*;
         let ([so, sg, st], [own, green, other], [d0, d1]) = (src, dst, d);
         // Lanes of chroma sites: the even ones when column `x` is one.
@@ -406,6 +520,19 @@ impl Lanes for std::arch::x86_64::__m512 {
             0x5555
         } else {
             0xaaaa
+        };
+        let (d0, d1) = match limit {
+            // `bound`, lane by lane.
+            Some(limit) => {
+                let (lo, hi) = (_mm512_set1_ps(-limit), _mm512_set1_ps(limit));
+                let clamp = |v: __m512| _mm512_min_ps(_mm512_max_ps(v, lo), hi);
+                let moved = clamp(_mm512_mask_sub_ps(d1, chroma, d1, d0));
+                (
+                    _mm512_mask_mov_ps(d0, !chroma, clamp(d0)),
+                    _mm512_mask_add_ps(moved, chroma, d0, moved),
+                )
+            }
+            None => (d0, d1),
         };
         let (o, g, t) = (
             &mut own[x..x + 16],
@@ -432,17 +559,18 @@ impl Lanes for std::arch::x86_64::__m512 {
 /// as far as whole steps go; returns the first column left.
 ///
 /// # Safety
-/// The CPU features of `V`'s width.
+/// The CPU features of `V`'s width; the classes below [`LANES`] unless
+/// `WIDE`.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn add_lanes<V: Lanes>(
+unsafe fn add_lanes<V: Lanes, const WIDE: bool>(
     tables: &[[Table; 2]; TAPS],
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
-    cols: Range<usize>,
+    (cols, limit): (Range<usize>, Option<f32>),
 ) -> usize {
     // A step of pixels from column `x` reads their windows' columns `x - 1
     // .. x + N + 1`: checked once here, so the loads need no checks of
@@ -452,22 +580,48 @@ unsafe fn add_lanes<V: Lanes>(
     let mut x = cols.start;
     while x + V::N <= cols.end {
         // SAFETY: the assertion above keeps every load in bounds (and the
-        // loads are unaligned ones); the classes are below 16, as the
-        // permutes need.
+        // loads are unaligned ones); the classes are within the tables, by
+        // the caller's contract.
         let d = unsafe {
             let index = V::classes(class.as_ptr().add(x));
-            // Written out: closures here were not inlined (each call
-            // passed its vectors through memory).
-            let [a0, a1] = row_sums::<V>(tables, rows, index, 0, x - 1);
-            let [b0, b1] = row_sums::<V>(tables, rows, index, 1, x - 1);
-            let [c0, c1] = row_sums::<V>(tables, rows, index, 2, x - 1);
-            [V::add(V::add(a0, b0), c0), V::add(V::add(a1, b1), c1)]
+            // Most steps have no saturated pixel (nine in ten on the
+            // benchmark's photograph): those read the tables' first half
+            // alone, which gives the same taps at half the loads.
+            if WIDE && V::saturated(index) {
+                step::<V, true>(tables, rows, index, x - 1)
+            } else {
+                step::<V, false>(tables, rows, index, x - 1)
+            }
         };
         // SAFETY: the caller's features; `x + N` is within the rows.
-        unsafe { V::store(kind, src, [&mut *own, &mut *green, &mut *other], x, d) };
+        let dst = [&mut *own, &mut *green, &mut *other];
+        unsafe { V::store(kind, src, dst, (x, limit), d) };
         x += V::N;
     }
     x
+}
+
+/// The two corrections of a step's pixels of classes `index` whose
+/// windows start at column `left`: [`row_sums`] of each window row, added.
+///
+/// # Safety
+/// As [`row_sums`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn step<V: Lanes, const WIDE: bool>(
+    tables: &[[Table; 2]; TAPS],
+    rows: &[&[f32]; WINDOWS],
+    index: V::Index,
+    left: usize,
+) -> [V; 2] {
+    // SAFETY: by the caller's contract. Written out: closures here were
+    // not inlined (each call passed its vectors through memory).
+    unsafe {
+        let [a0, a1] = row_sums::<V, WIDE>(tables, rows, index, 0, left);
+        let [b0, b1] = row_sums::<V, WIDE>(tables, rows, index, 1, left);
+        let [c0, c1] = row_sums::<V, WIDE>(tables, rows, index, 2, left);
+        [V::add(V::add(a0, b0), c0), V::add(V::add(a1, b1), c1)]
+    }
 }
 
 /// The two corrections' partial sums over window row `r` (windows `3 r ..
@@ -477,11 +631,11 @@ unsafe fn add_lanes<V: Lanes>(
 /// six kept them on the stack.
 ///
 /// # Safety
-/// The CPU features of `V`'s width, and columns `left .. left + N + 2` of
-/// the window rows in bounds.
+/// The CPU features of `V`'s width, columns `left .. left + N + 2` of the
+/// window rows in bounds, and the classes below [`LANES`] unless `WIDE`.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-unsafe fn row_sums<V: Lanes>(
+unsafe fn row_sums<V: Lanes, const WIDE: bool>(
     tables: &[[Table; 2]; TAPS],
     rows: &[&[f32]; WINDOWS],
     index: V::Index,
@@ -495,8 +649,8 @@ unsafe fn row_sums<V: Lanes>(
             for dx in 0..3 {
                 let [t0, t1] = &tables[3 * k + dx];
                 let v = V::load(rows[k].as_ptr().add(left + dx));
-                a0 = V::fmadd(V::tap(t0, index), v, a0);
-                a1 = V::fmadd(V::tap(t1, index), v, a1);
+                a0 = V::fmadd(V::tap::<WIDE>(t0, index), v, a0);
+                a1 = V::fmadd(V::tap::<WIDE>(t1, index), v, a1);
             }
         }
         [a0, a1]
@@ -518,6 +672,10 @@ mod tests {
             assert!(taps().all(|v| v.is_finite()));
             assert!(taps().any(|&v| v != 0.0));
         }
+        // "best" (raisr_cd) has a saturated bin; the others have none.
+        assert_eq!(Oriented::raisr_cd().saturation(), Some((0.3, 16)));
+        assert!(Oriented::raisr_fast().saturation.is_none());
+        assert!(Oriented::fusion_refined().saturation.is_none());
         let bytes = include_bytes!("raisr_fast_weights.bin");
         assert!(Oriented::parse(&bytes[..bytes.len() - 4]).is_none());
         // RAISR's bank has the full hash's bins.
@@ -526,6 +684,17 @@ mod tests {
         let mut bound = bytes.to_vec();
         bound[28..32].copy_from_slice(&(-0.5f32).to_le_bytes());
         assert!(Oriented::parse(&bound).is_none());
+        // The saturated bin's bound follows it, and must be finite.
+        let saturated = include_bytes!("raisr_cd_weights.bin");
+        let mut bound = saturated.to_vec();
+        bound[32..36].copy_from_slice(&f32::NAN.to_le_bytes());
+        assert!(Oriented::parse(&bound).is_none());
+        // One or two saturation bins, and the numbers to match.
+        for (file, bins) in [(&bytes[..], 2u32), (&saturated[..], 1), (&saturated[..], 3)] {
+            let mut odd = file.to_vec();
+            odd[20..24].copy_from_slice(&bins.to_le_bytes());
+            assert!(Oriented::parse(&odd).is_none(), "{bins} bins");
+        }
     }
 
     #[test]
@@ -571,7 +740,6 @@ mod tests {
             })
             .collect();
         let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
-        let class: Vec<u32> = (0..40).map(|i| (i * 7 % 16) as u32).collect();
         type Loop = unsafe fn(
             &[[Table; 2]; TAPS],
             RowKind,
@@ -579,20 +747,30 @@ mod tests {
             [&[f32]; 3],
             [&mut [f32]; 3],
             &[&[f32]; WINDOWS],
-            Range<usize>,
+            (Range<usize>, Option<f32>),
         ) -> usize;
-        let loops: &[Loop] = if wide {
-            &[add_avx2, add_avx512]
-        } else {
-            &[add_avx2]
-        };
         for bank in [
             Oriented::raisr_fast(),
             Oriented::raisr_cd(),
             Oriented::fusion_refined(),
         ] {
+            // Every class of the bank's tables, the saturated half too.
+            let (loops, lanes): (Vec<Loop>, _) = match bank.saturation {
+                Some(_) => (vec![add_avx2::<true>, add_avx512::<true>], 2 * LANES),
+                None => (vec![add_avx2::<false>, add_avx512::<false>], LANES),
+            };
+            let loops = &loops[..1 + usize::from(wide)];
+            // Saturated classes from column 20 on only, so that some steps
+            // of either width have none (and read the tables' first half).
+            let class: Vec<u32> = (0..40)
+                .map(|i| (i * 7 % if i < 20 { LANES } else { lanes }) as u32)
+                .collect();
             for (blue, tables) in bank.tables.iter().enumerate() {
-                for parity in 0..2 {
+                // Unbounded, and bounded tightly enough to cut corrections.
+                for (parity, limit) in [0, 1]
+                    .into_iter()
+                    .flat_map(|p| [(p, None), (p, Some(0.05))])
+                {
                     let kind = RowKind {
                         blue: blue == 1,
                         chroma_parity: parity,
@@ -601,13 +779,15 @@ mod tests {
                     let mut slow = [0; 3].map(|_| vec![1.0f32; 40]);
                     for (x, &c) in class.iter().enumerate().take(33).skip(1) {
                         let d = apply(tables, c as usize, &rows, x);
-                        add1(kind, src, slow.each_mut().map(|p| &mut p[..]), x, d);
+                        let dst = slow.each_mut().map(|p| &mut p[..]);
+                        add1(kind, src, dst, (x, limit), d);
                     }
                     for run in loops {
                         let mut fast = [0; 3].map(|_| vec![1.0f32; 40]);
                         let dst = fast.each_mut().map(|p| &mut p[..]);
                         // SAFETY: the features were detected above.
-                        let end = unsafe { run(tables, kind, &class, src, dst, &rows, 1..33) };
+                        let cols = (1..33, limit);
+                        let end = unsafe { run(tables, kind, &class, src, dst, &rows, cols) };
                         assert_eq!(end, 33);
                         let bits = |p: &[Vec<f32>; 3]| {
                             p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()

@@ -83,8 +83,8 @@ impl Parts<'_> {
     /// saturated to the bank's saturated bin, if it has one.
     #[inline(always)]
     pub(super) fn saturate<B>(&mut self, f: &Filters<B>, y: usize, cols: Range<usize>) {
-        if let Some(bin) = f.saturated {
-            self.saturation.classes(y, bin, self.class, cols);
+        if f.saturated.is_some() {
+            self.saturation.classes(y, self.class, cols);
         }
     }
 }
@@ -145,9 +145,9 @@ impl Window {
         for (p, row) in rows.into_iter().enumerate() {
             f.clamp(row, plane_mut(dst, p, row.len()));
         }
-        if f.saturated.is_some() {
+        if let Some(bin) = f.saturated {
             let clamped = plane_row(self.base.row(ty), self.stride);
-            self.saturation.push(kind, clamped, ty, first);
+            self.saturation.push(kind, clamped, (ty, first), bin);
         }
         // The hash's sums start a row below the base's first row
         // (gradients across rows), the output two below that.
@@ -276,8 +276,6 @@ impl<B: Bank, E: Emit> Emit for Rows<'_, B, E> {
         B::classes(f, &row, p.class);
         p.saturate(f, y, halo..t.stride - halo);
         B::correct(f, row, p.class, p.dst.each_mut().map(|r| &mut **r));
-        let src = plane_row(p.rows[1], t.stride);
-        f.bound_chroma(src, p.dst, halo..t.stride - halo);
         self.rows.hand_on(t, y, self.out);
     }
 }

@@ -1,177 +1,169 @@
-//! How colourful a base is around each pixel, for the fusion's saturated
-//! classes ([`super::raisr::Weights`] with two saturation bins,
-//! [`super::raisr::Bank::saturation`]): the absolute values of the local
-//! means of `R - G` and `B - G`, added.
+//! How colourful a base is around each pixel, for the saturated classes of
+//! the fusion and of "raisr_cd" ([`super::raisr::Bank::saturation`]): the
+//! absolute values of the sums of `R - G` and `B - G` over a 4x4 window,
+//! added.
 //!
 //! Where colours are saturated, the channels are weakly correlated, and
 //! filters fitted on photographs (whose channels mostly move together) lean
 //! on colour differences that no longer hold: on the held-out training
 //! photographs with their chroma tripled, the fusion trailed MLRI by 0.6
-//! dB. Filters of their own for such pixels recover most of it.
+//! dB and "raisr_cd" by 0.7 dB. Filters of their own for such pixels
+//! recover most of it.
 //!
-//! The means are of *signed* differences over a 5x5 tent (two 3x3 box sums
-//! in a row), so the false colour a mosaic aliases into on fine grey
-//! detail, which alternates in sign from pixel to pixel, averages away
-//! instead of sending the pixel to the saturated filters: the 3x3 mean of
-//! `|R - G| + |B - G|` left 11 % more false colour on the grey zone plate
-//! (the fusion alone, 6494 against 5875) for the same gain.
+//! The window is the four CFA quads (the 2x2 cells, red at the top left)
+//! that meet at a corner of the quads' grid, and it decides the four pixels
+//! around that corner: each pixel takes its nearest corner's, so no window
+//! reaches further than two rows or columns, as the filters' windows do.
+//! The sums are *signed* and over whole CFA periods, so the false colour a
+//! mosaic aliases into on fine grey detail, which alternates in sign from
+//! pixel to pixel, cancels instead of sending the pixel to the saturated
+//! filters: the mean of `|R - G| + |B - G|` left 11 % more false colour on
+//! the grey zone plate for the same gain. Each pixel's own 5x5 tent of
+//! signed differences, which this replaced, scored the same (within 0.02
+//! dB at every chroma scale, for "raisr_cd" and the fusion) with a little
+//! more false colour (5134 against 5040 for "raisr_cd"), but its sums took
+//! 6 % of "raisr_cd"'s time, these 2 %: the tent kept "best" below 4x
+//! LibRaw's AHD.
 //!
-//! The sums stream with the base's rows, as the structure tensor's do
-//! ([`super::refined::Window`]): each row that comes adds the horizontal
-//! 3-sums of its differences and completes the 3x3 sums of the row above
-//! it, which are kept as their horizontal 3-sums; the output row two above
-//! adds three of those. Each sum is taken once, in the training script's
-//! order.
+//! The sums stream with the base's rows ([`super::refined::Window`]): a
+//! red row leaves its differences, and the blue row below adds its own,
+//! completes the quads and, with the quads above, the corners between
+//! them. Each sum is taken in the training script's order.
 
 use super::raisr::PITCH;
-use super::ring::Ring;
 use super::RowKind;
 use std::ops::Range;
 
-/// Rows of each stage's sums kept: the three its next stage adds.
-const DEPTH: usize = 3;
+/// Pixels of a window.
+const WINDOW: f32 = 16.0;
 
-/// Plane `p` (`R - G`, then `B - G`) of a ring's row, its planes [`PITCH`]
-/// apart.
-fn difference_plane(row: &[f32], p: usize) -> &[f32] {
-    &row[p * PITCH..(p + 1) * PITCH]
-}
-
-/// `(a + b) + c` of three sequences: every sum here, in the training
-/// script's order, as loops the compiler vectorises.
-#[inline(always)]
-fn sum3<'a>(
-    a: impl Iterator<Item = f32> + 'a,
-    b: impl Iterator<Item = f32> + 'a,
-    c: impl Iterator<Item = f32> + 'a,
-) -> impl Iterator<Item = f32> + 'a {
-    a.zip(b).zip(c).map(|((a, b), c)| (a + b) + c)
-}
-
-/// The sums of a row's values one column left, at and one right of each
-/// column from `x` on.
-#[inline(always)]
-fn across(row: &[f32], x: usize) -> impl Iterator<Item = f32> + '_ {
-    let from = |x: usize| row[x..].iter().copied();
-    sum3(from(x - 1), from(x), from(x + 1))
-}
-
-/// The sums of plane `p` of three rows over columns `cols`, added.
-#[inline(always)]
-fn down<'a>(rows: [&'a [f32]; 3], p: usize, cols: Range<usize>) -> impl Iterator<Item = f32> + 'a {
-    let [a, b, c] = rows.map(|r| difference_plane(r, p)[cols.clone()].iter().copied());
-    sum3(a, b, c)
-}
-
-/// The running sums of the base's colour differences.
+/// The running sums of the base's colour differences. They are kept at
+/// every column, though only those of the quads' first columns are a
+/// quad's or a corner's: contiguous loops that the compiler vectorises
+/// cost less than gathering every other column. Few rows are kept, and
+/// each blue row's corners are found in one pass, since the sums' rows
+/// compete for the cache with the filters'.
 pub(super) struct Saturation {
-    /// Each row's horizontal 3-sums of `R - G` and `B - G`.
-    across: Ring,
-    /// The horizontal 3-sums of the 3x3 sums (three rows of `across`,
-    /// added): three rows of these, added, are the tent's sums.
-    boxed: Ring,
-    /// Room for a plane of a row's 3x3 sums.
-    scratch: Vec<f32>,
+    /// `R - G` and `B - G` of the red row; once the blue row below has
+    /// come, with its own added: each column's of the quads.
+    columns: Vec<f32>,
+    /// The sums of the quads at and two columns left of each column, of
+    /// the last row of quads.
+    above: Vec<f32>,
+    /// The saturated bin's offset or zero for each corner of the last row
+    /// of corners, at the column to its right.
+    corners: Vec<u32>,
+    /// The red sites' column parity, where quads start.
+    red: usize,
+    /// The tile row just below the last corners (a red row).
+    corner: usize,
 }
 
 impl Saturation {
     pub(super) fn new() -> Self {
         Saturation {
-            across: Ring::new(2 * PITCH, DEPTH, 0),
-            boxed: Ring::new(2 * PITCH, DEPTH, 0),
-            scratch: vec![0.0; PITCH],
+            columns: vec![0.0; 2 * PITCH],
+            above: vec![0.0; 2 * PITCH],
+            corners: vec![0; PITCH],
+            red: 0,
+            corner: 0,
         }
     }
 
     /// Takes the base's (clamped) row `ty` of `kind`, its planes own
     /// chroma, green and other chroma `n` long, the base's rows starting at
     /// tile row `first` and sound in columns `first .. n - first` (a tile's
-    /// base is as narrow as it is short).
+    /// base is as narrow as it is short); a blue row completes the corners
+    /// above it, each saturated if its sums' absolute values add up to at
+    /// least `least` (of [`least_saturated`]), which moves its pixels'
+    /// classes `offset` on.
     #[inline(always)]
     pub(super) fn push(
         &mut self,
         kind: RowKind,
         [own, green, other]: [&[f32]; 3],
-        ty: usize,
-        first: usize,
+        (ty, first): (usize, usize),
+        (least, offset): (f32, u32),
     ) {
-        let n = green.len();
-        let inner = first + 1..n - first - 1;
         let (red, blue) = if kind.blue {
             (other, own)
         } else {
             (own, other)
         };
-        let row = self.across.row_mut(ty);
+        if kind.blue && ty == first {
+            return; // no red row above
+        }
+        let n = green.len();
         for (p, chroma) in [red, blue].into_iter().enumerate() {
-            let diff = |x: usize| chroma[x..].iter().zip(&green[x..]).map(|(c, g)| c - g);
-            let (x, dst) = (
-                inner.start,
-                &mut row[p * PITCH..p * PITCH + n][inner.clone()],
-            );
-            for (d, v) in dst.iter_mut().zip(sum3(diff(x - 1), diff(x), diff(x + 1))) {
-                *d = v;
+            let columns = &mut self.columns[p * PITCH..p * PITCH + n];
+            let differences = chroma.iter().zip(green).map(|(c, g)| c - g);
+            if kind.blue {
+                for (d, v) in columns.iter_mut().zip(differences) {
+                    *d += v;
+                }
+            } else {
+                for (d, v) in columns.iter_mut().zip(differences) {
+                    *d = v;
+                }
             }
         }
-        if ty >= first + 2 {
-            let y = ty - 1;
-            let rows = [y - 1, y, y + 1].map(|r| self.across.row(r));
-            let (dst, boxed) = (self.boxed.row_mut(y), &mut self.scratch[..n]);
-            for p in 0..2 {
-                for (d, v) in boxed[inner.clone()]
-                    .iter_mut()
-                    .zip(down(rows, p, inner.clone()))
-                {
-                    *d = v;
-                }
-                let x = inner.start + 1;
-                let dst = &mut dst[p * PITCH..p * PITCH + n][x..inner.end - 1];
-                for (d, v) in dst.iter_mut().zip(across(boxed, x)) {
-                    *d = v;
-                }
-            }
+        if !kind.blue {
+            return;
+        }
+        // The corners' sums add the quads' sums of the row above to this
+        // row's, which then take their place. Below the tile's first row
+        // of quads, the first row of corners is not an output row's.
+        self.corner = ty - 1;
+        self.red = 1 - kind.chroma_parity;
+        let (columns, above) = (&self.columns, &mut self.above);
+        let quads = |p: usize, x: usize| {
+            let c = &columns[p * PITCH + x..p * PITCH + n];
+            c.iter().zip(&c[1..]).map(|(a, b)| a + b)
+        };
+        let pairs = |p: usize| quads(p, 0).zip(quads(p, 2)).map(|(a, b)| a + b);
+        let (above_red, above_blue) = above.split_at_mut(PITCH);
+        let above = above_red[2..n - 1]
+            .iter_mut()
+            .zip(&mut above_blue[2..n - 1]);
+        let sums = pairs(0).zip(pairs(1));
+        for (c, ((ar, ab), (r, b))) in self.corners[2..n - 1].iter_mut().zip(above.zip(sums)) {
+            let total = (*ar + r).abs() + (*ab + b).abs();
+            *c = if total >= least { offset } else { 0 };
+            (*ar, *ab) = (r, b);
         }
     }
 
-    /// Moves the columns `cols` of output row `y`'s `class` whose tent
-    /// sums' absolute values add up to at least `least` (of
-    /// [`least_saturated`]) to the saturated bin, `offset` classes on. The
-    /// sums run in the training script's order (each row's three columns,
-    /// then the rows), so the classes are its; `cols` lie two columns
-    /// within the sound ones of [`Saturation::push`].
+    /// Moves the columns `cols` of output row `y`'s `class` that are
+    /// saturated to the saturated bin: `y` is one of the rows about the
+    /// last corners, and `cols` lie two columns within the sound ones of
+    /// [`Saturation::push`].
     #[inline(always)]
-    pub(super) fn classes(
-        &self,
-        y: usize,
-        (least, offset): (f32, u32),
-        class: &mut [u32],
-        cols: Range<usize>,
-    ) {
-        let rows = [y - 1, y, y + 1].map(|r| self.boxed.row(r));
-        let sums = down(rows, 0, cols.clone()).zip(down(rows, 1, cols.clone()));
-        for (k, (t0, t1)) in class[cols].iter_mut().zip(sums) {
-            *k += if t0.abs() + t1.abs() >= least {
-                offset
-            } else {
-                0
-            };
+    pub(super) fn classes(&self, y: usize, class: &mut [u32], cols: Range<usize>) {
+        debug_assert!(y == self.corner || y + 1 == self.corner, "row {y}");
+        // A pixel takes the corner at its left edge in a quad's first
+        // column (the red sites'), at its right edge in the second: a
+        // blend of masks, where a select compiled to gathers.
+        let x = cols.start;
+        let corners = self.corners[x..].iter().zip(&self.corners[x + 1..]);
+        for (x, (k, (l, r))) in cols.clone().zip(class[cols].iter_mut().zip(corners)) {
+            let left = (((x ^ self.red) & 1) as u32).wrapping_sub(1);
+            *k += (l & left) | (r & !left);
         }
     }
 }
 
 /// What the training script compares with the saturated bin's threshold:
-/// the tent sums' absolute values, added (`sum`, in the samples' scale),
-/// as means on [0, 1] data (`inv_scale` of the samples) of the tent's 81
-/// weights.
+/// the window sums' absolute values, added (`sum`, in the samples' scale),
+/// as means on [0, 1] data (`inv_scale` of the samples).
 #[inline(always)]
 fn mean(sum: f32, inv_scale: f32) -> f32 {
-    sum * inv_scale / 9.0 / 9.0
+    sum * inv_scale / WINDOW
 }
 
 /// The least sum whose [`mean`] reaches `threshold`, for a positive
 /// `inv_scale`. Each rounding of [`mean`] is monotonic, so a sum is
-/// saturated exactly when it reaches this one: each pixel then takes one
-/// comparison instead of a product and two divisions.
+/// saturated exactly when it reaches this one: each corner then takes one
+/// comparison instead of a product and a division.
 pub(super) fn least_saturated(threshold: f32, inv_scale: f32) -> f32 {
     if mean(0.0, inv_scale) >= threshold {
         return 0.0;
@@ -195,14 +187,17 @@ mod tests {
     use super::*;
 
     /// The classes of output row 2 of five rows of `n` columns whose red
-    /// and blue minus green at column `x` are `chroma(x)`, alternately red
-    /// and blue rows, samples `scale` times data on [0, 1].
-    fn classes(n: usize, scale: f32, chroma: impl Fn(usize) -> (f32, f32)) -> Vec<u32> {
+    /// and blue minus green at column `x` are `chroma(x)`, red rows first,
+    /// the red sites in column parity `rx`, samples `scale` times data on
+    /// [0, 1].
+    fn classes(n: usize, rx: usize, scale: f32, chroma: impl Fn(usize) -> (f32, f32)) -> Vec<u32> {
         let mut s = Saturation::new();
+        let least = least_saturated(0.3, 1.0 / scale);
         for ty in 0..5 {
+            let blue = ty % 2 == 1;
             let kind = RowKind {
-                blue: ty % 2 == 1,
-                chroma_parity: 0,
+                blue,
+                chroma_parity: if blue { 1 - rx } else { rx },
             };
             let green = vec![0.5 * scale; n];
             let [red, blue]: [Vec<f32>; 2] = std::array::from_fn(|p| {
@@ -214,15 +209,10 @@ mod tests {
             } else {
                 (&red, &blue)
             };
-            s.push(kind, [own, &green, other], ty, 0);
+            s.push(kind, [own, &green, other], (ty, 0), (least, 100));
         }
         let mut class = vec![5; n];
-        s.classes(
-            2,
-            (least_saturated(0.3, 1.0 / scale), 100),
-            &mut class,
-            2..n - 2,
-        );
+        s.classes(2, &mut class, 2..n - 2);
         class
     }
 
@@ -248,20 +238,21 @@ mod tests {
     fn saturated_pixels_take_the_classes_past_the_offset() {
         let n = 40;
         for scale in [1.0, 255.0, 4095.0] {
-            // R - G grows along the row, B - G falls as fast: the tent's
-            // means are the centre's, 0.3 x / 20 in all.
-            let class = classes(n, scale, |x| {
-                (0.3 * x as f32 / 40.0, -0.3 * x as f32 / 40.0)
-            });
-            for (x, &c) in class.iter().enumerate() {
-                let want = match x {
-                    0 | 1 => 5,
-                    x if x >= n - 2 => 5,
-                    x if x < 20 => 5,
-                    x if x > 20 => 105,
-                    _ => c, // on the threshold: either, by rounding
-                };
-                assert_eq!(c, want, "column {x}, scale {scale}");
+            for rx in [0, 1] {
+                // R - G grows along the row, B - G falls as fast: a
+                // window's means are its centre's, 0.3 x / 20 in all, and
+                // reach 0.3 past column 20. The corners lie between
+                // columns `rx + 2k - 1` and `rx + 2k`, half a column from
+                // the pixels they decide.
+                let class = classes(n, rx, scale, |x| {
+                    (0.3 * x as f32 / 40.0, -0.3 * x as f32 / 40.0)
+                });
+                let first = 21 - rx;
+                for (x, &c) in class.iter().enumerate() {
+                    let inside = (2..n - 2).contains(&x);
+                    let want = if inside && x >= first { 105 } else { 5 };
+                    assert_eq!(c, want, "column {x}, scale {scale}, red column {rx}");
+                }
             }
         }
     }
@@ -269,12 +260,12 @@ mod tests {
     #[test]
     fn aliased_colour_that_alternates_is_not_saturation() {
         // |R - G| is 0.5 everywhere, but its sign alternates by column, as
-        // a mosaic's false colour on fine grey detail does: the tent's
-        // mean is 0.5 / 9.
-        let class = classes(30, 255.0, |x| (if x % 2 == 0 { 0.5 } else { -0.5 }, 0.0));
+        // a mosaic's false colour on fine grey detail does: the window's
+        // mean is zero.
+        let class = classes(30, 0, 255.0, |x| (if x % 2 == 0 { 0.5 } else { -0.5 }, 0.0));
         assert!(class.iter().all(|&c| c == 5));
         // The same colour, unchanging, is saturated.
-        let class = classes(30, 255.0, |_| (0.5, 0.0));
+        let class = classes(30, 0, 255.0, |_| (0.5, 0.0));
         assert!(class[2..28].iter().all(|&c| c == 105));
     }
 }
