@@ -85,8 +85,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   and the motorcycle's saturated paint. ``"mlri"`` streams down tall tiles, and
   each row it hands over completes the refinement of the row two above it (rings of
   four rows of ``"mlri"`` and three of the hash's sums; the same bits as refining
-  whole planes): 80 MP/s at 24 MP on two cores, 1.4x the time of ``"mlri"`` and
-  2.8x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), and 4 % of the output
+  whole planes): 77 MP/s at 24 MP on two cores, 1.4x the time of ``"mlri"`` and
+  2.8x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-06), and 4 % of the output
   in extra memory.
 - ``"raisr_fast"``: ``"raisr"`` with a hash of orientation and shape alone. Its 32
   filters are chosen by the CFA position, the quadrant of the doubled orientation of
@@ -101,9 +101,9 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   range of the input mosaic. Mean CPSNR 39.69 dB on the scikit-image seven, 39.84 on
   CBSD68, 36.20 on Urban24: within 0.2 dB of ``"raisr"`` on each subset and 0.6-0.9
   dB above every classical peer we run. On the grey zone plate less false colour than
-  ``"mlri"`` (11939 against 13662; zipper 35.9 % against 37.2 %). 97 MP/s at 24 MP
-  on two cores, 1.1x the time of ``"mlri"``, 3.4x LibRaw's AHD and 1.2x as fast as
-  ``"raisr"`` (``benchmarks/demosaic.py``, 2026-12-05), in 4 % of the output in
+  ``"mlri"`` (11939 against 13662; zipper 35.9 % against 37.2 %). 92 MP/s at 24 MP
+  on two cores, 1.2x the time of ``"mlri"``, 3.3x LibRaw's AHD and 1.2x as fast as
+  ``"raisr"`` (``benchmarks/demosaic.py``, 2026-12-06), in 4 % of the output in
   extra memory.
 - ``"ri_cd"``: ``"mlri"``'s green (residual interpolation along rows and columns,
   combined by the colour-difference gradients), then red and blue by colour
@@ -120,18 +120,22 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   each subset. The base of ``"raisr_cd"``.
 - ``"raisr_cd"``: ``"raisr_fast"``'s 32 filters hashed by orientation and shape,
   trained over ``"ri_cd"`` instead of ``"mlri"`` (``python -m
-  imgform_rs.training.demosaic --method raisr_cd``; 6 KB): the filters recover what
-  the cheaper chroma loses, and the result is within 0.04 dB of ``"raisr_fast"`` on
-  each validation subset (39.65 dB on the scikit-image seven, 39.82 on CBSD68, 36.18
-  on Urban24; 0.62-0.85 dB above every classical peer we run on each) at 0.80x its
-  time: 121 MP/s at 24 MP on two cores, 4.26x LibRaw's AHD, in 3.7 % of the output
-  in extra memory (``benchmarks/demosaic.py``, 2026-12-05; ``"raisr_fast"`` 97 MP/s,
-  ``"mlri"`` 109). Less false colour and zipper on the grey charts than any other
-  residual-interpolation method (zone plate 5309 and 35.6 % against
+  imgform_rs.training.demosaic --method raisr_cd``; 13 KB): the filters recover what
+  the cheaper chroma loses. Like ``"fusion"``, it splits each class in two by how
+  colourful the base is around the pixel, and bounds its corrections the same way:
+  on the nine held-out photographs with their chroma doubled and tripled it scores
+  33.72 and 31.74 dB (0.22 and 0.52 dB more than without; ``"mlri"`` 33.76 and
+  31.95). Within 0.06 dB of ``"raisr_fast"`` on each validation subset (39.67 dB on
+  the scikit-image seven, 39.84 on CBSD68, 36.26 on Urban24; 0.70-0.87 dB above every
+  classical peer we run on each) at 0.80x its time: 115 MP/s at 24 MP
+  on two cores, 4.1x LibRaw's AHD, in 3.7 % of the output in extra memory
+  (``benchmarks/demosaic.py``, 2026-12-06; ``"raisr_fast"`` 92 MP/s, ``"mlri"``
+  108). Less false colour and zipper on the grey charts than any other
+  residual-interpolation method (zone plate 5040 and 34.4 % against
   ``"raisr_fast"``'s 11939 and 35.9 %). Its classes split each orientation by shape:
   0.05-0.06 dB more than orientation alone on CBSD68, Urban24 and the held-out
   photographs, for 9 % more false colour on the zone plate. On the nine held-out
-  training photographs 0.16 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are
+  training photographs 0.09 dB below ``"raisr_fast"``. Not flip-symmetric. Outputs are
   clamped to the range of the input mosaic.
 - ``"fusion"``: a learned adaptive fusion of ``"ri_cd"`` and ``"rcd"``. No
   single classical method leads everywhere: residual interpolation wins where the
@@ -144,26 +148,27 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   on 293 openly licensed photographs (:mod:`imgform_rs.training.sets`, set
   ``"photos"``), never on the benchmark's images. Each class of local structure is
   split in two by how colourful the base is around the pixel (the absolute means of
-  ``R - G`` and ``B - G`` over a 5x5 tent, added, at least 0.3 of the full scale):
+  ``R - G`` and ``B - G`` over the four CFA quads nearest it, added, at least 0.3 of
+  the full scale):
   where colours are saturated the channels are weakly correlated, and those pixels
   get filters of their own, fitted also on a fifth of the photographs with their
   chroma scaled by 1.5-3 (set ``"saturated-photos"``). On the nine held-out
   photographs with their chroma doubled and tripled, that adds 0.21 and 0.54 dB
   (33.95 and 31.92 dB; ``"mlri"`` 33.76 and 31.95), with no loss at their own
   colours. Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
-  Mean CPSNR 39.96 dB on the scikit-image seven, 39.95 on CBSD68, 36.47 on Urban24:
+  Mean CPSNR 39.96 dB on the scikit-image seven, 39.96 on CBSD68, 36.47 on Urban24:
   0.9-1.2 dB above every classical peer we run, still 1.3-1.6 dB below the deep
   demosaicnet. Where the mosaic aliases, ``"rcd"``'s colours stray, so the filters
   see its differences clamped (to 32/255 of the full scale) and move no missing
   colour's difference from green more than 8/255 from ``"ri_cd"``'s: on the grey zone
-  plate 5743 of false colour (``"mlri"`` 13662, ``"raisr_cd"`` 5309; 7898 unbounded
+  plate 5690 of false colour (``"mlri"`` 13662, ``"raisr_cd"`` 5040; 7898 unbounded
   before the saturated classes) for 0.01 dB on each subset. Over ``"mlri"``
   instead (unbounded) it scores 0.02-0.07 dB more on each subset, at 1.3 times the
   time and with 1.7 times the false colour (13163). ``"ri_cd"``,
   ``"rcd"`` and the filters all stream down tiles as tall as the image, a row at a
-  time, each keeping only the rows later stages still read: 62 MP/s at 24 MP on two
+  time, each keeping only the rows later stages still read: 61 MP/s at 24 MP on two
   cores (2.18x LibRaw's AHD, 2.7x the time of ``"ri_cd"``; ``benchmarks/demosaic.py``,
-  2026-12-05) and 4.4 % of the output in extra memory.
+  2026-12-06) and 4.4 % of the output in extra memory.
   The 36 training photographs under CC-BY licences are credited in
   :data:`imgform_rs.training.catalogue.ATTRIBUTION`.
 - ``"fusion_refined"``: ``"fusion"`` refined by a second stage, a cascade: the 32
@@ -172,20 +177,20 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   fusion_refined``; 6 KB), applied to its rows as they stream out, with rings of a
   few rows (0.5 MiB more memory). The second stage sees what the first leaves: a
   correction learned on the residual of the fusion itself. Mean CPSNR 39.99 dB on
-  the scikit-image seven, 40.12 on CBSD68, 36.58 on Urban24 (+0.17 and +0.11 dB over
+  the scikit-image seven, 40.13 on CBSD68, 36.58 on Urban24 (+0.17 and +0.11 dB over
   ``"fusion"`` on CBSD68 and Urban24, +0.03 on the seven; +0.08 on the held-out
   training photographs). With the fusion's saturated classes, on the held-out
   photographs with their chroma doubled and tripled it scores 33.93 and 31.82 dB
   (0.19 and 0.47 dB more than without; ``"mlri"`` 33.76 and 31.95, ``"raisr_cd"``
-  33.50 and 31.22). Bounded as ``"fusion"`` is (its moves of each missing colour's
-  difference from green within 8/255 of the fusion's), it leaves 5714 of false
+  33.72 and 31.74). Bounded as ``"fusion"`` is (its moves of each missing colour's
+  difference from green within 8/255 of the fusion's), it leaves 5665 of false
   colour on the grey zone plate, below ``"rcd_menon"``'s 6091. Over a fusion based on
   ``"mlri"`` (unbounded, before the saturated classes) it would score 0.02 / 0.08 /
   0.07 dB more, at 1.23 times the time and with 1.64 times the zone plate's false
-  colour (13157). 56 MP/s at 24 MP on two cores, 1.11x the time of ``"fusion"`` and
-  1.97x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-05), 4.8 % of the output in
-  extra memory. Not flip-symmetric. Outputs are
-  clamped to the range of the input mosaic.
+  colour (13157). 54 MP/s at 24 MP on two cores, 1.13x the time of ``"fusion"`` and
+  1.93x LibRaw's AHD (56 MP/s and 1.98x as ``"quality"`` in the same run;
+  ``benchmarks/demosaic.py``, 2026-12-06), 4.8 % of the output in extra memory.
+  Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
   benchmarks/demosaic.py quality``: the seven scikit-image images, the 68 CBSD68
@@ -195,11 +200,11 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
   method                    scikit 7    CBSD68  Urban24
   ========================  ==========  ======  =======
-  ``"fusion_refined"``      39.99       40.12   36.58
-  ``"fusion"``              39.96       39.95   36.47
+  ``"fusion_refined"``      39.99       40.13   36.58
+  ``"fusion"``              39.96       39.96   36.47
   ``"raisr"``               39.90       39.92   36.29
+  ``"raisr_cd"`` (best)     39.67       39.84   36.26
   ``"raisr_fast"``          39.69       39.84   36.20
-  ``"raisr_cd"`` (best)     39.65       39.82   36.18
   ``"ri_cd"``               39.72       39.10   35.77
   ``"mlri"``                39.80       38.89   35.70
   ``"rcd_menon"``           39.63       37.38   34.89
@@ -209,7 +214,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ========================  ==========  ======  =======
 
   The residual-interpolation peer (Kiku et al. 2013, in NumPy), the strongest
-  classical one, is 0.85 / 0.83 / 0.62 dB behind ``"best"`` and 0.09 dB ahead of
+  classical one, is 0.87 / 0.85 / 0.70 dB behind ``"best"`` and 0.09 dB ahead of
   ``"mlri"`` alone on CBSD68; LibRaw and colour-demosaicing's Menon2007 are further
   behind on every subset.
 - ``"quality"``: the most accurate method whatever its speed, by the mean over the
