@@ -44,7 +44,7 @@
 //! strength bin, two coherence bins, one or two saturation bins, and the
 //! bound of [`coherent`] as the coherence threshold).
 
-use super::raisr::{add1, taps, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
+use super::raisr::{add1, taps, At, Bank, File, Filters, Row, FEATURES, POSITIONS, WINDOWS};
 use super::{Isa, RowKind};
 use std::ops::Range;
 use std::sync::OnceLock;
@@ -368,13 +368,7 @@ trait Lanes: Copy {
     unsafe fn add(a: Self, b: Self) -> Self;
     /// [`add1`] for the `N` columns from `x`, the corrections as vectors
     /// [`super::raisr::bound`] by `limit`.
-    unsafe fn store(
-        kind: RowKind,
-        src: [&[f32]; 3],
-        dst: [&mut [f32]; 3],
-        at: (usize, Option<f32>),
-        d: [Self; 2],
-    );
+    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], at: At, d: [Self; 2]);
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -441,13 +435,7 @@ impl Lanes for std::arch::x86_64::__m256 {
         unsafe { std::arch::x86_64::_mm256_add_ps(a, b) }
     }
     #[inline(always)]
-    unsafe fn store(
-        kind: RowKind,
-        src: [&[f32]; 3],
-        dst: [&mut [f32]; 3],
-        at: (usize, Option<f32>),
-        d: [Self; 2],
-    ) {
+    unsafe fn store(kind: RowKind, src: [&[f32]; 3], dst: [&mut [f32]; 3], at: At, d: [Self; 2]) {
         // SAFETY: by the trait's contract.
         unsafe { super::raisr::add8_avx2(kind, src, dst, at, d) }
     }
@@ -510,7 +498,7 @@ impl Lanes for std::arch::x86_64::__m512 {
         kind: RowKind,
         src: [&[f32]; 3],
         dst: [&mut [f32]; 3],
-        (x, limit): (usize, Option<f32>),
+        (x, limit): At,
         d: [Self; 2],
     ) {
         use std::arch::x86_64::*;
@@ -588,9 +576,9 @@ unsafe fn add_lanes<V: Lanes, const WIDE: bool>(
             // benchmark's photograph): those read the tables' first half
             // alone, which gives the same taps at half the loads.
             if WIDE && V::saturated(index) {
-                step::<V, true>(tables, rows, index, x - 1)
+                step::<V, true>(tables, rows, (index, x - 1))
             } else {
-                step::<V, false>(tables, rows, index, x - 1)
+                step::<V, false>(tables, rows, (index, x - 1))
             }
         };
         // SAFETY: the caller's features; `x + N` is within the rows.
@@ -611,8 +599,7 @@ unsafe fn add_lanes<V: Lanes, const WIDE: bool>(
 unsafe fn step<V: Lanes, const WIDE: bool>(
     tables: &[[Table; 2]; TAPS],
     rows: &[&[f32]; WINDOWS],
-    index: V::Index,
-    left: usize,
+    (index, left): (V::Index, usize),
 ) -> [V; 2] {
     // SAFETY: by the caller's contract. Written out: closures here were
     // not inlined (each call passed its vectors through memory).

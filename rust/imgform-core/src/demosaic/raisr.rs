@@ -715,6 +715,10 @@ impl<B> Filters<B> {
     }
 }
 
+/// Where corrections are written: the column, and the [`bound`] of their
+/// moves ([`Filters::chroma_bound`]).
+pub(super) type At = (usize, Option<f32>);
+
 /// The corrections `d` of a pixel at a chroma site (`at_chroma`: green's,
 /// then the other chroma's) or a green site (the own chroma's, then the
 /// other's), bounded by `limit` ([`Filters::chroma_bound`]): each missing
@@ -815,7 +819,7 @@ pub(super) fn add1(
     kind: RowKind,
     src: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
-    (x, limit): (usize, Option<f32>),
+    (x, limit): At,
     d: (f32, f32),
 ) {
     let [o, g, t] = src.map(|r| r[x]);
@@ -838,7 +842,7 @@ pub(super) fn add8_avx2(
     kind: RowKind,
     [so, sg, st]: [&[f32]; 3],
     [own, green, other]: [&mut [f32]; 3],
-    (x, limit): (usize, Option<f32>),
+    (x, limit): At,
     [d0, d1]: [std::arch::x86_64::__m256; 2],
 ) {
     use std::arch::x86_64::*;
