@@ -767,23 +767,19 @@ fn run_method<M, O, K>(
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::Raisr => {
-            let base: mlri::Mlri = mlri::Mlri::new(phase, scale);
-            let bank = raisr::Weights::raisr();
+            let bank = (raisr::Weights::raisr(), Bound::Free);
+            let base = |_: &_| mlri::Mlri::<true>::new(phase, scale);
             run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::RaisrFast => {
-            let base: mlri::Mlri = mlri::Mlri::new(phase, scale);
-            let bank = oriented::Oriented::raisr_fast();
+            let bank = (oriented::Oriented::raisr_fast(), Bound::Free);
+            let base = |_: &_| mlri::Mlri::<true>::new(phase, scale);
             run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::RaisrCd => {
-            let raw = &Ranged::new(raw);
-            let bank = oriented::Oriented::raisr_cd();
-            let k = refined::Refined {
-                base: differences::Differences::new(phase, scale),
-                filters: bounded(filters(bank, raw, phase, scale, isa), scale),
-            };
-            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+            let bank = (oriented::Oriented::raisr_cd(), Bound::Chroma);
+            let base = |_: &_| differences::Differences::new(phase, scale);
+            run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
         Method::Fusion => {
             let raw = &Ranged::new(raw);
@@ -791,25 +787,31 @@ fn run_method<M, O, K>(
             tiled::run_tiled(raw, phase, &k, isa, sink, out);
         }
         Method::FusionRefined => {
-            let raw = &Ranged::new(raw);
-            let bank = oriented::Oriented::fusion_refined();
-            let k = refined::Refined {
-                base: fusion_kernel(raw, phase, scale, isa),
-                filters: bounded(filters(bank, raw, phase, scale, isa), scale),
-            };
-            tiled::run_tiled(raw, phase, &k, isa, sink, out);
+            let bank = (oriented::Oriented::fusion_refined(), Bound::Chroma);
+            let base = |raw: &_| fusion_kernel(raw, phase, scale, isa);
+            run_refined(raw, phase, base, bank, scale, isa, sink, out);
         }
     }
 }
 
-/// `base` refined by the learned filters of `bank` ([`refined::Refined`]),
-/// with the mosaic's range found once for the filters and the clamp.
+/// Whether a learned method's corrections are bounded.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Bound {
+    Free,
+    /// As the fusion, its cascade and [`Method::RaisrCd`] are
+    /// ([`raisr::CHROMA_LIMIT`]).
+    Chroma,
+}
+
+/// The base that `base` makes for the ranged mosaic, refined by the
+/// learned filters of `bank` ([`refined::Refined`]), with the mosaic's
+/// range found once for the filters, the base's own and the clamp.
 #[allow(clippy::too_many_arguments)]
-fn run_refined<M, O, K, S, B>(
-    raw: &M,
+fn run_refined<'r, M, O, K, S, B>(
+    raw: &'r M,
     phase: Phase,
-    base: S,
-    bank: &'static B,
+    base: impl FnOnce(&Ranged<'r, M>) -> S,
+    (bank, bound): (&'static B, Bound),
     scale: f32,
     isa: Isa,
     sink: &K,
@@ -822,9 +824,13 @@ fn run_refined<M, O, K, S, B>(
     B: raisr::Bank,
 {
     let raw = &Ranged::new(raw);
+    let filters = filters(bank, raw, phase, scale, isa);
     let k = refined::Refined {
-        base,
-        filters: filters(bank, raw, phase, scale, isa),
+        base: base(raw),
+        filters: match bound {
+            Bound::Free => filters,
+            Bound::Chroma => bounded(filters, scale),
+        },
     };
     tiled::run_tiled(raw, phase, &k, isa, sink, out);
 }
@@ -866,8 +872,7 @@ fn filters<B: raisr::Bank>(
     }
 }
 
-/// `f` bounded as the fusion, its cascade and [`Method::RaisrCd`] are
-/// ([`raisr::CHROMA_LIMIT`]), at the white level `scale`.
+/// `f` bounded as [`Bound::Chroma`] says, at the white level `scale`.
 fn bounded<B>(f: raisr::Filters<B>, scale: f32) -> raisr::Filters<B> {
     raisr::Filters {
         chroma_bound: Some(raisr::CHROMA_LIMIT * scale),
