@@ -16,16 +16,17 @@
 //! CFA position alternates between two, the orientation takes four values
 //! and the shape two ([`coherent`]), so each tap has just 16 values across
 //! a row's classes: one 16-float table, from which a single permute gives
-//! the tap of each of sixteen pixels with AVX-512 (two permutes and a
-//! blend, of eight pixels, with AVX2). The pixels are then filtered side
-//! by side like a convolution, with no per-pixel fetch, and the tables of
+//! the tap of each of sixteen pixels with AVX-512. AVX2's permute takes
+//! eight entries, the classes of one column parity, so it filters every
+//! other pixel of sixteen side by side ([`Halves`]). The pixels are then
+//! filtered like a convolution, with no per-pixel fetch, and the tables of
 //! a row (3.5 KB) stay in cache.
 //!
 //! "raisr_cd" ("best") also splits its classes by the base's local
 //! saturation, as the fusion does ([`super::saturation`]): 64 filters, so
 //! a row's classes take 32 values, the saturated ones in the tables'
 //! second half. AVX-512 picks from both halves with one two-table permute,
-//! AVX2 with four permutes and three blends; a step of pixels none of
+//! AVX2 with two permutes and a blend; a step of pixels none of
 //! which is saturated (88 % of the steps on the benchmark's photograph)
 //! reads the first half alone, as a bank without the split does. On the
 //! held-out photographs with their chroma tripled, the split adds 0.5 dB
@@ -66,12 +67,20 @@ const LANES: usize = 16;
 /// saturated).
 type Table = [f32; 2 * LANES];
 
+/// A [`Table`] by the CFA parity of the class, then by saturation bin:
+/// the eight classes of one parity, which are the classes of every other
+/// pixel of a row. AVX2's eight-entry permute takes a tap of eight
+/// pixels of one parity from one of them ([`add_avx2`]).
+type Halves = [[[f32; 8]; 2]; 2];
+
 /// The filter bank of the orientation hash, as tap tables.
 pub(super) struct Oriented {
     /// Per row kind (red row, blue row), per tap `3 * window + column` (the
     /// columns of [`super::raisr`]'s windows, left to right), per missing
     /// colour, the tap of each class.
     tables: [[[Table; 2]; TAPS]; 2],
+    /// The same taps as [`Halves`].
+    halves: [[[Halves; 2]; TAPS]; 2],
     /// The bound of [`coherent`].
     coherence: f32,
     /// The lower bound of the saturated bin, if the bank has one, on the
@@ -122,8 +131,10 @@ impl Oriented {
                 }
             }
         }
+        let halves = tables.map(|kind| kind.map(|tap| tap.map(|t| Self::halves(&t))));
         Some(Oriented {
             tables,
+            halves,
             coherence,
             saturation,
         })
@@ -135,6 +146,13 @@ impl Oriented {
     #[inline(always)]
     fn lane(position: usize, orientation: usize, shape: usize) -> usize {
         2 * (SHAPES * orientation + shape) + position % 2
+    }
+
+    /// `table`'s entries as [`Halves`].
+    fn halves(table: &Table) -> Halves {
+        std::array::from_fn(|parity| {
+            std::array::from_fn(|bin| std::array::from_fn(|j| table[LANES * bin + 2 * j + parity]))
+        })
     }
 
     /// A shipped filter bank, parsed on first use.
@@ -240,6 +258,8 @@ fn correct_row<const WIDE: bool>(
     } = row;
     let end = class.len() - halo;
     let tables = &f.bank.tables[usize::from(kind.blue)];
+    #[cfg(target_arch = "x86_64")]
+    let halves = &f.bank.halves[usize::from(kind.blue)];
     let mut x = halo;
     let src = [windows[3], windows[4], windows[5]];
     #[cfg(target_arch = "x86_64")]
@@ -256,6 +276,7 @@ fn correct_row<const WIDE: bool>(
         // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
         // with AVX2 and FMA.
         let cols = (x..end, f.chroma_bound);
+        let tables = (tables, halves);
         x = unsafe { add_avx2::<WIDE>(tables, kind, class, src, dst, windows, cols) };
     }
     for (x, &c) in class[..end].iter().enumerate().skip(x) {
@@ -296,25 +317,188 @@ fn apply(
     (sum(0), sum(1))
 }
 
-/// [`apply`] and [`add1`] for the columns `cols`, eight at a time as far
-/// as whole eights go; returns the first column left. Each tap of the
-/// eight pixels is a permute of each half of its table by their classes
-/// and a blend of the two.
+/// [`apply`] and [`add1`] for the columns `cols`, sixteen at a time as
+/// far as whole sixteens go, then eight; returns the first column left.
+///
+/// A step of sixteen splits the pixels by column parity, as two vectors
+/// of eight whose classes share a CFA parity, so each tap of eight pixels
+/// is one permute of an eight-entry half table ([`Halves`]; a saturated
+/// pixel adds a second permute and a blend). The window rows are split
+/// alike, four shuffles per row, and the corrections interleaved again at
+/// the end. Taking the eight pixels of a step side by side instead needs
+/// two permutes and a blend per tap, which left "best" with AVX2 alone at
+/// 80 MP/s against 117 with AVX-512.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
 fn add_avx2<const WIDE: bool>(
-    tables: &[[Table; 2]; TAPS],
+    (tables, halves): (&[[Table; 2]; TAPS], &[[Halves; 2]; TAPS]),
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
-    dst: [&mut [f32]; 3],
+    [own, green, other]: [&mut [f32]; 3],
     rows: &[&[f32]; WINDOWS],
-    cols: (Range<usize>, Option<f32>),
+    (cols, limit): (Range<usize>, Option<f32>),
 ) -> usize {
+    use std::arch::x86_64::*;
+    // A step from column `x` reads the window rows' columns `x - 1 .. x +
+    // 17`: checked once here, so the loads need no checks of their own.
+    let fits = |len: usize| cols.start >= 1 && len > cols.end;
+    assert!(rows.iter().all(|r| fits(r.len())) && class.len() >= cols.end);
+    let mut x = cols.start;
+    while x + 16 <= cols.end {
+        // SAFETY: the assertion above keeps every load in bounds (and the
+        // loads are unaligned ones); the classes are within the tables, by
+        // the caller's contract.
+        let [d0, d1] = unsafe {
+            let c = class.as_ptr().add(x);
+            let (a, b) = (
+                _mm256_loadu_si256(c.cast()),
+                _mm256_loadu_si256(c.add(8).cast()),
+            );
+            let split = split_parities(_mm256_castsi256_ps(a), _mm256_castsi256_ps(b));
+            let index = split.map(|v| _mm256_srli_epi32::<1>(_mm256_castps_si256(v)));
+            // The half tables of the first pixel's parity and the other's.
+            let first = (*c & 1) as usize;
+            let bin = _mm256_slli_epi32::<27>(_mm256_or_si256(a, b));
+            let saturated = WIDE && _mm256_movemask_ps(_mm256_castsi256_ps(bin)) != 0;
+            if saturated {
+                split_step::<true>(halves, rows, (index, first), x)
+            } else {
+                split_step::<false>(halves, rows, (index, first), x)
+            }
+        };
+        // The first eight columns interleave the low halves of the
+        // 128-bit lanes, the next eight the high ones.
+        let (lo, hi) = (
+            [d0, d1].map(|[even, odd]| _mm256_unpacklo_ps(even, odd)),
+            [d0, d1].map(|[even, odd]| _mm256_unpackhi_ps(even, odd)),
+        );
+        for (x, d) in [(x, lo), (x + 8, hi)] {
+            let dst = [&mut *own, &mut *green, &mut *other];
+            super::raisr::add8_avx2(kind, src, dst, (x, limit), d);
+        }
+        x += 16;
+    }
+    let cols = (x..cols.end, limit);
+    let dst = [own, green, other];
     // SAFETY: AVX2 and FMA are enabled here.
+    unsafe { add_lanes::<__m256, WIDE>(tables, kind, class, src, dst, rows, cols) }
+}
+
+/// Eight values at even positions of `a` then `b` (the rows' next eight),
+/// and eight at odd ones, in the order `a0 a2 b0 b2 | a4 a6 b4 b6`, which
+/// unpacking the two interleaves again.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn split_parities(
+    a: std::arch::x86_64::__m256,
+    b: std::arch::x86_64::__m256,
+) -> [std::arch::x86_64::__m256; 2] {
+    use std::arch::x86_64::_mm256_shuffle_ps;
+    // SAFETY: the caller has AVX.
     unsafe {
-        add_lanes::<std::arch::x86_64::__m256, WIDE>(tables, kind, class, src, dst, rows, cols)
+        [
+            _mm256_shuffle_ps::<0x88>(a, b),
+            _mm256_shuffle_ps::<0xdd>(a, b),
+        ]
+    }
+}
+
+/// The two corrections, as pixels at even and at odd offsets of sixteen
+/// from column `x` (in the order of [`split_parities`]), whose classes
+/// halved are `index` and whose first pixel's class has parity `first`:
+/// [`split_row_sums`] of each window row, added as [`apply`] adds them.
+///
+/// # Safety
+/// AVX2 and FMA, columns `x - 1 .. x + 17` of the window rows in bounds,
+/// and the classes below [`LANES`] unless `WIDE`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn split_step<const WIDE: bool>(
+    halves: &[[Halves; 2]; TAPS],
+    rows: &[&[f32]; WINDOWS],
+    index: ([std::arch::x86_64::__m256i; 2], usize),
+    x: usize,
+) -> [[std::arch::x86_64::__m256; 2]; 2] {
+    use std::arch::x86_64::_mm256_add_ps as add;
+    // SAFETY: by the caller's contract. Written out, as in `step`.
+    unsafe {
+        let a = split_row_sums::<WIDE>(halves, rows, index, 0, x);
+        let b = split_row_sums::<WIDE>(halves, rows, index, 1, x);
+        let c = split_row_sums::<WIDE>(halves, rows, index, 2, x);
+        [
+            [add(add(a[0], b[0]), c[0]), add(add(a[1], b[1]), c[1])],
+            [add(add(a[2], b[2]), c[2]), add(add(a[3], b[3]), c[3])],
+        ]
+    }
+}
+
+/// [`row_sums`] for [`split_step`]: the first correction of the even and
+/// the odd pixels, then the second's. An even pixel's window columns are
+/// the odd ones from `x - 1`, the even ones from `x` and the odd ones from
+/// `x + 1`; an odd pixel's are shifted one on.
+///
+/// # Safety
+/// As [`split_step`].
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn split_row_sums<const WIDE: bool>(
+    halves: &[[Halves; 2]; TAPS],
+    rows: &[&[f32]; WINDOWS],
+    ([even, odd], first): ([std::arch::x86_64::__m256i; 2], usize),
+    r: usize,
+    x: usize,
+) -> [std::arch::x86_64::__m256; 4] {
+    use std::arch::x86_64::*;
+    // SAFETY: by the caller's contract.
+    unsafe {
+        let mut acc = [_mm256_setzero_ps(); 4];
+        for k in 3 * r..3 * r + 3 {
+            let at = |dx: usize| _mm256_loadu_ps(rows[k].as_ptr().add(x + dx - 1));
+            let [before, _] = split_parities(at(0), at(8));
+            let [here, after] = split_parities(at(1), at(9));
+            let [_, shifted] = split_parities(at(2), at(10));
+            let columns = [[before, here, after], [here, after, shifted]];
+            for dx in 0..3 {
+                let [t0, t1] = &halves[3 * k + dx];
+                for (pixels, (i, parity)) in
+                    [(even, first), (odd, 1 - first)].into_iter().enumerate()
+                {
+                    let v = columns[pixels][dx];
+                    acc[pixels] = _mm256_fmadd_ps(half_tap::<WIDE>(&t0[parity], i), v, acc[pixels]);
+                    acc[2 + pixels] =
+                        _mm256_fmadd_ps(half_tap::<WIDE>(&t1[parity], i), v, acc[2 + pixels]);
+                }
+            }
+        }
+        acc
+    }
+}
+
+/// A tap of eight pixels of one parity, whose classes halved are `index`,
+/// from its half tables: one permute, and for `WIDE` a second one blended
+/// in where bit 3 of `index` (the saturated bin) is set.
+///
+/// # Safety
+/// AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn half_tap<const WIDE: bool>(
+    bins: &[[f32; 8]; 2],
+    index: std::arch::x86_64::__m256i,
+) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    // SAFETY: by the caller's contract; the permutes read the index's low
+    // three bits.
+    unsafe {
+        let pick = |bin: &[f32; 8]| _mm256_permutevar8x32_ps(_mm256_loadu_ps(bin.as_ptr()), index);
+        if WIDE {
+            let saturated = _mm256_castsi256_ps(_mm256_slli_epi32::<28>(index));
+            _mm256_blendv_ps(pick(&bins[0]), pick(&bins[1]), saturated)
+        } else {
+            pick(&bins[0])
+        }
     }
 }
 
@@ -709,8 +893,9 @@ mod tests {
         assert_eq!(orientation(-1.0, -1.0), 2);
     }
 
-    /// The vector loops (eight pixels a step, sixteen with AVX-512) give
-    /// the bits of the scalar code, pixel by pixel.
+    /// The vector loops (sixteen pixels a step split by parity, then
+    /// eight, with AVX2; sixteen side by side with AVX-512) give the bits
+    /// of the scalar code, pixel by pixel, from either column parity.
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn the_vector_filters_give_the_scalar_bits() {
@@ -719,67 +904,100 @@ mod tests {
             return;
         }
         let wide = has!("avx512f") && has!("avx512dq") && has!("avx512vl");
+        const LEN: usize = 48;
         let planes: Vec<Vec<f32>> = (0..WINDOWS)
             .map(|k| {
-                (0..40)
+                (0..LEN)
                     .map(|i| ((i * 37 + k * 11) % 29) as f32 * 0.37 - 3.1)
                     .collect()
             })
             .collect();
         let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
-        type Loop = unsafe fn(
-            &[[Table; 2]; TAPS],
-            RowKind,
-            &[u32],
-            [&[f32]; 3],
-            [&mut [f32]; 3],
-            &[&[f32]; WINDOWS],
-            (Range<usize>, Option<f32>),
-        ) -> usize;
         for bank in [
             Oriented::raisr_fast(),
             Oriented::raisr_cd(),
             Oriented::fusion_refined(),
         ] {
-            // Every class of the bank's tables, the saturated half too.
-            let (loops, lanes): (Vec<Loop>, _) = match bank.saturation {
-                Some(_) => (vec![add_avx2::<true>, add_avx512::<true>], 2 * LANES),
-                None => (vec![add_avx2::<false>, add_avx512::<false>], LANES),
+            let lanes = if bank.saturation.is_some() {
+                2 * LANES
+            } else {
+                LANES
             };
-            let loops = &loops[..1 + usize::from(wide)];
-            // Saturated classes from column 20 on only, so that some steps
-            // of either width have none (and read the tables' first half).
-            let class: Vec<u32> = (0..40)
-                .map(|i| (i * 7 % if i < 20 { LANES } else { lanes }) as u32)
+            // Every class of the bank's tables, the saturated half too, with
+            // the CFA parity of each column in the lowest bit, as the hash
+            // gives it. Saturated classes from column 20 on only, so that
+            // some steps of either width have none (and read the tables'
+            // first half).
+            let class: Vec<u32> = (0..LEN)
+                .map(|i| {
+                    let lane = i * 7 % if i < 20 { LANES } else { lanes };
+                    (lane & !1 | i & 1) as u32
+                })
                 .collect();
-            for (blue, tables) in bank.tables.iter().enumerate() {
-                // Unbounded, and bounded tightly enough to cut corrections.
-                for (parity, limit) in [0, 1]
+            let tables = bank.tables.iter().zip(&bank.halves);
+            for (blue, (tables, halves)) in tables.enumerate() {
+                // Unbounded, and bounded tightly enough to cut corrections;
+                // steps from odd and from even columns.
+                let cases = [0, 1]
                     .into_iter()
-                    .flat_map(|p| [(p, None), (p, Some(0.05))])
-                {
+                    .flat_map(|p| [(p, None), (p, Some(0.05))]);
+                for ((parity, limit), first) in cases.flat_map(|c| [(c, 1), (c, 2)]) {
                     let kind = RowKind {
                         blue: blue == 1,
                         chroma_parity: parity,
                     };
                     let src = [rows[3], rows[4], rows[5]];
-                    let mut slow = [0; 3].map(|_| vec![1.0f32; 40]);
-                    for (x, &c) in class.iter().enumerate().take(33).skip(1) {
+                    let cols = first..first + 41;
+                    let mut slow = [0; 3].map(|_| vec![1.0f32; LEN]);
+                    for (x, &c) in class.iter().enumerate().take(cols.end).skip(first) {
                         let d = apply(tables, c as usize, &rows, x);
                         let dst = slow.each_mut().map(|p| &mut p[..]);
                         add1(kind, src, dst, (x, limit), d);
                     }
-                    for run in loops {
-                        let mut fast = [0; 3].map(|_| vec![1.0f32; 40]);
+                    for avx512 in [false, wide] {
+                        let mut fast = [0; 3].map(|_| vec![1.0f32; LEN]);
                         let dst = fast.each_mut().map(|p| &mut p[..]);
+                        let (cols, class) = ((cols.clone(), limit), &class[..]);
                         // SAFETY: the features were detected above.
-                        let cols = (1..33, limit);
-                        let end = unsafe { run(tables, kind, &class, src, dst, &rows, cols) };
-                        assert_eq!(end, 33);
+                        let end = unsafe {
+                            match (avx512, lanes > LANES) {
+                                (false, false) => add_avx2::<false>(
+                                    (tables, halves),
+                                    kind,
+                                    class,
+                                    src,
+                                    dst,
+                                    &rows,
+                                    cols,
+                                ),
+                                (false, true) => add_avx2::<true>(
+                                    (tables, halves),
+                                    kind,
+                                    class,
+                                    src,
+                                    dst,
+                                    &rows,
+                                    cols,
+                                ),
+                                (true, false) => {
+                                    add_avx512::<false>(tables, kind, class, src, dst, &rows, cols)
+                                }
+                                (true, true) => {
+                                    add_avx512::<true>(tables, kind, class, src, dst, &rows, cols)
+                                }
+                            }
+                        };
+                        // Whole steps: the AVX2 loop's end in eights, too.
+                        assert_eq!(end, first + if avx512 { 32 } else { 40 });
+                        for (x, &c) in class.iter().enumerate().take(first + 41).skip(end) {
+                            let d = apply(tables, c as usize, &rows, x);
+                            let dst = fast.each_mut().map(|p| &mut p[..]);
+                            add1(kind, src, dst, (x, limit), d);
+                        }
                         let bits = |p: &[Vec<f32>; 3]| {
                             p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
                         };
-                        assert_eq!(bits(&fast), bits(&slow));
+                        assert_eq!(bits(&fast), bits(&slow), "avx512 {avx512} from {first}");
                     }
                 }
             }
