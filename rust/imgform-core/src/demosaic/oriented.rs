@@ -913,16 +913,38 @@ mod tests {
             })
             .collect();
         let rows: [&[f32]; WINDOWS] = std::array::from_fn(|k| &planes[k][..]);
+        type Loop = unsafe fn(
+            (&[[Table; 2]; TAPS], &[[Halves; 2]; TAPS]),
+            RowKind,
+            &[u32],
+            [&[f32]; 3],
+            [&mut [f32]; 3],
+            &[&[f32]; WINDOWS],
+            (Range<usize>, Option<f32>),
+        ) -> usize;
+        /// [`add_avx512`] with [`add_avx2`]'s arguments.
+        unsafe fn avx512<const WIDE: bool>(
+            (tables, _): (&[[Table; 2]; TAPS], &[[Halves; 2]; TAPS]),
+            kind: RowKind,
+            class: &[u32],
+            src: [&[f32]; 3],
+            dst: [&mut [f32]; 3],
+            rows: &[&[f32]; WINDOWS],
+            cols: (Range<usize>, Option<f32>),
+        ) -> usize {
+            // SAFETY: by the caller's detection.
+            unsafe { add_avx512::<WIDE>(tables, kind, class, src, dst, rows, cols) }
+        }
         for bank in [
             Oriented::raisr_fast(),
             Oriented::raisr_cd(),
             Oriented::fusion_refined(),
         ] {
-            let lanes = if bank.saturation.is_some() {
-                2 * LANES
-            } else {
-                LANES
+            let (loops, lanes): (Vec<Loop>, _) = match bank.saturation {
+                Some(_) => (vec![add_avx2::<true>, avx512::<true>], 2 * LANES),
+                None => (vec![add_avx2::<false>, avx512::<false>], LANES),
             };
+            let loops = &loops[..1 + usize::from(wide)];
             // Every class of the bank's tables, the saturated half too, with
             // the CFA parity of each column in the lowest bit, as the hash
             // gives it. Saturated classes from column 20 on only, so that
@@ -947,57 +969,29 @@ mod tests {
                         chroma_parity: parity,
                     };
                     let src = [rows[3], rows[4], rows[5]];
-                    let cols = first..first + 41;
-                    let mut slow = [0; 3].map(|_| vec![1.0f32; LEN]);
-                    for (x, &c) in class.iter().enumerate().take(cols.end).skip(first) {
-                        let d = apply(tables, c as usize, &rows, x);
-                        let dst = slow.each_mut().map(|p| &mut p[..]);
-                        add1(kind, src, dst, (x, limit), d);
-                    }
-                    for avx512 in [false, wide] {
-                        let mut fast = [0; 3].map(|_| vec![1.0f32; LEN]);
-                        let dst = fast.each_mut().map(|p| &mut p[..]);
-                        let (cols, class) = ((cols.clone(), limit), &class[..]);
-                        // SAFETY: the features were detected above.
-                        let end = unsafe {
-                            match (avx512, lanes > LANES) {
-                                (false, false) => add_avx2::<false>(
-                                    (tables, halves),
-                                    kind,
-                                    class,
-                                    src,
-                                    dst,
-                                    &rows,
-                                    cols,
-                                ),
-                                (false, true) => add_avx2::<true>(
-                                    (tables, halves),
-                                    kind,
-                                    class,
-                                    src,
-                                    dst,
-                                    &rows,
-                                    cols,
-                                ),
-                                (true, false) => {
-                                    add_avx512::<false>(tables, kind, class, src, dst, &rows, cols)
-                                }
-                                (true, true) => {
-                                    add_avx512::<true>(tables, kind, class, src, dst, &rows, cols)
-                                }
-                            }
-                        };
-                        // Whole steps: the AVX2 loop's end in eights, too.
-                        assert_eq!(end, first + if avx512 { 32 } else { 40 });
-                        for (x, &c) in class.iter().enumerate().take(first + 41).skip(end) {
-                            let d = apply(tables, c as usize, &rows, x);
-                            let dst = fast.each_mut().map(|p| &mut p[..]);
+                    let scalar = |planes: &mut [Vec<f32>; 3], cols: Range<usize>| {
+                        for x in cols {
+                            let d = apply(tables, class[x] as usize, &rows, x);
+                            let dst = planes.each_mut().map(|p| &mut p[..]);
                             add1(kind, src, dst, (x, limit), d);
                         }
+                    };
+                    let cols = first..first + 41;
+                    let mut slow = [0; 3].map(|_| vec![1.0f32; LEN]);
+                    scalar(&mut slow, cols.clone());
+                    for (run, step) in loops.iter().zip([8, 16]) {
+                        let mut fast = [0; 3].map(|_| vec![1.0f32; LEN]);
+                        let dst = fast.each_mut().map(|p| &mut p[..]);
+                        let at = ((cols.clone(), limit), (tables, halves));
+                        // SAFETY: the features were detected above.
+                        let end = unsafe { run(at.1, kind, &class, src, dst, &rows, at.0) };
+                        // Whole steps (AVX2's last one of eight).
+                        assert_eq!(end, cols.end - 41 % step);
+                        scalar(&mut fast, end..cols.end);
                         let bits = |p: &[Vec<f32>; 3]| {
                             p.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>()
                         };
-                        assert_eq!(bits(&fast), bits(&slow), "avx512 {avx512} from {first}");
+                        assert_eq!(bits(&fast), bits(&slow), "{step} a step from {first}");
                     }
                 }
             }
