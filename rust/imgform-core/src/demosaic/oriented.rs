@@ -259,7 +259,7 @@ fn correct_row<const WIDE: bool>(
     let end = class.len() - halo;
     let tables = &f.bank.tables[usize::from(kind.blue)];
     #[cfg(target_arch = "x86_64")]
-    let halves = &f.bank.halves[usize::from(kind.blue)];
+    let both = (tables, &f.bank.halves[usize::from(kind.blue)]);
     let mut x = halo;
     let src = [windows[3], windows[4], windows[5]];
     #[cfg(target_arch = "x86_64")]
@@ -268,7 +268,7 @@ fn correct_row<const WIDE: bool>(
         // SAFETY: `Isa::Avx512` is only made on CPUs with the AVX-512
         // subsets, AVX2 and FMA.
         let cols = (x..end, f.chroma_bound);
-        x = unsafe { add_avx512::<WIDE>(tables, kind, class, src, dst, windows, cols) };
+        x = unsafe { add_avx512::<WIDE>(both, kind, class, src, dst, windows, cols) };
     }
     #[cfg(target_arch = "x86_64")]
     if f.isa != Isa::Baseline {
@@ -276,8 +276,7 @@ fn correct_row<const WIDE: bool>(
         // SAFETY: `Isa::Avx2` and `Isa::Avx512` are only made on CPUs
         // with AVX2 and FMA.
         let cols = (x..end, f.chroma_bound);
-        let tables = (tables, halves);
-        x = unsafe { add_avx2::<WIDE>(tables, kind, class, src, dst, windows, cols) };
+        x = unsafe { add_avx2::<WIDE>(both, kind, class, src, dst, windows, cols) };
     }
     for (x, &c) in class[..end].iter().enumerate().skip(x) {
         let d = apply(tables, c as usize, windows, x);
@@ -506,12 +505,13 @@ unsafe fn half_tap<const WIDE: bool>(
 /// register and one permute by sixteen classes gives their taps. On Zen
 /// 4, which splits 512-bit operations in two, this took a sixth less time
 /// than eight pixels a step even with 8-entry tables (fewer instructions
-/// to issue).
+/// to issue). It takes the tables as [`add_avx2`] does, and reads the
+/// whole ones alone.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
 #[inline]
 fn add_avx512<const WIDE: bool>(
-    tables: &[[Table; 2]; TAPS],
+    (tables, _): (&[[Table; 2]; TAPS], &[[Halves; 2]; TAPS]),
     kind: RowKind,
     class: &[u32],
     src: [&[f32]; 3],
@@ -922,27 +922,14 @@ mod tests {
             &[&[f32]; WINDOWS],
             (Range<usize>, Option<f32>),
         ) -> usize;
-        /// [`add_avx512`] with [`add_avx2`]'s arguments.
-        unsafe fn avx512<const WIDE: bool>(
-            (tables, _): (&[[Table; 2]; TAPS], &[[Halves; 2]; TAPS]),
-            kind: RowKind,
-            class: &[u32],
-            src: [&[f32]; 3],
-            dst: [&mut [f32]; 3],
-            rows: &[&[f32]; WINDOWS],
-            cols: (Range<usize>, Option<f32>),
-        ) -> usize {
-            // SAFETY: by the caller's detection.
-            unsafe { add_avx512::<WIDE>(tables, kind, class, src, dst, rows, cols) }
-        }
         for bank in [
             Oriented::raisr_fast(),
             Oriented::raisr_cd(),
             Oriented::fusion_refined(),
         ] {
             let (loops, lanes): (Vec<Loop>, _) = match bank.saturation {
-                Some(_) => (vec![add_avx2::<true>, avx512::<true>], 2 * LANES),
-                None => (vec![add_avx2::<false>, avx512::<false>], LANES),
+                Some(_) => (vec![add_avx2::<true>, add_avx512::<true>], 2 * LANES),
+                None => (vec![add_avx2::<false>, add_avx512::<false>], LANES),
             };
             let loops = &loops[..1 + usize::from(wide)];
             // Every class of the bank's tables, the saturated half too, with
