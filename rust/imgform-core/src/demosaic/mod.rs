@@ -795,7 +795,6 @@ fn run_method<M, O, K>(
 }
 
 /// Whether a learned method's corrections are bounded.
-#[derive(Clone, Copy, PartialEq, Eq)]
 enum Bound {
     Free,
     /// As the fusion, its cascade and [`Method::RaisrCd`] are
