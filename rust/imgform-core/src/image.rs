@@ -43,11 +43,11 @@ pub trait Sample: Copy + Send + Sync + Default + PartialOrd + std::fmt::Debug + 
     }
 
     /// Writes the planes `r`, `g` and `b` (each at least `out.len() / 3`
-    /// long) into `out` as pixels. Types override it where a vector
-    /// shuffle beats the element-wise loop.
+    /// long) into `out` as pixels. Types override it where a wider
+    /// shuffle than [`crate::interleave::pixels`]' serves them.
     #[inline(always)]
     fn interleave(planes: [&[Self]; 3], out: &mut [Self]) {
-        crate::interleave::each(planes, out);
+        crate::interleave::pixels(planes, out);
     }
 
     /// Whether the sample is a number: integers always are, so scans for
