@@ -17,7 +17,7 @@ decoding is LibRaw's on both sides and would only dilute the ratio):
   LINEAR.
 
 The ``+auto`` rows brighten as LibRaw does by default: ours with
-``exposure="auto"`` (a second, linear development finds the level), LibRaw
+``exposure="auto"`` (the demosaiced image's histograms give the level), LibRaw
 without ``no_auto_bright``; they show what the automatic exposure costs.
 
 The last column compares each result with LibRaw AHD's (with the same

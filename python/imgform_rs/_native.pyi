@@ -225,6 +225,7 @@ def develop(
     method: str,
     bps: str,
     lens: NativeLensCorrection | None = None,
+    auto_bright: int | None = None,
 ) -> npt.NDArray[Any]: ...
 
 # --- metrology ---

@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -80,12 +79,6 @@ _GREY_BLOCK = 8
 _GREY_MARGIN = 25
 
 _BPS = {8: "8", 16: "16", "float": "float"}
-
-# LibRaw's auto_bright_thr default: the brightest 1 % of pixels may clip.
-_AUTO_BRIGHT_THR = 0.01
-# LibRaw's output histogram: 16-bit values in bins of 8; its search for the
-# white stops above bin 32.
-_HIST_SHIFT, _HIST_FLOOR = 3, 32
 
 
 def _grey_world(raw: RawImage) -> npt.NDArray[np.float64]:
@@ -211,28 +204,6 @@ def _stretched_pixels(shape: tuple[int, ...], aspect: float) -> int:
     return h * w
 
 
-def _auto_gain(linear16: npt.NDArray[np.uint16], pixels: int) -> float:
-    """LibRaw's automatic brightening of a developed, clipped 16-bit linear
-    image. Per channel LibRaw reads its histogram (bins of 8) from the top
-    down to bin 33 and stops at the first bin where more than
-    ``auto_bright_thr`` of ``pixels`` are counted: the bin of the channel's
-    ``perc + 1``-th largest value, or 32 when that is lower. The largest of
-    the three becomes white. A selection finds those values without the
-    histogram (a bincount of 24 MP took seconds). LibRaw counts the pixels of
-    the final (stretched) size but takes the values before stretching; both
-    are reproduced."""
-    perc = int(pixels * _AUTO_BRIGHT_THR)
-    flat = linear16.reshape(-1, 3)
-    n = flat.shape[0]
-    t_white = _HIST_FLOOR
-    if perc < n:
-        for c in range(3):
-            kth = int(np.partition(flat[:, c], n - 1 - perc)[n - 1 - perc])
-            t_white = max(t_white, kth >> _HIST_SHIFT)
-    # LibRaw's gamma_curve maps its int imax = t_white << 3 to 0x10000.
-    return 0x10000 / (t_white << _HIST_SHIFT)
-
-
 def _tone_for(color: str, tone: str) -> str:
     """``tone``, or for "auto" the curve ``color`` is encoded with."""
     if tone != "auto":
@@ -280,10 +251,11 @@ def develop(
     exposure : float or "auto"
         Exposure change in stops, applied before the sensor clip; or
         ``"auto"``, LibRaw's default brightening (``postprocess()`` without
-        ``no_auto_bright``): the image is developed once to find, per
+        ``no_auto_bright``): the demosaiced image's histograms give, per
         channel, the level that only the brightest 1 % of pixels exceed, and
         the largest becomes white (a gain on linear light after the colour
-        matrix, so the brightest 1 % clip). As in LibRaw, nothing is
+        matrix, so the brightest 1 % clip). It costs a histogram pass, not
+        a second development. As in LibRaw, nothing is
         brightened with ``highlights="unclip"``. The default 0 keeps the
         file's exposure, which is darker than most converters show.
     highlights : {"clip", "unclip"}
@@ -374,22 +346,16 @@ def develop(
     tiles = _tiles(raw, scale4)
     profile = _lens_profile(raw, lens_correction)
     h, w = raw.cfa.shape
-
-    def run(matrix: np.ndarray, tone: str, bps: str, lens: Any) -> np.ndarray:
-        m = np.ascontiguousarray(matrix, np.float64)
-        native = None if lens is None else lens.native(w, h)
-        return _native.develop(raw.cfa, pattern, *tiles, m, tone, demosaic, bps, native)
-
+    m = np.ascontiguousarray(matrix, np.float64)
+    native = None if profile is None else profile.native(w, h)
+    # LibRaw's brightening: the level is read off the demosaiced image (the
+    # devignetted one, before its geometry is corrected) and folded into the
+    # matrix, with the pixels counted after a non-square sensor's stretch.
+    brighten = None
     if auto and highlights == "clip":
-        # LibRaw clips after the matrix and again after brightening; with a
-        # gain >= 1 that is one clip of the brightened values, so the gain
-        # folds into the matrix. The level is LibRaw's, found on the
-        # devignetted image before its geometry is corrected.
-        light = None if profile is None else replace(profile, distortion=None, tca=None)
-        linear = run(matrix, "linear", "16", light)
-        matrix = matrix * _auto_gain(linear, _stretched_pixels(linear.shape, raw.pixel_aspect))
-        del linear
-    rgb = run(matrix, _tone_for(color, tone), _BPS[bps], profile)
+        brighten = _stretched_pixels((h, w), raw.pixel_aspect)
+    args = (m, _tone_for(color, tone), demosaic, _BPS[bps], native, brighten)
+    rgb = _native.develop(raw.cfa, pattern, *tiles, *args)
     rgb = _stretch(rgb, raw.pixel_aspect)
     return _orient(rgb, raw.flip) if orientation == "auto" else rgb
 

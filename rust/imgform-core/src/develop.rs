@@ -19,7 +19,10 @@
 //! and the output, and each pixel is finished while it is still in cache
 //! (a third pass over 144 MB cost about a fifth of the time at 24 MP). The
 //! others (nearest, X-Trans) prepare a mosaic image, demosaic it and finish
-//! the result in place; both routes give the same bytes.
+//! the result in place; both routes give the same bytes. A development
+//! brightened as LibRaw does by default ([`AutoBright`]) takes the staged
+//! route too: the level is read off the demosaiced image before it is
+//! finished.
 //!
 //! A lens correction ([`develop_corrected`]) adds nothing to the pass but
 //! a factor: vignetting is removed as the photosites are prepared, on
@@ -28,6 +31,8 @@
 //! bits, took a tenth of a 24 MP development's time). Distortion and TCA
 //! then resample the finished image once.
 
+pub use crate::auto_bright::AutoBright;
+use crate::auto_bright::Histograms;
 use crate::cfa::{check_out_len, CfaPattern};
 use crate::demosaic::{demosaic, demosaic_through, Method, Mosaic, RgbSink};
 use crate::error::{all_finite, CoreError, Result};
@@ -129,6 +134,10 @@ pub struct DevelopParams {
     pub tone: Tone,
     /// The demosaicing method.
     pub method: Method,
+    /// Whether to brighten the development as LibRaw does by default
+    /// ([`AutoBright`]); it then goes through the staged route, whose
+    /// demosaiced image the level is read off before it is finished.
+    pub auto_bright: Option<AutoBright>,
 }
 
 impl DevelopParams {
@@ -238,13 +247,13 @@ fn develop_devignetted<T: Sample, U: Sample>(
     vignetting: Option<&GainRows>,
     out: &mut [U],
 ) -> Result<()> {
-    if fused::<T, U>(raw, pattern, params, vignetting, out)? {
+    if params.auto_bright.is_none() && fused::<T, U>(raw, pattern, params, vignetting, out)? {
         return Ok(());
     }
     let mut rgb = vec![T::default(); out.len()];
     demosaic_prepared(raw, pattern, params, vignetting, &mut rgb)?;
-    let finish = Finish::<T, U>::new(params);
     let row_len = 3 * raw.width();
+    let finish = Finish::<T, U>::of(params, &rgb, row_len);
     for_each_row(out, row_len, |y, row| {
         finish.pixels(&rgb[row_len * y..row_len * (y + 1)], row);
     });
@@ -264,11 +273,11 @@ pub fn develop_in_place<T: Sample>(
     params: &DevelopParams,
     out: &mut [T],
 ) -> Result<()> {
-    if fused::<T, T>(raw, pattern, params, None, out)? {
+    if params.auto_bright.is_none() && fused::<T, T>(raw, pattern, params, None, out)? {
         return Ok(());
     }
     demosaic_prepared(raw, pattern, params, None, out)?;
-    let finish = Finish::<T, T>::new(params);
+    let finish = Finish::<T, T>::of(params, out, 3 * raw.width());
     for_each_row(out, 3 * raw.width(), |_, row| {
         // The finish reads all of a pixel before writing it, but takes
         // its input apart from its output: one row's copy per call.
@@ -489,6 +498,26 @@ impl<T: Sample, U: Sample> Finish<T, U> {
         }
     }
 
+    /// The finish of `p` for the demosaiced rows `rgb`, `row_len` samples
+    /// each: brightened by the gain of `p.auto_bright` on them, if any,
+    /// folded into the matrix. LibRaw clips after the matrix and again
+    /// after brightening; with a gain of at least 1 that is one clip of
+    /// the brightened values.
+    fn of(p: &DevelopParams, rgb: &[T], row_len: usize) -> Self {
+        let mut finish = Self::new(p);
+        if let Some(auto) = p.auto_bright {
+            let linear = Finish::<T, u16> {
+                curve: Curve::new(Tone::Linear),
+                ..Finish::new(p)
+            };
+            let gain = auto.gain(&Histograms::of(rgb, row_len, |src, codes| {
+                linear.pixels(src, codes)
+            }));
+            finish.matrix = p.matrix.map(|m| (f64::from(m) * gain) as f32);
+        }
+        finish
+    }
+
     /// Finishes a row of interleaved demosaiced pixels `src` into `out`.
     fn pixels(&self, src: &[T], out: &mut [U]) {
         let planes: [Vec<f32>; 3] =
@@ -614,6 +643,7 @@ mod tests {
             matrix: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
             tone,
             method: Method::Bilinear,
+            auto_bright: None,
         }
     }
 
@@ -846,6 +876,48 @@ mod tests {
                 k: [-0.3, 0.1, -0.05],
             }),
         }
+    }
+
+    #[test]
+    fn auto_bright_equals_developing_twice() {
+        // The level read off a linear 16-bit development, then the
+        // development with the gain in its matrix: what LibRaw's rule asks,
+        // and what the one demosaic must give, for every output type.
+        let (w, h) = (64, 40);
+        let raw: Vec<u16> = (0..w * h)
+            .map(|i| ((i * 7919 + (i / w) * 131) % 3000) as u16)
+            .collect();
+        let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
+        let pat = CfaPattern::from_name("RGGB").unwrap();
+        let mut p = params(60.0, 1.0 / 3800.0, Tone::Srgb);
+        p.matrix = [1.6, -0.4, -0.2, -0.3, 1.5, -0.2, 0.0, -0.5, 1.5];
+        p.method = Method::Rcd;
+        let auto = AutoBright { pixels: w * h };
+        let mut linear = vec![0u16; 3 * w * h];
+        let plain = DevelopParams {
+            tone: Tone::Linear,
+            ..p.clone()
+        };
+        develop_in_place(view, &pat, &plain, &mut linear).unwrap();
+        let gain = auto.gain(&Histograms::of(&linear, 3 * w, |s, d| d.copy_from_slice(s)));
+        assert!(gain > 1.2, "a dim mosaic is brightened ({gain})");
+        let twice = DevelopParams {
+            matrix: p.matrix.map(|m| (f64::from(m) * gain) as f32),
+            ..p.clone()
+        };
+        p.auto_bright = Some(auto);
+        let (mut a, mut b) = (vec![0u8; 3 * w * h], vec![0u8; 3 * w * h]);
+        develop::<u16, u8>(view, &pat, &p, &mut a).unwrap();
+        develop::<u16, u8>(view, &pat, &twice, &mut b).unwrap();
+        assert_eq!(a, b);
+        let (mut a, mut b) = (vec![0u16; 3 * w * h], vec![0u16; 3 * w * h]);
+        develop_in_place(view, &pat, &p, &mut a).unwrap();
+        develop_in_place(view, &pat, &twice, &mut b).unwrap();
+        assert_eq!(a, b);
+        let (mut a, mut b) = (vec![0f32; 3 * w * h], vec![0f32; 3 * w * h]);
+        develop_in_place(view, &pat, &p, &mut a).unwrap();
+        develop_in_place(view, &pat, &twice, &mut b).unwrap();
+        assert_eq!(a, b);
     }
 
     #[test]

@@ -13,6 +13,7 @@ pub mod parallel;
 
 pub mod aberration;
 pub mod align;
+mod auto_bright;
 pub mod camera;
 pub mod cfa;
 pub mod chromatic;

@@ -3,7 +3,7 @@
 use imgform_core::cfa::CfaPattern;
 use imgform_core::demosaic::Method;
 use imgform_core::develop::{
-    develop as develop_kernel, develop_corrected, develop_in_place, DevelopParams, Tone,
+    develop as develop_kernel, develop_corrected, develop_in_place, AutoBright, DevelopParams, Tone,
 };
 use imgform_core::image::{ImageView, Sample};
 use imgform_core::lens::LensCorrector;
@@ -125,9 +125,11 @@ fn tile_shape(black: &Bound<'_, PyAny>, period: usize) -> [usize; 2] {
 }
 
 /// Develops a uint16 mosaic (H, W) -> (H, W, 3) uint8 / uint16 / float32,
-/// through `lens`'s corrections if given (made for the mosaic's size).
+/// through `lens`'s corrections if given (made for the mosaic's size),
+/// brightened as LibRaw does by default if `auto_bright` gives the pixels
+/// its 1 % is of.
 #[pyfunction]
-#[pyo3(signature = (raw, pattern, black, scale, matrix, tone, method, bps, lens=None))]
+#[pyo3(signature = (raw, pattern, black, scale, matrix, tone, method, bps, lens=None, auto_bright=None))]
 #[allow(clippy::too_many_arguments)]
 fn develop<'py>(
     py: Python<'py>,
@@ -140,6 +142,7 @@ fn develop<'py>(
     method: &str,
     bps: &str,
     lens: Option<Bound<'py, NativeLensCorrection>>,
+    auto_bright: Option<usize>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let arr = raw.extract::<PyReadonlyArrayDyn<'py, u16>>().map_err(|_| {
         PyTypeError::new_err(format!(
@@ -165,6 +168,7 @@ fn develop<'py>(
         matrix: [m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8]],
         tone: Tone::from_name(tone).map_err(to_pyerr)?,
         method: Method::from_name_for(method, &pattern).map_err(to_pyerr)?,
+        auto_bright: auto_bright.map(|pixels| AutoBright { pixels }),
     };
     let src = contiguous(&arr);
     let (p, pat) = (&params, &pattern);
