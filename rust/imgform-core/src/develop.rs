@@ -34,7 +34,7 @@
 pub use crate::auto_bright::AutoBright;
 use crate::auto_bright::Histograms;
 use crate::cfa::{check_out_len, CfaPattern};
-use crate::demosaic::{demosaic, demosaic_through, Method, Mosaic, RgbSink};
+use crate::demosaic::{demosaic, demosaic_through, Convert, Method, Mosaic, RgbSink};
 use crate::error::{all_finite, CoreError, Result};
 use crate::image::{ImageView, Sample};
 use crate::invalid;
@@ -315,8 +315,28 @@ fn fused<T: Sample, U: Sample>(
     demosaic_through::<T, _, _, _>(&mosaic, pattern, params.method, &finish, out)
 }
 
-/// Checks everything, prepares the mosaic in `T` and demosaics it into `rgb`.
+/// Checks everything and demosaics the prepared mosaic into `rgb`: through
+/// its loads where the method can ([`demosaic_through`]), which spares a
+/// mosaic image and its pass (4-9 % of a brightened 24 MP development's
+/// time), else from a prepared image ([`demosaic_image`]).
 fn demosaic_prepared<T: Sample>(
+    raw: ImageView<'_, u16>,
+    pattern: &CfaPattern,
+    params: &DevelopParams,
+    vignetting: Option<&GainRows>,
+    rgb: &mut [T],
+) -> Result<()> {
+    check(&raw, pattern, params)?;
+    let prepared = Prepared::<T>::new(raw, params, vignetting);
+    if demosaic_through::<T, _, _, _>(&prepared, pattern, params.method, &Convert, rgb)? {
+        return Ok(());
+    }
+    demosaic_image(raw, pattern, params, vignetting, rgb)
+}
+
+/// Checks everything, prepares the mosaic in `T` as an image and
+/// demosaics it into `rgb`.
+fn demosaic_image<T: Sample>(
     raw: ImageView<'_, u16>,
     pattern: &CfaPattern,
     params: &DevelopParams,
@@ -816,7 +836,7 @@ mod tests {
         p: &DevelopParams,
     ) -> Vec<U> {
         let mut rgb = vec![T::default(); 3 * raw.width() * raw.height()];
-        demosaic_prepared(raw, pat, p, None, &mut rgb).unwrap();
+        demosaic_image(raw, pat, p, None, &mut rgb).unwrap();
         let mut out = vec![U::default(); rgb.len()];
         let finish = Finish::<T, U>::new(p);
         for (src, dst) in rgb
