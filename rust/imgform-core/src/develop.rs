@@ -539,11 +539,41 @@ impl<T: Sample, U: Sample> Finish<T, U> {
     }
 
     /// Finishes a row of interleaved demosaiced pixels `src` into `out`.
+    /// Compiled for AVX2 where the CPU has it, as the one-pass route's
+    /// finish is inside the demosaic's tiles: in baseline code the staged
+    /// passes of a brightened 24 MP development (its count and finish) took
+    /// 35 ms more, a tenth of it. The operations, and so the bits, are the
+    /// same.
     fn pixels(&self, src: &[T], out: &mut [U]) {
-        let planes: [Vec<f32>; 3] =
-            [0, 1, 2].map(|c| src.iter().skip(c).step_by(3).map(|s| s.to_f32()).collect());
-        let mut scratch = self.scratch(planes[0].len());
-        self.store(&mut scratch, [0, 1, 2].map(|c| &planes[c][..]), None, out);
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::has_avx2() {
+            // SAFETY: AVX2 was detected just above.
+            return unsafe { self.pixels_avx2(src, out) };
+        }
+        self.pixels_any(src, out)
+    }
+
+    /// [`Finish::pixels`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn pixels_avx2(&self, src: &[T], out: &mut [U]) {
+        self.pixels_any(src, out)
+    }
+
+    #[inline(always)]
+    fn pixels_any(&self, src: &[T], out: &mut [U]) {
+        let n = src.len() / 3;
+        let mut planes = [0; 3].map(|_| vec![0.0f32; n]);
+        // One pass over the pixels, which LLVM turns into shuffles; three
+        // strided passes collected into vectors took half the time of a
+        // staged finish.
+        let [r, g, b] = planes.each_mut();
+        let split = r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut());
+        for (p, ((r, g), b)) in src.chunks_exact(3).zip(split) {
+            (*r, *g, *b) = (p[0].to_f32(), p[1].to_f32(), p[2].to_f32());
+        }
+        let mut scratch = self.scratch(n);
+        self.store(&mut scratch, planes.each_ref().map(|p| &p[..]), None, out);
     }
 }
 
