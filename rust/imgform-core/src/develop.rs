@@ -878,15 +878,23 @@ mod tests {
         out
     }
 
+    /// A colour matrix with a camera's typical negative off-diagonals.
+    const CAMERA_MATRIX: [f32; 9] = [1.6, -0.4, -0.2, -0.3, 1.5, -0.2, 0.0, -0.5, 1.5];
+
+    /// A mosaic `w` x `h` of values scattered over `0 .. top`.
+    fn scrambled(w: usize, h: usize, top: usize) -> Vec<u16> {
+        (0..w * h)
+            .map(|i| ((i * 7919 + (i / w) * 131) % top) as u16)
+            .collect()
+    }
+
     #[test]
     fn one_pass_development_equals_the_staged_one_for_every_method() {
         // Wider than a demosaic tile (384 columns) and odd in both sizes,
         // with a black level above some samples, clipped highlights and a
         // black tile longer than the CFA's.
         let (w, h) = (391, 23);
-        let raw: Vec<u16> = (0..w * h)
-            .map(|i| ((i * 7919 + (i / w) * 131) % 4500) as u16)
-            .collect();
+        let raw = scrambled(w, h, 4500);
         let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
         let pat = CfaPattern::from_name("GBRG").unwrap();
         let mut p = params(90.0, 1.0 / 3800.0, Tone::Srgb);
@@ -894,7 +902,7 @@ mod tests {
         p.black = vec![90.0, 80.0, 100.0, 95.0, 70.0, 90.0, 85.0, 60.0];
         p.scale = vec![1.4 / 3800.0, 1.0 / 3800.0, 1.9 / 3800.0, 1.0 / 3800.0];
         p.scale.extend_from_within(..);
-        p.matrix = [1.6, -0.4, -0.2, -0.3, 1.5, -0.2, 0.0, -0.5, 1.5];
+        p.matrix = CAMERA_MATRIX;
         for method in Method::ALL {
             p.method = method;
             let mut a = vec![0u8; 3 * w * h];
@@ -934,13 +942,11 @@ mod tests {
         // development with the gain in its matrix: what LibRaw's rule asks,
         // and what the one demosaic must give, for every output type.
         let (w, h) = (64, 40);
-        let raw: Vec<u16> = (0..w * h)
-            .map(|i| ((i * 7919 + (i / w) * 131) % 3000) as u16)
-            .collect();
+        let raw = scrambled(w, h, 3000);
         let view = ImageView::contiguous(&raw, w, h, 1).unwrap();
         let pat = CfaPattern::from_name("RGGB").unwrap();
         let mut p = params(60.0, 1.0 / 3800.0, Tone::Srgb);
-        p.matrix = [1.6, -0.4, -0.2, -0.3, 1.5, -0.2, 0.0, -0.5, 1.5];
+        p.matrix = CAMERA_MATRIX;
         p.method = Method::Rcd;
         let auto = AutoBright { pixels: w * h };
         let mut linear = vec![0u16; 3 * w * h];
@@ -956,18 +962,17 @@ mod tests {
             ..p.clone()
         };
         p.auto_bright = Some(auto);
-        let (mut a, mut b) = (vec![0u8; 3 * w * h], vec![0u8; 3 * w * h]);
-        develop::<u16, u8>(view, &pat, &p, &mut a).unwrap();
-        develop::<u16, u8>(view, &pat, &twice, &mut b).unwrap();
-        assert_eq!(a, b);
-        let (mut a, mut b) = (vec![0u16; 3 * w * h], vec![0u16; 3 * w * h]);
-        develop_in_place(view, &pat, &p, &mut a).unwrap();
-        develop_in_place(view, &pat, &twice, &mut b).unwrap();
-        assert_eq!(a, b);
-        let (mut a, mut b) = (vec![0f32; 3 * w * h], vec![0f32; 3 * w * h]);
-        develop_in_place(view, &pat, &p, &mut a).unwrap();
-        develop_in_place(view, &pat, &twice, &mut b).unwrap();
-        assert_eq!(a, b);
+        // Each output type developed with `p` and with `twice`.
+        let n = 3 * w * h;
+        let mut eight: [_; 2] = std::array::from_fn(|_| vec![0u8; n]);
+        let mut sixteen: [_; 2] = std::array::from_fn(|_| vec![0u16; n]);
+        let mut float: [_; 2] = std::array::from_fn(|_| vec![0f32; n]);
+        for (params, k) in [(&p, 0), (&twice, 1)] {
+            develop::<u16, u8>(view, &pat, params, &mut eight[k]).unwrap();
+            develop_in_place(view, &pat, params, &mut sixteen[k]).unwrap();
+            develop_in_place(view, &pat, params, &mut float[k]).unwrap();
+        }
+        assert!(eight[0] == eight[1] && sixteen[0] == sixteen[1] && float[0] == float[1]);
     }
 
     #[test]
