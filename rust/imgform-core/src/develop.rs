@@ -327,26 +327,23 @@ fn demosaic_prepared<T: Sample>(
     rgb: &mut [T],
 ) -> Result<()> {
     check(&raw, pattern, params)?;
+    check_out_len(rgb.len(), 3 * raw.width() * raw.height(), "develop")?;
     let prepared = Prepared::<T>::new(raw, params, vignetting);
     if demosaic_through::<T, _, _, _>(&prepared, pattern, params.method, &Convert, rgb)? {
         return Ok(());
     }
-    demosaic_image(raw, pattern, params, vignetting, rgb)
+    demosaic_image(&prepared, pattern, params.method, rgb)
 }
 
-/// Checks everything, prepares the mosaic in `T` as an image and
-/// demosaics it into `rgb`.
+/// Demosaics `prepared` into `rgb` from an image of it, for the methods
+/// that cannot load it row by row.
 fn demosaic_image<T: Sample>(
-    raw: ImageView<'_, u16>,
+    prepared: &Prepared<'_, T>,
     pattern: &CfaPattern,
-    params: &DevelopParams,
-    vignetting: Option<&GainRows>,
+    method: Method,
     rgb: &mut [T],
 ) -> Result<()> {
-    check(&raw, pattern, params)?;
-    let (w, h) = (raw.width(), raw.height());
-    check_out_len(rgb.len(), 3 * w * h, "develop")?;
-    let prepared = Prepared::<T>::new(raw, params, vignetting);
+    let (w, h) = (prepared.width(), prepared.height());
     let mut mosaic = vec![T::default(); w * h];
     for_each_row(&mut mosaic, w, |y, row| {
         let mut lin = vec![0.0f32; w];
@@ -357,7 +354,7 @@ fn demosaic_image<T: Sample>(
     demosaic(
         ImageView::contiguous(&mosaic, w, h, 1)?,
         pattern,
-        params.method,
+        method,
         Some(T::FULL_SCALE),
         rgb,
     )
@@ -866,7 +863,7 @@ mod tests {
         p: &DevelopParams,
     ) -> Vec<U> {
         let mut rgb = vec![T::default(); 3 * raw.width() * raw.height()];
-        demosaic_image(raw, pat, p, None, &mut rgb).unwrap();
+        demosaic_image(&Prepared::new(raw, p, None), pat, p.method, &mut rgb).unwrap();
         let mut out = vec![U::default(); rgb.len()];
         let finish = Finish::<T, U>::new(p);
         for (src, dst) in rgb
