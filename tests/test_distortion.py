@@ -53,6 +53,10 @@ def test_points_beyond_the_fold_are_reported_not_invented():
     out, ok = ig.undistort_points([[0.5, 0.0], [0.6, 0.0]], strong_barrel, return_converged=True)
     assert ok.tolist() == [True, False]
     assert np.isnan(out[1]).all()
+    # Forward, r (1 - 0.5 r²) turns back at r = 0.816: past it a point is
+    # not put on the wrong side of the axis (as cv2.projectPoints does).
+    far = ig.distort_points([[0.8, 0.0], [0.9, 0.0], [3.0, 0.0]], strong_barrel)
+    assert not np.isnan(far[0]).any() and np.isnan(far[1:]).all()
 
 
 @pytest.mark.parametrize(

@@ -53,6 +53,14 @@ def _vector3(value: Any, name: str) -> Float64Array:
     return as_matrix(arr, (3,), name)
 
 
+def _direction(value: Any, name: str) -> Float64Array:
+    """A finite 3-vector whose length does not matter, scaled to a largest
+    component of 1: a direction of 1e308 overflows the products it enters."""
+    arr = _vector3(value, name)
+    largest = np.abs(arr).max()
+    return arr / largest if largest > 0 else arr
+
+
 def _image_size(image_size: Any) -> tuple[int, int] | None:
     if image_size is None:
         return None
@@ -343,7 +351,9 @@ class Camera:
         ndarray, float64, shape (N, 2) or (2,)
             Pixels ``(u, v)``. Points at or behind the pinhole (``Z_cam <= 0``)
             have no image and come back as NaN, as do points the lens has no
-            image of (the division model beyond its fold).
+            image of: beyond the fold of its model, where Brown-Conrady's
+            polynomial turns back (``cv2.projectPoints`` then puts a point
+            on the wrong side of the axis) or the division model has no root.
 
         Raises
         ------
@@ -472,7 +482,7 @@ def vanishing_point(camera: Camera, direction: Any) -> VanishingPoint:
     True
     """
     point, homogeneous, at_infinity = camera._native.vanishing_point(
-        _vector3(direction, "direction")
+        _direction(direction, "direction")
     )
     return VanishingPoint(np.array(point), np.array(homogeneous), at_infinity)
 
@@ -510,4 +520,4 @@ def vanishing_line(camera: Camera, plane_normal: Any) -> Float64Array:
     >>> vanishing_line(cam, [0.0, -1.0, 0.0])  # level camera: the horizon is row cy
     array([  0.,  -1., 240.])
     """
-    return np.array(camera._native.vanishing_line(_vector3(plane_normal, "plane_normal")))
+    return np.array(camera._native.vanishing_line(_direction(plane_normal, "plane_normal")))

@@ -46,7 +46,8 @@ def distort_points(
     Returns
     -------
     ndarray, float64, same shape as ``points``
-        NaN where the model has no image (the division model beyond its fold).
+        NaN where the model has no image: beyond its fold, where a
+        Brown-Conrady polynomial turns back or the division model has no root.
 
     Examples
     --------

@@ -68,11 +68,17 @@ impl Distortion {
     }
 
     /// Ideal normalised point to distorted one; `None` where the model has
-    /// no distorted image of it (division model beyond its fold).
+    /// no distorted image of it: beyond its fold, where Brown-Conrady's
+    /// polynomial turns back (OpenCV's `projectPoints` puts such a point on
+    /// the other side of the axis, or back inside the frame) and the
+    /// division model's quadratic has no root.
     #[inline]
     pub fn distort(&self, x: f64, y: f64) -> Option<(f64, f64)> {
         match *self {
-            Self::BrownConrady(k) => Some(brown_conrady(&k, x, y).0),
+            Self::BrownConrady(k) => {
+                let (p, jacobian) = brown_conrady(&k, x, y);
+                one_to_one(jacobian).then_some(p)
+            }
             Self::Division(lambda) => division_distort(lambda, x, y),
         }
     }
@@ -85,8 +91,11 @@ impl Distortion {
         match *self {
             Self::BrownConrady(k) => brown_conrady_inverse(&k, xd, yd),
             Self::Division(lambda) => {
-                let w = 1.0 + lambda * (xd * xd + yd * yd);
-                (w > 0.0).then(|| (xd / w, yd / w))
+                // r_u = r_d / (1 + λ r_d²) rises while |λ r_d²| < 1: beyond
+                // that (λ > 0) it falls again, and the forward direction
+                // images the same ideal point before the fold instead.
+                let l = lambda * (xd * xd + yd * yd);
+                (l.abs() < 1.0).then(|| (xd / (1.0 + l), yd / (1.0 + l)))
             }
         }
     }
@@ -112,23 +121,56 @@ fn brown_conrady(k: &[f64; 8], x: f64, y: f64) -> ((f64, f64), [f64; 3]) {
     ((xd, yd), [a, b, c])
 }
 
-/// Newton's method on `distort(p) = (xd, yd)`, started at the distorted
-/// point. A solution whose Jacobian is not positive definite lies beyond the
-/// fold, where the model stops being one-to-one, and is rejected.
+/// Whether Brown-Conrady's Jacobian `[[a, b], [b, c]]` is positive
+/// definite: true around the axis, up to the fold where the lens starts to
+/// map two ideal points onto one.
+#[inline]
+fn one_to_one([a, b, c]: [f64; 3]) -> bool {
+    a > 0.0 && a * c - b * b > 0.0
+}
+
+/// Newton's method on `distort(p) = (xd, yd)`, kept on the lens's side of
+/// its fold: every iterate has a positive definite Jacobian (the region
+/// around the axis where the model is one-to-one) and a smaller residual
+/// than the last, halving a step until it does. A plain Newton step from a
+/// corner of a strong barrel lens (k1 = -0.34) overshoots past the fold and
+/// converges to the wrong branch, or not at all, and the inverse was lost
+/// for points well inside the image. It starts at the distorted point, or
+/// nearer the axis (where the Jacobian is the identity) if that point is
+/// beyond the fold.
 fn brown_conrady_inverse(k: &[f64; 8], xd: f64, yd: f64) -> Option<(f64, f64)> {
-    let (mut x, mut y) = (xd, yd);
+    let residual = |(fx, fy): (f64, f64)| (fx - xd, fy - yd);
+    if !(xd.is_finite() && yd.is_finite()) {
+        return None;
+    }
+    let tolerance = NEWTON_TOLERANCE * (1.0 + xd.abs().max(yd.abs()));
+    let (mut p, mut at) = ((xd, yd), brown_conrady(k, xd, yd));
+    while !one_to_one(at.1) {
+        p = (p.0 * 0.5, p.1 * 0.5);
+        at = brown_conrady(k, p.0, p.1);
+    }
     for _ in 0..MAX_NEWTON_STEPS {
-        let ((fx, fy), [a, b, c]) = brown_conrady(k, x, y);
-        let (ex, ey) = (fx - xd, fy - yd);
+        let ((ex, ey), [a, b, c]) = (residual(at.0), at.1);
+        if ex.abs().max(ey.abs()) <= tolerance {
+            return Some(p);
+        }
         let det = a * c - b * b;
-        if ex.abs().max(ey.abs()) <= NEWTON_TOLERANCE * (1.0 + xd.abs().max(yd.abs())) {
-            return (det > 0.0 && a > 0.0).then_some((x, y));
+        let step = ((c * ex - b * ey) / det, (a * ey - b * ex) / det);
+        let norm = ex * ex + ey * ey;
+        let mut t = 1.0;
+        loop {
+            let q = (p.0 - t * step.0, p.1 - t * step.1);
+            let next = brown_conrady(k, q.0, q.1);
+            let (nx, ny) = residual(next.0);
+            if one_to_one(next.1) && nx * nx + ny * ny < norm {
+                (p, at) = (q, next);
+                break;
+            }
+            t *= 0.5;
+            if t < 1e-12 {
+                return None;
+            }
         }
-        if !(det.is_finite() && det != 0.0) {
-            return None;
-        }
-        x -= (c * ex - b * ey) / det;
-        y -= (a * ey - b * ex) / det;
     }
     None
 }
@@ -232,7 +274,43 @@ mod tests {
         let model = Distortion::BrownConrady([-0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
         assert!(model.undistort(0.5, 0.0).is_some());
         assert!(model.undistort(0.6, 0.0).is_none());
+        assert!(model.distort(0.8, 0.0).is_some() && model.distort(0.9, 0.0).is_none());
         assert!(Distortion::Division(0.5).distort(1.0, 0.0).is_none());
+    }
+
+    #[test]
+    fn a_strong_barrel_lens_inverts_up_to_its_fold() {
+        // r_d(r) = r (1 - 0.34 r² + 0.105 r⁴ - 0.011 r⁶) rises to its fold
+        // at r = 2.127 (r_d = 1.2599): every r_d below has one preimage
+        // before it, which a plain Newton step from r_d overshoots.
+        let model = Distortion::BrownConrady([-0.34, 0.105, 0.0, 0.0, -0.011, 0.0, 0.0, 0.0]);
+        for i in 1..=210 {
+            let r = f64::from(i) * 0.01;
+            for angle in [0.0f64, 0.3, 0.7, 1.2] {
+                let (x, y) = (r * angle.cos(), r * angle.sin());
+                let (xd, yd) = model.distort(x, y).unwrap();
+                let (xu, yu) = model.undistort(xd, yd).unwrap();
+                assert!(
+                    (xu - x).abs() < 1e-12 && (yu - y).abs() < 1e-12,
+                    "r {r} at {angle}"
+                );
+            }
+        }
+        assert!(
+            model.undistort(1.27, 0.0).is_none(),
+            "beyond the fold's r_d"
+        );
+        assert!(model.undistort(f64::NAN, 0.0).is_none());
+    }
+
+    #[test]
+    fn the_division_model_has_no_inverse_beyond_its_fold() {
+        // λ = 0.7: r_u = r_d / (1 + λ r_d²) peaks at r_d = 1/√λ = 1.195.
+        let model = Distortion::Division(0.7);
+        let (xu, _) = model.undistort(1.1, 0.0).unwrap();
+        assert!((model.distort(xu, 0.0).unwrap().0 - 1.1).abs() < 1e-14);
+        assert!(model.undistort(1.3, 0.0).is_none());
+        assert!(Distortion::Division(-0.7).undistort(1.3, 0.0).is_none());
     }
 
     #[test]
