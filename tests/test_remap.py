@@ -296,6 +296,13 @@ IDENT = identity_map(8, 8)
         ),
         (lambda: ig.undistort_map(K, LENS), TypeError, "shape is required"),
         (lambda: ig.undistort_map(K, LENS, (0, 5)), ValueError, "non-empty"),
+        (lambda: ig.undistort_map(K, LENS, (-5, 10)), ValueError, "non-empty"),
+        (lambda: ig.distort_map(K, LENS, (100_000, 100_000)), MemoryError, "100000x100000"),
+        (
+            lambda: ig.remap(IMG.astype(np.float32), ig.undistort_map(K, LENS, (4, 4)), fill=1e40),
+            ValueError,
+            "fill must be",
+        ),
         (lambda: ig.undistort_map(K, LENS, (3, 4, 5, 6)), ValueError, "shape must be"),
         (
             lambda: ig.add_lateral_ca(IMG, np.nan, 1.0),
@@ -324,6 +331,41 @@ IDENT = identity_map(8, 8)
 def test_bad_input_is_refused_clearly(call, exc, match):
     with pytest.raises(exc, match=match):
         call()
+
+
+def test_a_camera_brings_its_own_distortion_model():
+    cam = ig.Camera(K, dist=[0.3], model="division", image_size=(H, W))
+    own = ig.undistort_map(cam, shape=(H, W)).planes()
+    given = ig.undistort_map(K, [0.3], (H, W), model="division").planes()
+    np.testing.assert_array_equal(own[0], given[0])
+    with pytest.raises(ValueError, match="contradicts the camera's own model"):
+        ig.undistort_map(cam, shape=(H, W), model="brown_conrady")
+
+
+def test_a_strong_barrel_lens_is_inverted_up_to_its_fold_as_opencv_does():
+    # r_d = r (1 - 0.34 r² + 0.105 r⁴ - 0.011 r⁶) folds at r = 2.127
+    # (r_d = 1.2599), beyond this frame's corners (r_d 1.23).
+    cv2 = pytest.importorskip("cv2")
+    lens = np.array([-0.34, 0.105, 0.0, 0.0, -0.011])
+    k = np.array([[650.0, 0, 639.5], [0, 650, 479.5], [0, 0, 1]])
+    px, py = ig.distort_map(k, lens, (960, 1280)).planes()
+    assert not np.isnan(px).any() and not np.isnan(py).any()
+    corners = np.array([[0.0, 0.0], [1279.0, 959.0], [1279.0, 0.0]])
+    ours = ig.undistort_points(corners, lens, K=k)
+    ref = cv2.undistortPoints(corners[:, None], k, lens, P=k, criteria=(3, 300, 1e-15))[:, 0]
+    np.testing.assert_allclose(ours, ref, atol=1e-6)
+    np.testing.assert_allclose(ig.distort_points(ours, lens, K=k), corners, atol=1e-6)
+
+
+def test_the_division_model_has_no_image_beyond_its_fold():
+    # λ = 0.7 > 0: r_u = r_d / (1 + λ r_d²) turns back at r_d = 1/√λ = 1.195.
+    k = np.array([[300.0, 0, 319.5], [0, 300, 239.5], [0, 0, 1]])
+    px, _ = ig.distort_map(k, [0.7], (480, 640), model="division").planes()
+    assert np.isnan(px[479, 639]) and not np.isnan(px[240, 320])
+    cam = ig.Camera(k, dist=[0.7], model="division", image_size=(480, 640))
+    assert np.isnan(cam.rays([639.0, 479.0])).all()
+    ray = cam.rays([600.0, 400.0])
+    np.testing.assert_allclose(cam.project(cam.center + 2 * ray), [600.0, 400.0], atol=1e-9)
 
 
 def test_camera_and_dist_together_is_refused():

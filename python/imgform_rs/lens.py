@@ -186,6 +186,8 @@ class LensProfile:
         sequence from that lens at that setting (a profile built with
         unhashable terms, lists, gets a new one each time)."""
         width, height = int(width), int(height)
+        if min(width, height) < 1:
+            raise ValueError(f"width and height must be >= 1, got {width}x{height}")
         try:
             hash(self)
         except TypeError:

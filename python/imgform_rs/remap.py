@@ -37,15 +37,25 @@ Interpolation = Literal["bilinear", "bicubic"]
 ImageT = TypeVar("ImageT", npt.NDArray[np.uint8], npt.NDArray[np.uint16], npt.NDArray[np.float32])
 
 
-def _lens(camera_or_K: Any, dist: Any) -> tuple[np.ndarray, list[float]]:
-    """``K`` and the coefficients, from a camera-like object or given apart."""
+def _lens(
+    camera_or_K: Any, dist: Any, model: DistortionModel | None
+) -> tuple[np.ndarray, list[float], str]:
+    """``K``, the coefficients and the model, from a camera-like object or
+    given apart: a camera's coefficients mean nothing under another model."""
     if hasattr(camera_or_K, "K") and hasattr(camera_or_K, "dist"):
         if dist is not None:
             raise TypeError(
                 "dist was given twice: pass a camera (with .K and .dist) or K and dist, not both"
             )
-        camera_or_K, dist = camera_or_K.K, camera_or_K.dist
-    return as_matrix(camera_or_K, (3, 3), "K"), lens_coefficients(dist)
+        own = getattr(camera_or_K, "model", "brown_conrady")
+        if model is not None and model != own:
+            raise ValueError(
+                f"model={model!r} contradicts the camera's own model {own!r}: "
+                "leave model out to use the camera's"
+            )
+        camera_or_K, dist, model = camera_or_K.K, camera_or_K.dist, own
+    K = as_matrix(camera_or_K, (3, 3), "K")
+    return K, lens_coefficients(dist), model or "brown_conrady"
 
 
 def _shape(shape: Any) -> tuple[int, int]:
@@ -55,11 +65,13 @@ def _shape(shape: Any) -> tuple[int, int]:
     dims = tuple(shape)
     if len(dims) not in (2, 3) or not all(isinstance(d, (int, np.integer)) for d in dims):
         raise ValueError(f"shape must be (H, W) or (H, W, C) integers, got {shape!r}")
+    if min(dims[:2]) < 1:
+        raise ValueError(f"shape must be a non-empty (H, W), sizes >= 1, got {shape!r}")
     return int(dims[0]), int(dims[1])
 
 
 def _lens_map(camera_or_K, dist, shape, model, new_K, undistort: bool) -> RemapMap:
-    K, coeffs = _lens(camera_or_K, dist)
+    K, coeffs, model = _lens(camera_or_K, dist, model)
     new_k = None if new_K is None else as_matrix(new_K, (3, 3), "new_K")
     build = RemapMap.undistort if undistort else RemapMap.distort
     return build(K, coeffs, model, _shape(shape), new_k)
@@ -70,7 +82,7 @@ def undistort_map(
     dist: Any = None,
     shape: Any = None,
     *,
-    model: DistortionModel = "brown_conrady",
+    model: DistortionModel | None = None,
     new_K: Any = None,
 ) -> RemapMap:
     """The map that removes lens distortion, built once and reused per frame.
@@ -90,7 +102,9 @@ def undistort_map(
     shape : tuple
         Output ``(H, W)`` in NumPy's order (an image's ``.shape`` works),
         not OpenCV's ``(W, H)``.
-    model : {"brown_conrady", "division"}
+    model : {"brown_conrady", "division"}, optional
+        The camera's own model (its ``.model``) for a camera, else
+        ``"brown_conrady"``.
     new_K : array_like (3, 3), optional
         Intrinsics of the undistorted image; default ``K``.
 
@@ -122,7 +136,7 @@ def distort_map(
     dist: Any = None,
     shape: Any = None,
     *,
-    model: DistortionModel = "brown_conrady",
+    model: DistortionModel | None = None,
     new_K: Any = None,
 ) -> RemapMap:
     """The map that renders lens distortion into an ideal (pinhole) image.
@@ -214,7 +228,7 @@ def undistort_image(
     camera_or_K: Any = None,
     dist: Any = None,
     *,
-    model: DistortionModel = "brown_conrady",
+    model: DistortionModel | None = None,
     new_K: Any = None,
     interpolation: Interpolation = "bilinear",
     fill: float = 0,
@@ -258,7 +272,7 @@ def distort_image(
     camera_or_K: Any = None,
     dist: Any = None,
     *,
-    model: DistortionModel = "brown_conrady",
+    model: DistortionModel | None = None,
     new_K: Any = None,
     interpolation: Interpolation = "bilinear",
     fill: float = 0,

@@ -13,6 +13,11 @@ pub enum CoreError {
     /// Python's `ValueError`.
     #[error("{0}")]
     Shape(String),
+    /// A buffer the input asks for cannot be allocated (a map of 10⁵ x 10⁵
+    /// pixels): refused rather than aborting the process, as a failed
+    /// `vec!` does. Maps to Python's `MemoryError`.
+    #[error("{0}")]
+    Memory(String),
 }
 
 /// Result of every fallible kernel.

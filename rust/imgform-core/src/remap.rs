@@ -497,17 +497,29 @@ impl RemapMap {
         F: Fn(usize, usize) -> (f64, f64) + Sync,
     {
         check_size(width, height)?;
-        let mut xy = vec![0i32; 2 * width * height];
-        for_each_row(&mut xy, 2 * width, |v, row| {
+        let too_large = || {
+            CoreError::Memory(format!(
+                "a {height}x{width} map needs 8 bytes a pixel, more memory than can be allocated"
+            ))
+        };
+        let len = width
+            .checked_mul(height)
+            .and_then(|n| n.checked_mul(2))
+            .ok_or_else(too_large)?;
+        let mut xy: Vec<i32> = Vec::new();
+        xy.try_reserve_exact(len).map_err(|_| too_large())?;
+        for_each_row(&mut xy.spare_capacity_mut()[..len], 2 * width, |v, row| {
             for (u, out) in row.chunks_exact_mut(2).enumerate() {
                 let (x, y) = source(u, v);
                 let (fx, fy) = (to_fixed(x), to_fixed(y));
                 // One NaN coordinate leaves the pixel without a source.
                 let none = fx == NOWHERE || fy == NOWHERE;
-                out[0] = if none { NOWHERE } else { fx };
-                out[1] = fy;
+                out[0].write(if none { NOWHERE } else { fx });
+                out[1].write(fy);
             }
         });
+        // SAFETY: the rows above wrote every one of the `len` values.
+        unsafe { xy.set_len(len) };
         Ok(Self { width, height, xy })
     }
 
@@ -575,7 +587,7 @@ fn check_size(width: usize, height: usize) -> Result<()> {
 /// [`CoreError::InvalidArgument`] naming the value.
 pub fn check_fill<T: Sample>(fill: f64) -> Result<f32> {
     let f = fill as f32;
-    if fill.is_finite() && T::from_f32(f).to_f32() == f {
+    if f.is_finite() && T::from_f32(f).to_f32() == f {
         Ok(f)
     } else {
         Err(invalid!(

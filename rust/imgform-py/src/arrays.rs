@@ -12,6 +12,7 @@ use numpy::{
     PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::intern;
 use pyo3::prelude::*;
 
 use crate::errors::detached;
@@ -101,6 +102,18 @@ pub fn to_numpy<'py, T: Element>(
     Ok(arr.into_pyarray(py))
 }
 
+/// A new zeroed C-contiguous array of `shape` from `numpy.zeros`, or the
+/// `MemoryError` NumPy raises for one it cannot allocate: rust-numpy's own
+/// constructors panic then.
+pub fn zeros<'py, T: Element>(
+    py: Python<'py>,
+    shape: &[usize],
+) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    let numpy = py.import(intern!(py, "numpy"))?;
+    let array = numpy.call_method1(intern!(py, "zeros"), (shape.to_vec(), T::get_dtype(py)))?;
+    Ok(array.downcast_into::<PyArrayDyn<T>>()?)
+}
+
 /// Allocates a new C-contiguous array of `shape` through NumPy and lets
 /// `kernel` fill it with the GIL released.
 ///
@@ -117,7 +130,7 @@ where
     T: Element + Send,
     F: Send + FnOnce(&mut [T]) -> imgform_core::Result<()>,
 {
-    let out = PyArrayDyn::<T>::zeros(py, shape, false);
+    let out = zeros::<T>(py, shape)?;
     fill(py, &out, kernel)?;
     Ok(out)
 }

@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 use std::sync::{Mutex, PoisonError};
 
-use crate::arrays::{contiguous, describe, detached_into, fixed};
+use crate::arrays::{contiguous, describe, detached_into, fixed, zeros};
 use crate::cfa::pattern_arg;
 use crate::errors::to_pyerr;
 use crate::lens::NativeLensCorrection;
@@ -94,14 +94,14 @@ staged!(u16, f32);
 /// The kept working array of `U` if it holds `len` samples, else a new one
 /// that NumPy allocates (it asks the OS to back large arrays with huge
 /// pages, so their first writes fault far less often than a `Vec`'s).
-fn take_working<U: Working>(py: Python<'_>, len: usize) -> Bound<'_, PyArrayDyn<U>> {
+fn take_working<U: Working>(py: Python<'_>, len: usize) -> PyResult<Bound<'_, PyArrayDyn<U>>> {
     let kept = U::kept()
         .lock()
         .unwrap_or_else(PoisonError::into_inner)
         .take();
     match kept.map(|a| a.into_bound(py)) {
-        Some(a) if a.len() == len => a,
-        _ => PyArrayDyn::<U>::zeros(py, &[len][..], false),
+        Some(a) if a.len() == len => Ok(a),
+        _ => zeros::<U>(py, &[len]),
     }
 }
 
@@ -119,7 +119,7 @@ fn run_corrected<'py, T: Staged, U: Working>(
     } else {
         0
     };
-    let working = take_working::<U>(py, len);
+    let working = take_working::<U>(py, len)?;
     let out = {
         let mut view = working
             .try_readwrite()

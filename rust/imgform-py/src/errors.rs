@@ -2,7 +2,7 @@
 
 use imgform_core::CoreError;
 use pyo3::create_exception;
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 
 create_exception!(
@@ -17,6 +17,7 @@ create_exception!(
 pub fn to_pyerr(err: CoreError) -> PyErr {
     match err {
         CoreError::InvalidArgument(msg) | CoreError::Shape(msg) => PyValueError::new_err(msg),
+        CoreError::Memory(msg) => PyMemoryError::new_err(msg),
     }
 }
 
