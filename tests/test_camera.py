@@ -235,6 +235,18 @@ def test_vanishing_point_at_infinity_is_said_so():
         assert abs(cross2(step, vp.homogeneous)) < 1e-12
 
 
+def test_directions_and_normals_of_any_length_give_the_same_answers():
+    cam = ig.Camera.from_fov(np.deg2rad(60), image_size=(480, 640))
+    for v in ([1.0, 1.0, 1.0], [2.0, -1.0, 3.0]):
+        big, small = np.multiply(v, 1e308 / 3), np.multiply(v, 1e-300)
+        expected = ig.vanishing_point(cam, v).point
+        for scaled in (big, small):
+            np.testing.assert_allclose(ig.vanishing_point(cam, scaled).point, expected)
+            np.testing.assert_allclose(
+                ig.vanishing_line(cam, scaled), ig.vanishing_line(cam, v), atol=1e-12
+            )
+
+
 def test_vanishing_point_through_a_lens_is_the_distorted_ideal_one():
     K = np.array([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
     lens = [-0.25, 0.05, 0.0, 0.0]

@@ -318,3 +318,9 @@ UPV = {"vertical_vp": [0, 1, 0]}
 def test_bad_input_is_refused_clearly(call, exc, match):
     with pytest.raises(exc, match=match):
         call()
+
+
+def test_a_horizon_through_points_given_at_any_scale_is_the_same_line():
+    a, b = np.array([300.0, 200.0, 1.0]), np.array([900.0, 260.0, 1.0])
+    expected = ig.fit_horizon(a, b)
+    np.testing.assert_allclose(ig.fit_horizon(a * 1e300, b * 1e300), expected, atol=1e-12)

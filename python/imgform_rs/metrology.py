@@ -68,7 +68,10 @@ def _homogeneous(value: Any, name: str) -> Float64Array:
             f"{name} must be a pixel (2,), a homogeneous point (3,) or a vanishing point, "
             f"got shape {arr.shape}"
         )
-    return as_matrix(arr, (3,), name)
+    arr = as_matrix(arr, (3,), name)
+    # Its scale is free: a largest component of 1 keeps products finite.
+    largest = np.abs(arr).max()
+    return arr / largest if largest > 0 else arr
 
 
 def _pixel(value: Any, name: str) -> Float64Array:
