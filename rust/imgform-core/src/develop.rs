@@ -1046,18 +1046,38 @@ mod tests {
             let mut got = vec![0u8; want.len()];
             let mut working = vec![0u8; want.len()];
             for _ in 0..2 {
-                develop_corrected::<u16, u8>(view, &pat, &p, &corrector, (&mut vec![], &mut working), &mut got)
-                    .unwrap();
+                develop_corrected::<u16, u8>(
+                    view,
+                    &pat,
+                    &p,
+                    &corrector,
+                    (&mut vec![], &mut working),
+                    &mut got,
+                )
+                .unwrap();
                 assert!(got == want, "{method:?}");
             }
         }
         let other = LensCorrector::new(lens(w, h + 2, false, true));
         let mut working = vec![0u8; 3 * w * h];
         let mut out = working.clone();
-        let err = develop_corrected::<u16, u8>(view, &pat, &p, &other, (&mut vec![], &mut working), &mut out);
+        let err = develop_corrected::<u16, u8>(
+            view,
+            &pat,
+            &p,
+            &other,
+            (&mut vec![], &mut working),
+            &mut out,
+        );
         assert!(matches!(err, Err(CoreError::Shape(_))));
-        let err =
-            develop_corrected::<u16, u8>(view, &pat, &p, &corrector, (&mut vec![], &mut working[1..]), &mut out);
+        let err = develop_corrected::<u16, u8>(
+            view,
+            &pat,
+            &p,
+            &corrector,
+            (&mut vec![], &mut working[1..]),
+            &mut out,
+        );
         assert!(matches!(err, Err(CoreError::Shape(_))));
     }
 
@@ -1074,8 +1094,15 @@ mod tests {
         let c = lens(w, h, true, false);
         let mut out = vec![0.0f32; 3 * w * h];
         // Without distortion and TCA the working buffer is not used.
-        develop_corrected::<f32, f32>(view, &pat, &p, &LensCorrector::new(c), (&mut vec![], &mut []), &mut out)
-            .unwrap();
+        develop_corrected::<f32, f32>(
+            view,
+            &pat,
+            &p,
+            &LensCorrector::new(c),
+            (&mut vec![], &mut []),
+            &mut out,
+        )
+        .unwrap();
         for (i, px) in out.chunks_exact(3).enumerate() {
             let (u, v) = (i % w, i / w);
             let want = 0.25 * c.gain(u as f64, v as f64);
