@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -65,6 +67,28 @@ def test_bad_glasses_and_wavelengths_are_refused():
         BK7.index([10_170.0])  # sqrt(C3) = 10.18 µm
     with pytest.raises(ValueError, match="f_d must be"):
         focal_lengths(BK7, [500.0], 0.0)
+
+
+def test_sellmeier_indices_exist_only_between_the_poles_around_the_d_line():
+    """N-BK7's poles lie at sqrt(C) = 77.5 nm, 141.5 nm (ultraviolet) and
+    10.18 µm (infrared). At a pole the formula divides by 0 and across one
+    it describes no glass (beyond 10.18 µm it gives n ~ 1.8 again): both are
+    refused; the window between 141.5 nm and 10.18 µm is answered."""
+    uv, ir = np.sqrt(0.0200179144) * 1e3, np.sqrt(103.560653) * 1e3
+    window = r"between the poles at 141\.485 and 10176\.5 nm"
+    for wl in (np.sqrt(0.00600069867) * 1e3, uv, ir, 100.0, 20_000.0, 1e6):
+        with pytest.raises(
+            ValueError, match=rf"{re.escape(f'{wl:g}')} nm is at or across .* {window}"
+        ):
+            BK7.index([500.0, wl])
+    with pytest.raises(ValueError, match="at or across a Sellmeier pole"):
+        focal_lengths(BK7, [np.sqrt(0.00600069867) * 1e3], 50.0)
+    n = BK7.index([200.0, 300.0, 2_000.0, 5_000.0])
+    assert np.isfinite(n).all() and (n > 1).all()
+    # A vanishing B_i makes no pole: a glass without an infrared term has
+    # no upper end.
+    uv_only = Glass.from_sellmeier([1.03961212, 0.231792344, 0.0], [0.006, 0.02, 103.56])
+    assert np.isfinite(uv_only.index([20_000.0])).all()
 
 
 def _two_points() -> np.ndarray:

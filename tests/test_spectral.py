@@ -169,10 +169,25 @@ def test_sensor_parameters_are_checked_by_name():
             sp.Sensor(**kw)
     with pytest.raises(ValueError, match="exposure_time"):
         sp.Sensor().capture_rates(np.ones((2, 2), np.float32), exposure_time=0.0)
-    with pytest.raises(ValueError, match=r"row 1, column 0"):
+    # The rate and its value are named, not a spectrum "at every wavelength".
+    with pytest.raises(
+        ValueError, match=r"rates must be .* \(e-/s\); pixel \(row 1, column 0\) is -3"
+    ):
         sp.Sensor().capture_rates(np.array([[1.0, 2.0], [-3.0, 4.0]]), exposure_time=1.0)
+    with pytest.raises(ValueError, match=r"rates must .*pixel \(row 0, column 1\) is NaN"):
+        sp.Sensor().capture_rates(np.array([[1.0, np.nan]]), exposure_time=1.0)
     with pytest.raises(ValueError, match=r"shape \(H, W\)"):
         sp.Sensor().capture_rates(np.ones(4, np.float32), exposure_time=1.0)
+
+
+def test_the_default_sensor_records_its_whole_full_well():
+    """The ADC spans the documented 20 000 e- well: a pixel past it reads the
+    well's level, 20 000 / 1.28 = 15 625 DN above the black level, below the
+    white level 16 383 (at 1.25 e-/DN the ADC clipped at 19 839 e-)."""
+    s = sp.Sensor(read_noise=0.0, dark_current=0.0)
+    assert s.saturation == s.full_well == 20_000.0
+    raw = s.capture_rates(np.full((3, 4), 1e6, np.float32), exposure_time=1.0)
+    assert (raw == 512 + 15_625).all() and raw.max() < s.white_level
 
 
 # --- photon transfer --------------------------------------------------------------------
@@ -218,6 +233,38 @@ def test_photon_transfer_recovers_gain_read_noise_and_full_well(ptc_frames):
     assert ptc.full_well == pytest.approx(12_000.0, rel=0.05)
     assert ptc.dsnu == pytest.approx(3.0, rel=0.1)
     assert ptc.prnu == pytest.approx(0.01, rel=0.1)
+
+
+def test_photon_transfer_reads_the_read_noise_off_the_shortest_exposure_in_any_order():
+    """With dark current, each dark pair's noise grows with its exposure:
+    the read noise comes from the shortest one, wherever it is listed
+    (3 e- read noise and 50 e-/s x 0.1 s of dark shot noise: sqrt(14) e-)."""
+    s = sp.Sensor(read_noise=3.0, dark_current=50.0, electrons_per_dn=1.0, full_well=12_000)
+    times = np.linspace(0.1, 14.0, 12)
+    flats, darks = _ptc_frames(s, 1000.0, times, shape=(128, 128))
+    forward = sp.photon_transfer(flats, darks)
+    backward = sp.photon_transfer(flats[::-1], darks[::-1])
+    assert forward.read_noise == pytest.approx(np.sqrt(9.0 + 50.0 * 0.1), rel=0.05)
+    assert backward.read_noise == pytest.approx(forward.read_noise, rel=1e-12)
+    assert backward.dsnu == pytest.approx(forward.dsnu, rel=1e-12)
+
+
+def test_photon_transfer_refuses_frames_without_photon_noise():
+    """No light, or light without shot noise, gives no gain to fit: a
+    ValueError saying so, not NaN results."""
+    s = sp.Sensor(read_noise=2.0, dark_current=0.0)
+    flats, darks = _ptc_frames(s, 0.0, [0.1, 0.2, 0.3], shape=(32, 32))
+    with pytest.raises(ValueError, match="no light reached the sensor"):
+        sp.photon_transfer(flats, darks)
+    # Flats that are the darks lifted by a constant: signal, but no shot
+    # noise. Lifted in the order of the darks' variance, the variance peaks
+    # at the brightest, so four exposures lie below 70 % of it, all with a
+    # variance equal to their darks': K = 0.
+    _, darks = _ptc_frames(s, 0.0, np.linspace(0.1, 0.6, 6), shape=(32, 32))
+    darks.sort(key=lambda pair: sp.flat_pair_stats(*pair)[1])
+    lifted = [tuple(f + np.uint16(100 * (i + 1)) for f in pair) for i, pair in enumerate(darks)]
+    with pytest.raises(ValueError, match=r"variance that grows with the signal.*K = 0"):
+        sp.photon_transfer(lifted, darks)
 
 
 def _emva1288_results(frames, tmp_path):
@@ -438,14 +485,14 @@ def test_the_cube_capture_reads_each_pixel_through_its_own_filter(pattern):
 def test_auto_exposure_meters_the_mean_or_a_percentile_and_brackets_in_stops():
     sensor = sp.Sensor(read_noise=0.0, dark_current=0.0, full_well=16_000.0, bit_depth=16)
     rates = np.random.default_rng(3).gamma(2.0, 5_000.0, (200, 300)).astype(np.float32)
-    # 16 bits at 1.25 e-/DN reach further than the well: the well saturates.
+    # 16 bits at 1.28 e-/DN reach further than the well: the well saturates.
     assert sensor.saturation == 16_000.0
-    assert sp.Sensor(bit_depth=12).saturation == (4095 - 512) * 1.25
+    assert sp.Sensor(bit_depth=12).saturation == (4095 - 512) * 1.28
     t = sp.auto_exposure(rates, sensor, target=0.18)
-    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.25
+    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.28
     assert electrons.mean() == pytest.approx(0.18 * 16_000, rel=0.01)
     t = sp.auto_exposure(rates, sensor, target=0.9, percentile=99.0)
-    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.25
+    electrons = (sensor.capture_rates(rates, exposure_time=t) - 512.0) * 1.28
     assert np.percentile(electrons, 99.0) == pytest.approx(0.9 * 16_000, rel=0.01)
     times = sp.exposure_bracket(t, (-2, 0, 1.5))
     np.testing.assert_allclose(np.array(times) / t, [0.25, 1.0, 2**1.5])
@@ -506,6 +553,30 @@ def test_the_idt_matrix_reproduces_colour_science_matrix_idt(camera, light):
         sp.idt_matrix(wl, sens[:, :2], spd)
 
 
+def test_degenerate_whites_and_patches_are_refused_not_turned_into_nan(tmp_path):
+    cam = sp.SpectralCamera()
+    wl = cam.wavelengths
+    fit = sp.characterise(cam)
+    with pytest.raises(ValueError, match=r"illuminant_spd has no luminance"):
+        sp.xyz_weights(wl, np.zeros(len(wl)))
+    for white in ([np.nan, 1.0, 1.09], [0.95, 0.0, 1.09], [1.0, 1.0]):
+        for call in (sp.dng_color_tags, sp.dng_forward_matrix):
+            with pytest.raises(ValueError, match="white_xyz must"):
+                call(fit, white)
+    raw = np.zeros((4, 4), np.uint16)
+    with pytest.raises(ValueError, match="white_xyz must be 3 finite values"):
+        sp.write_dng(tmp_path / "x.dng", raw, cam, fit, white_xyz=[np.nan, 1.0, 1.09])
+    # A white the matrix takes to a negative camera channel has no DNG neutral.
+    with pytest.raises(ValueError, match="not > 0 in every channel"):
+        sp.dng_color_tags(sp.ColorFit(np.diag([1.0, 1.0, -1.0]), np.zeros(3)), [1, 1, 1])
+    xyz = np.random.default_rng(2).uniform(0.05, 0.9, (24, 3))
+    grey = np.outer(np.linspace(0.1, 1.0, 24), [1.0, 2.0, 3.0])
+    two = np.column_stack([xyz[:, 0], xyz[:, 1], xyz[:, 0] + xyz[:, 1]])
+    for rgb, rank in ((np.zeros((24, 3)), 0), (grey, 1), (two, 2)):
+        with pytest.raises(ValueError, match=f"camera_rgb has rank {rank}: .*no 3x3 matrix"):
+            sp.fit_color_matrix(rgb, xyz, [0.95, 1.0, 1.09])
+
+
 # --- bad input ----------------------------------------------------------------------------
 
 _WL = sp.wavelengths()
@@ -531,6 +602,10 @@ BAD_INPUT = {
     "sensitivities of zeros": (
         lambda: sp.SpectralCamera(sensitivities=np.zeros((_L, 3))),
         "channel of zeros",
+    ),
+    "sensitivities one row per channel": (
+        lambda: sp.SpectralCamera(sensitivities=np.ones((3, _L))),
+        r"sensitivities must have shape \(L, 3\) = \(41, 3\).*got shape \(3, 41\)",
     ),
     "unknown CFA pattern": (lambda: sp.SpectralCamera(pattern="RGBX"), "unknown CFA pattern"),
     "unknown quadrature": (lambda: sp.SpectralCamera(rule="simpson"), "quadrature must be"),

@@ -98,6 +98,12 @@ class Glass:
     def index(self, wavelength: Any) -> Float64Array:
         """Refractive index at ``wavelength`` (nm, array_like).
 
+        A Sellmeier glass answers inside its transparent window only: between
+        the two poles ``sqrt(C_i)`` (absorption bands) on either side of the
+        d line, where its catalogue figures are measured. Across a pole the
+        formula describes no glass: beyond N-BK7's infrared pole at 10.18 µm
+        it still gives indices near 1.8, and at a pole it divides by 0.
+
         Raises
         ------
         ValueError
@@ -112,10 +118,20 @@ class Glass:
             a, b = self.coefficients
             return a + b / um2
         bs, cs = np.array(self.coefficients[:3]), np.array(self.coefficients[3:])
-        n2 = 1 + np.sum(bs * um2[..., None] / (um2[..., None] - cs), axis=-1)
-        if not (n2 > 1).all():
+        poles = np.sqrt(cs[bs > 0]) * 1e3
+        below = poles[poles <= LINE_D].max(initial=0.0)
+        above = poles[poles > LINE_D].min(initial=np.inf)
+        if not ((wl > below) & (wl < above)).all():
+            worst = float(wl.flat[np.argmax((wl <= below) | (wl >= above))])
             raise ValueError(
-                "the Sellmeier formula has no index > 1 at some of these wavelengths "
+                f"{worst:g} nm is at or across a Sellmeier pole: the formula holds between "
+                f"the poles at {below:g} and {above:g} nm around the d line (the glass's "
+                "transparent window)"
+            )
+        n2 = 1 + np.sum(bs * um2[..., None] / (um2[..., None] - cs), axis=-1)
+        if not (np.isfinite(n2) & (n2 > 1)).all():
+            raise ValueError(
+                "the Sellmeier formula has no finite index > 1 at some of these wavelengths "
                 "(an absorption pole lies near them)"
             )
         return np.sqrt(n2)

@@ -6,11 +6,14 @@ a characteristic curve ``D_i = f_i(log10 H_i)`` and a dye of spectral density
 ``e_i(λ)`` per unit of analytical density. The model, step by step:
 
 1. **Exposure** (:func:`expose`): ``H_i = 2^EV ∫ L(λ) s_i(λ) dλ / ∫ W(λ) s_i(λ) dλ``,
-   the layer's exposure relative to the stock's reference white ``W`` (a
-   black body at the stock's balance temperature, Y = 1). An RGB image is
-   taken as linear sRGB reflectances (Mallett and Yuksel 2019 basis) lit by
-   ``W``: the basis folds into an ``n x 3`` matrix, so a neutral ``(g, g, g)``
-   gives ``H_i = g`` in every layer exactly.
+   the layer's exposure relative to the stock's reference white ``W``: a
+   black body at the stock's balance temperature with CIE 1931 tristimulus
+   ``Y = ∫ W(λ) ȳ(λ) dλ = 1`` (λ in nm, trapezoidal on the stock's grid). A
+   spectral image in W m⁻² sr⁻¹ nm⁻¹ has ``Y`` = luminance / 683 cd/m², so
+   a white of 683 cd/m² exposes ``H ≈ 1``. An RGB image is taken as linear
+   sRGB reflectances (Mallett and Yuksel 2019 basis) lit by ``W``: the basis
+   folds into an ``n x 3`` matrix, so a neutral ``(g, g, g)`` gives
+   ``H_i = g`` in every layer exactly.
 2. **Development** (:func:`develop`): ``D_i = f_i(log10 H_i)``; DIR couplers
    lower a receiver's log exposure by ``Σ_j A_ij G_σ * (D_j - D_j,min)`` (donor
    densities blurred by the inhibitors' diffusion), with the curves
@@ -78,6 +81,10 @@ MID_GREY = 0.18
 #: Width of the frame an image is taken to fill, mm (135 film), which sets
 #: the pixel size for the couplers' diffusion length.
 FRAME_WIDTH_MM = 36.0
+#: The largest exposure change accepted, in stops either way: 2^100 (1e30)
+#: carries any scene past both ends of every curve (a stock spans some 20
+#: stops) and keeps float32 exposures finite for scene values up to 1e8.
+MAX_EV = 100.0
 
 _KINDS = ("negative", "reversal", "paper")
 _STOCKS_DIR = "film_stocks"
@@ -280,14 +287,34 @@ def _array(obj: dict[str, Any], key: str, stock: str) -> Float64Array:
         raise ValueError(f"stock {stock!r}: {key} must be a list of numbers ({exc})") from None
 
 
+def _section(obj: dict[str, Any], key: str, stock: str) -> dict[str, Any]:
+    """The JSON object under ``key`` (empty when absent)."""
+    value = obj.get(key, {})
+    if not isinstance(value, dict):
+        _fail(stock, f"{key} must be a JSON object {{...}}, got a {type(value).__name__}")
+    return value
+
+
+def _number(obj: dict[str, Any], key: str, default: float, stock: str) -> float:
+    """The number under ``key`` (``default`` when absent)."""
+    value = obj.get(key, default)
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"stock {stock!r}: {key} must be a number, got {value!r}") from None
+
+
 def stock_from_dict(data: dict[str, Any]) -> Stock:
     """A :class:`Stock` from the parsed JSON of a stock file, validated.
 
     Raises
     ------
     ValueError
-        A wrong format tag, a missing field, wrong grids, non-monotone curves,
-        negative densities: the message names the stock, layer and sample.
+        A wrong format tag, a missing field, a field of the wrong JSON type
+        (``couplers``, ``halation``, ``grain``, ``provenance`` and a layer's
+        ``curve`` are objects; ``balance_kelvin``, ``diffusion_um`` and
+        ``spread_um`` numbers), wrong grids, non-monotone curves, negative
+        densities: the message names the stock, key, layer and sample.
     """
     name = str(data.get("name", "<unnamed>"))
     if data.get("format") != STOCK_FORMAT:
@@ -296,15 +323,15 @@ def stock_from_dict(data: dict[str, Any]) -> Stock:
         isinstance(layer, dict) for layer in data["layers"]
     ):
         _fail(name, "layers must be a list of layer objects")
-    couplers = data.get("couplers", {})
-    halation = data.get("halation", {})
-    grain = data.get("grain", {})
+    couplers = _section(data, "couplers", name)
+    halation = _section(data, "halation", name)
+    grain = _section(data, "grain", name)
     layers = tuple(
         Layer(
             name=str(layer.get("name", f"layer {i}")),
             log_sensitivity=_array(layer, "log_sensitivity", name),
-            log_exposure=_array(layer.get("curve", {}), "log_exposure", name),
-            density=_array(layer.get("curve", {}), "density", name),
+            log_exposure=_array(_section(layer, "curve", name), "log_exposure", name),
+            density=_array(_section(layer, "curve", name), "density", name),
             dye_density=_array(layer, "dye_density", name),
             mask_density=np.asarray(
                 layer.get("mask_density", [0.0] * len(data.get("wavelengths", []))), np.float64
@@ -320,13 +347,13 @@ def stock_from_dict(data: dict[str, Any]) -> Stock:
         wavelengths=_array(data, "wavelengths", name),
         layers=layers,
         base_density=_array(data, "base_density", name),
-        balance_kelvin=float(data.get("balance_kelvin", 5500.0)),
+        balance_kelvin=_number(data, "balance_kelvin", 5500.0, name),
         coupler_matrix=np.asarray(couplers.get("matrix", np.zeros((n, n))), np.float64),
-        coupler_diffusion_um=float(couplers.get("diffusion_um", 0.0)),
+        coupler_diffusion_um=_number(couplers, "diffusion_um", 0.0, name),
         halation=np.asarray(halation.get("strength", np.zeros(n)), np.float64),
-        halation_um=float(halation.get("spread_um", 50.0)),
+        halation_um=_number(halation, "spread_um", 50.0, name),
         rms_granularity=np.asarray(grain.get("rms_granularity", np.zeros(n)), np.float64),
-        provenance={str(k): str(v) for k, v in data.get("provenance", {}).items()},
+        provenance={str(k): str(v) for k, v in _section(data, "provenance", name).items()},
     )
 
 
@@ -653,9 +680,10 @@ def _kernel_curves(stock: Stock) -> list[tuple[float, float, list[float]]]:
 
 def _white(stock: Stock) -> Float64Array:
     """The reference white: a black body at the stock's balance temperature,
-    scaled to Y = 1 (trapezoidal quadrature)."""
+    scaled to CIE Y = ∫ W ȳ dλ = 1 (trapezoidal quadrature, λ in nm): in
+    W m⁻² sr⁻¹ nm⁻¹, a luminance of 683 cd/m²."""
     wl = stock.wavelengths
-    return sp.luminance_scale(sp.blackbody(wl, stock.balance_kelvin), wl, 1.0 / 683.0)
+    return sp.luminance_scale(sp.blackbody(wl, stock.balance_kelvin), wl, 683.0)
 
 
 def _sensitivity(stock: Stock) -> Float64Array:
@@ -664,12 +692,23 @@ def _sensitivity(stock: Stock) -> Float64Array:
     return s * sp.quadrature_weights(stock.wavelengths)
 
 
+def _gain(exposure_ev: float) -> float:
+    """``2^EV`` of an exposure change of at most ``MAX_EV`` stops either way."""
+    ev = float(exposure_ev)
+    if not (np.isfinite(ev) and abs(ev) <= MAX_EV):
+        raise ValueError(
+            f"exposure_ev must be a finite number of stops in [-{MAX_EV:g}, {MAX_EV:g}], "
+            f"got {exposure_ev!r}"
+        )
+    return 2.0**ev
+
+
 def spectral_response(stock: Stock, exposure_ev: float = 0.0) -> Float64Array:
     """``(n, L)`` weights turning a spectral radiance on the stock's grid into
     layer exposures: ``2^EV s_i(λ) w(λ) / Σ W s_i w`` (``W`` the reference
     white, ``w`` the quadrature weights)."""
     sens = _sensitivity(stock)
-    return 2.0**exposure_ev * sens / (sens @ _white(stock))[:, None]
+    return _gain(exposure_ev) * sens / (sens @ _white(stock))[:, None]
 
 
 def exposure_matrix(stock: Stock, exposure_ev: float = 0.0) -> Float64Array:
@@ -679,7 +718,7 @@ def exposure_matrix(stock: Stock, exposure_ev: float = 0.0) -> Float64Array:
     every layer to exactly ``2^EV``."""
     basis = sp.upsampling_basis(stock.wavelengths)
     m = (_sensitivity(stock) * _white(stock)) @ basis
-    return 2.0**exposure_ev * m / m.sum(axis=1, keepdims=True)
+    return _gain(exposure_ev) * m / m.sum(axis=1, keepdims=True)
 
 
 def _dyes(stock: Stock) -> tuple[Float64Array, Float64Array]:
@@ -717,20 +756,34 @@ def expose(image: Any, stock: str | Path | Stock, *, exposure_ev: float = 0.0) -
 
     Parameters
     ----------
-    image : ndarray, (H, W, 3) or (H, W, L)
+    image : ndarray, float, (H, W, 3) or (H, W, L)
         Linear sRGB reflectances (negative components, outside sRGB, are
         clipped to 0), or spectral radiance on the stock's wavelength grid
-        relative to the reference white (a black body at the stock's
-        balance temperature with Y = 1).
+        relative to the reference white: a black body at the stock's
+        balance temperature with CIE Y = ∫ W ȳ dλ = 1 (λ in nm). In
+        W m⁻² sr⁻¹ nm⁻¹ (:func:`imgform_rs.spectral.luminance_scale`) that
+        white has a luminance of 683 cd/m²: a white of ``L`` cd/m² exposes
+        about ``L / 683``, and ``exposure_ev = log2(683 / L)`` brings it to 1.
+        Integer images are refused: an 8- or 16-bit picture is usually
+        sRGB-encoded, and a linear one may fill any part of its range (12
+        bits in uint16), so no one scale makes reflectances of them.
     stock : str, Path or Stock
         A shipped name, a JSON file or a :class:`Stock`.
     exposure_ev : float
-        Exposure change in stops: ``H`` scales by ``2^EV``.
+        Exposure change in stops, within ±100: ``H`` scales by ``2^EV``.
 
     Returns
     -------
     ndarray, float32, (H, W, n)
         1.0 is the exposure of a perfect white at EV 0.
+
+    Raises
+    ------
+    TypeError
+        An image that is not of floats.
+    ValueError
+        A shape other than (H, W, 3) or (H, W, L), or an ``exposure_ev``
+        outside ±100 or not finite.
 
     Examples
     --------
@@ -739,6 +792,13 @@ def expose(image: Any, stock: str | Path | Stock, *, exposure_ev: float = 0.0) -
     [[[0.18, 0.18, 0.18]]]
     """
     st = load_stock(stock)
+    dtype = np.asarray(image).dtype
+    if dtype.kind in "iu":
+        raise TypeError(
+            f"image must be float (linear sRGB reflectances or spectral radiance), got dtype "
+            f"{dtype}: divide an 8-bit picture by 255 (16-bit: 65535) and undo the sRGB "
+            "transfer curve first, as `imgform film` does"
+        )
     arr = _image(image, "image")
     n_wl = len(st.wavelengths)
     if arr.shape[2] == n_wl:
@@ -793,7 +853,7 @@ def develop(
         density 1 is :func:`pixel_granularity`; seeded by ``seed`` and the
         pixel, so identical for any thread count.
     seed : int
-        The grain's seed, >= 0.
+        The grain's seed, an int in [0, 2**64).
     frame_width_mm : float
         The width of film the image spans, which turns the stock's lengths
         (µm) into pixels.
@@ -808,6 +868,7 @@ def develop(
     arr = _image(exposure, "exposure", len(st.layers))
     if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
         raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
+    grain_seed = sp._check_seed(seed, "seed")
     matrix = st.coupler_matrix if couplers else np.zeros_like(st.coupler_matrix)
     pixel_um = frame_width_mm * 1000.0 / arr.shape[1]
     spread = (st.halation.tolist(), st.halation_um / pixel_um)
@@ -821,7 +882,7 @@ def develop(
     )
     if grain and st.rms_granularity.any():
         per_grain = pixel_granularity(st, pixel_um) ** 2
-        dens = _native.film_grain(dens, per_grain.tolist(), int(seed))
+        dens = _native.film_grain(dens, per_grain.tolist(), grain_seed)
     return dens
 
 
@@ -864,6 +925,19 @@ def dichroic_filters(wl: Any) -> Float64Array:
     return np.stack([y, 1.0 - y - c, c])
 
 
+def _print_pair(
+    negative: str | Path | Stock, paper: str | Path | Stock, what: str
+) -> tuple[Stock, Stock]:
+    """The stocks of a print: a negative and a paper, in that order."""
+    neg, pap = load_stock(negative), load_stock(paper)
+    if neg.kind != "negative" or pap.kind != "paper":
+        raise ValueError(
+            f"{what} needs a negative and a paper, got a {neg.kind} ({neg.name!r}) and a "
+            f"{pap.kind} ({pap.name!r})"
+        )
+    return neg, pap
+
+
 def _print_light(negative: Stock, paper: Stock) -> Float64Array:
     """The paper's layer sensitivities times the enlarger lamp on the
     negative's grid, (m, L), for unit exposure and no filtration."""
@@ -900,10 +974,11 @@ def balance_print(
     Raises
     ------
     ValueError
-        When the iteration does not converge. A paper of other than 3
-        layers (black and white) gets exposure only, no filtration.
+        Stocks other than a negative and a paper (as :func:`print`), or an
+        iteration that does not converge. A paper of other than 3 layers
+        (black and white) gets exposure only, no filtration.
     """
-    neg, pap = load_stock(negative), load_stock(paper)
+    neg, pap = _print_pair(negative, paper, "balance_print")
     filters = dichroic_filters(neg.wavelengths)
     light = _print_light(neg, pap) * _grey_transmittance(neg, grey)
     target = np.array(
@@ -947,20 +1022,15 @@ def print(
     filtration : Filtration, optional
         Defaults to :func:`balance_print` for the mid grey.
     exposure_ev : float
-        Print exposure change in stops (darker print for > 0).
+        Print exposure change in stops, within ±100 (darker print for > 0).
     couplers, frame_width_mm
         As for :func:`develop`, applied to the paper.
     """
-    neg, pap = load_stock(negative), load_stock(paper)
-    if neg.kind != "negative" or pap.kind != "paper":
-        raise ValueError(
-            f"print needs a negative and a paper, got a {neg.kind} ({neg.name!r}) and a "
-            f"{pap.kind} ({pap.name!r})"
-        )
+    neg, pap = _print_pair(negative, paper, "print")
     fil = balance_print(neg, pap) if filtration is None else filtration
     f = np.array([fil.yellow, fil.magenta, fil.cyan])
     light = _print_light(neg, pap) * 10.0 ** -(f @ dichroic_filters(neg.wavelengths))
-    light = fil.exposure * 2.0**exposure_ev * light
+    light = fil.exposure * _gain(exposure_ev) * light
     if pap.halation.any():
         exposure = _transmit(density, neg, light)
         return develop(exposure, pap, couplers=couplers, frame_width_mm=frame_width_mm)

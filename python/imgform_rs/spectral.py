@@ -103,6 +103,13 @@ def check_wavelengths(wl: Any) -> Float64Array:
     return np.ascontiguousarray(arr)
 
 
+def _check_seed(value: Any, name: str) -> int:
+    """``value`` as a seed of the native generators: an int in [0, 2**64)."""
+    if not isinstance(value, (int, np.integer)) or not 0 <= value < 2**64:
+        raise ValueError(f"{name} must be an int in [0, 2**64), got {value!r}")
+    return int(value)
+
+
 def _check_int(value: Any, name: str, least: int) -> int:
     """``value`` as an int >= ``least``; a float such as 14.5 is refused,
     not truncated."""
@@ -173,7 +180,14 @@ def blackbody(wl: Any, temperature: float) -> Float64Array:
 
 
 def illuminant(name: str, wl: Any = None) -> Float64Array:
-    """A CIE illuminant's relative spectral power (100 at 560 nm) on ``wl``.
+    """A CIE illuminant's relative spectral power on ``wl``, on the scale of
+    its table.
+
+    The scale is the table's own, as colour-science ships it: 100 at 560 nm
+    for A, E and the D series, but 102.8 for B, 16.16 for FL2, 2.83 for FL11
+    and 14.23 for LED-B1 there. Only relative power is meaningful: scale a
+    spectrum to a luminance with :func:`luminance_scale`, or to Y = 1 with
+    :func:`xyz_weights`, whatever its table's scale.
 
     Parameters
     ----------
@@ -187,6 +201,8 @@ def illuminant(name: str, wl: Any = None) -> Float64Array:
     --------
     >>> round(float(illuminant("D65", [560.0, 600.0])[0]), 6)
     100.0
+    >>> round(float(illuminant("FL2", [560.0, 600.0])[0]), 2)
+    16.16
     """
     grid = _grid_or_default(wl)
     colour = _colour()
@@ -323,19 +339,24 @@ class Sensor:
     ``pattern_seed`` only (one sensor), temporal noise on the frame's seed.
 
     The defaults are a 4 µm CMOS pixel: 20 000 e- full well, 2.5 e- read noise,
-    14 bits with 1.25 e-/DN (16 000 DN span above a black level of 512).
+    14 bits with 1.28 e-/DN above a black level of 512: a gain at which the
+    ADC records the whole well, as at a camera's base ISO. The well fills
+    15 625 DN of the 15 871 between the black level and the white level
+    16 383, so :attr:`saturation` is the full well.
 
     Examples
     --------
     >>> s = Sensor(read_noise=0.0)
     >>> raw = s.capture_rates(np.full((4, 4), 1000.0, np.float32), exposure_time=0.01)
-    >>> raw.dtype, bool(abs(raw.mean() - (512 + 10 / 1.25)) < 5)
+    >>> raw.dtype, bool(abs(raw.mean() - (512 + 10 / 1.28)) < 5)
     (dtype('uint16'), True)
+    >>> s.saturation
+    20000.0
     """
 
     full_well: float = 20_000.0
     read_noise: float = 2.5
-    electrons_per_dn: float = 1.25
+    electrons_per_dn: float = 1.28
     analog_gain: float = 1.0
     black_level: int = 512
     bit_depth: int = 14
@@ -372,9 +393,8 @@ class Sensor:
 
     def native(self, *, seed: int, exposure_time: float) -> _native.NativeSensor:
         """The validated native sensor for one frame."""
-        for name, value in (("seed", seed), ("pattern_seed", self.pattern_seed)):
-            if not isinstance(value, (int, np.integer)) or not 0 <= value < 2**64:
-                raise ValueError(f"{name} must be an int in [0, 2**64), got {value!r}")
+        _check_seed(seed, "seed")
+        _check_seed(self.pattern_seed, "pattern_seed")
         return _native.NativeSensor(
             exposure_time=float(exposure_time),
             full_well=float(self.full_well),
@@ -516,12 +536,14 @@ class PhotonTransfer(NamedTuple):
     read_noise : float
         ``sqrt(σ²_y.dark - 1/12) / K`` from the dark pair of the shortest
         exposure, e- (σ_d; the 1/12 DN² is the ADC's quantisation noise): the
-        line's intercept measured directly rather than extrapolated.
+        line's intercept measured directly rather than extrapolated. The
+        shortest exposure is the one of least signal, wherever its pairs
+        stand in the lists; its dark pair holds the least dark charge.
     full_well : float
         Mean signal where the variance peaks, over K, e- (μ_e.sat).
     dsnu : float
-        Spatial standard deviation of the dark pair's mean minus its residual
-        temporal part, e- (DSNU1288).
+        Spatial standard deviation of that dark pair's mean minus its
+        residual temporal part, e- (DSNU1288).
     prnu : float
         Same for the brightest fitted exposure, over its mean signal, as a
         fraction (PRNU1288 / 100).
@@ -581,8 +603,9 @@ def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
     ------
     ValueError
         Fewer than three exposures, mismatched pair counts, items that are
-        not pairs, frames of different shapes, or no exposure below 70 % of
-        saturation.
+        not pairs, frames of different shapes, flats with no signal above
+        their darks, a temporal variance that does not grow with the signal,
+        or no exposure below 70 % of saturation.
     """
     flats, darks = list(flats), list(darks)
     if len(flats) != len(darks) or len(flats) < 3:
@@ -594,6 +617,14 @@ def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
     f = np.array([flat_pair_stats(a, b) for a, b in flats])
     d = np.array([flat_pair_stats(a, b) for a, b in darks])
     mean = f[:, 0] - d[:, 0]
+    # A signal is a mean rise of at least the dark frames' own temporal noise
+    # (one pixel's sigma); unlit flats differ from their darks by far less.
+    if not (mean > np.sqrt(d[:, 1])).any():
+        raise ValueError(
+            "photon_transfer needs flats lit above the dark noise; no flat pair's mean "
+            f"rises above its dark pair's by the darks' temporal sigma (largest rise "
+            f"{mean.max():g} DN): no light reached the sensor"
+        )
     var = f[:, 1]
     sat = int(np.argmax(var))
     fitted = mean <= 0.7 * mean[sat]
@@ -602,9 +633,16 @@ def photon_transfer(flats: Any, darks: Any) -> PhotonTransfer:
     # Photon-induced variance against signal, a line through the origin.
     x, y = mean[fitted], var[fitted] - d[fitted, 1]
     K = float(np.dot(x, y) / np.dot(x, x))
-    read_noise = float(np.sqrt(max(d[0, 1] - 1.0 / 12.0, 0.0)) / K)
+    if not K > 0:
+        raise ValueError(
+            "photon_transfer needs a temporal variance that grows with the signal (shot "
+            f"noise); the fitted gain is K = {K:g} DN/e-: these are not frames of a sensor's "
+            "photo-electrons"
+        )
+    shortest = int(np.argmin(mean))
+    read_noise = float(np.sqrt(max(d[shortest, 1] - 1.0 / 12.0, 0.0)) / K)
     # The pair mean keeps half of each frame's temporal variance.
-    dsnu = float(np.sqrt(max(d[0, 2] - d[0, 1] / 2.0, 0.0)) / K)
+    dsnu = float(np.sqrt(max(d[shortest, 2] - d[shortest, 1] / 2.0, 0.0)) / K)
     bright = int(np.flatnonzero(fitted)[np.argmax(mean[fitted])])
     spatial = f[bright, 2] - f[bright, 1] / 2.0 - (d[bright, 2] - d[bright, 1] / 2.0)
     prnu = float(np.sqrt(max(spatial, 0.0)) / mean[bright])
@@ -717,13 +755,16 @@ class SpectralCamera:
 
     def __post_init__(self) -> None:
         grid = check_wavelengths(self.wavelengths)
-        sens = (
-            camera_sensitivities(DEFAULT_CAMERA, grid)
-            if self.sensitivities is None
-            else _spectra(np.asarray(self.sensitivities, np.float64).T, grid, "sensitivities").T
-        )
-        if sens.shape != (len(grid), 3):
-            raise ValueError(f"sensitivities must have shape (L, 3), got {sens.shape}")
+        if self.sensitivities is None:
+            sens = camera_sensitivities(DEFAULT_CAMERA, grid)
+        else:
+            given = as_float_array(self.sensitivities, "sensitivities")
+            if given.shape != (len(grid), 3):
+                raise ValueError(
+                    f"sensitivities must have shape (L, 3) = ({len(grid)}, 3), a row of R, G, "
+                    f"B per wavelength, got shape {given.shape}"
+                )
+            sens = _spectra(given.T, grid, "sensitivities").T
         if not (sens.max(axis=0) > 0).all():
             raise ValueError(
                 "sensitivities must be > 0 somewhere in every channel (R, G, B), got a "
@@ -868,7 +909,13 @@ def xyz_weights(wl: Any, illuminant_spd: Any, rule: Rule = "trapezoid") -> Float
     spd = _spectra(illuminant_spd, grid, "illuminant_spd")
     cmfs = cie_cmfs(grid)
     w = quadrature_weights(grid, rule)
-    return cmfs * (spd * w)[:, None] / np.sum(cmfs[:, 1] * spd * w)
+    luminance = np.sum(cmfs[:, 1] * spd * w)
+    if not luminance > 0:
+        raise ValueError(
+            "illuminant_spd has no luminance (Y = 0): it is zero where the eye sees, so "
+            "nothing normalises its Y to 1"
+        )
+    return cmfs * (spd * w)[:, None] / luminance
 
 
 def upsampling_basis(wl: Any = None, rule: Rule = "trapezoid") -> Float64Array:
@@ -1035,6 +1082,12 @@ def fit_color_matrix(
         Training patches (N >= 3), e.g. a simulated ColorChecker.
     white_xyz : array_like, shape (3,)
         The white the Lab differences refer to.
+
+    Raises
+    ------
+    ValueError
+        Shapes other than (N, 3), non-finite values, a bad white, or camera
+        RGB of rank < 3 (the matrix would be any of infinitely many).
     """
     rgb = as_float_array(camera_rgb, "camera_rgb")
     target = as_float_array(xyz, "xyz")
@@ -1048,9 +1101,16 @@ def fit_color_matrix(
     if not (np.isfinite(rgb).all() and np.isfinite(target).all()):
         raise ValueError("camera_rgb and xyz must be finite (a NaN or inf patch has no colour)")
     _white(white_xyz)
+    rank = int(np.linalg.matrix_rank(rgb))
+    if rank < 3:
+        raise ValueError(
+            f"camera_rgb has rank {rank}: its patches span fewer than 3 independent "
+            "colours, so they determine no 3x3 matrix (patches of one hue, or a channel "
+            "that reads 0 or copies another)"
+        )
     # Camera values in e-/s are ~1e10 times XYZ; fitting on values scaled to
     # order 1 keeps the optimiser's steps and tolerances meaningful.
-    scale = float(np.abs(rgb).max()) or 1.0
+    scale = float(np.abs(rgb).max())
     unit = rgb / scale
     matrix = np.linalg.lstsq(unit, target, rcond=None)[0].T
     if method == "de2000":
@@ -1166,15 +1226,34 @@ def idt_matrix(
     return matrix(best), white_balance
 
 
+def _neutral(fit: ColorFit, white_xyz: Any) -> tuple[Float64Array, Float64Array]:
+    """The checked white and its camera RGB through the inverse of
+    ``fit.matrix``: > 0 in every channel, as a DNG neutral must be."""
+    white = _white(white_xyz)
+    neutral = np.linalg.inv(fit.matrix) @ white
+    if not (neutral > 0).all():
+        raise ValueError(
+            f"the fitted matrix takes the white {white.tolist()} to camera RGB "
+            f"{neutral.tolist()}, not > 0 in every channel: no DNG neutral"
+        )
+    return white, neutral
+
+
 def dng_color_tags(fit: ColorFit, white_xyz: Any) -> tuple[Float64Array, Float64Array]:
     """DNG ``ColorMatrix1`` (XYZ -> camera RGB) and ``AsShotNeutral`` (the
     camera RGB of ``white_xyz``) of a fitted matrix.
 
     ``ColorMatrix1`` is scaled as the DNG specification asks: the white maps
     to camera RGB whose largest component is 1, which is ``AsShotNeutral``.
+
+    Raises
+    ------
+    ValueError
+        A white that is not 3 finite values >= 0 with Y > 0, a singular
+        matrix, or one that takes the white to a camera RGB not > 0.
     """
+    _, neutral = _neutral(fit, white_xyz)
     cam_from_xyz = np.linalg.inv(fit.matrix)
-    neutral = cam_from_xyz @ as_float_array(white_xyz, "white_xyz")
     # Division, not a multiplication by the reciprocal: x / x is exactly 1 in
     # IEEE arithmetic, x * (1 / x) is not always.
     largest = neutral.max()
@@ -1194,10 +1273,14 @@ def dng_forward_matrix(fit: ColorFit, white_xyz: Any) -> Float64Array:
     ``white_xyz``; Bradford's chromatic adaptation (colour-science) then moves
     that white to D50, and the result is scaled to map (1, 1, 1) to exactly
     :data:`D50_XYZ`, as the DNG specification asks.
+
+    Raises
+    ------
+    ValueError
+        As :func:`dng_color_tags`.
     """
     colour = _colour()
-    white = as_float_array(white_xyz, "white_xyz")
-    neutral = np.linalg.inv(fit.matrix) @ white
+    white, neutral = _neutral(fit, white_xyz)
     adapt = colour.adaptation.matrix_chromatic_adaptation_VonKries(
         white / white[1], D50_XYZ, transform="Bradford"
     )

@@ -187,7 +187,8 @@ impl Sensor {
     /// `input.len() / height` values each (the caller checked the length).
     /// `rates` (a [`RowRates`] kernel) turns a row's input into its mean
     /// rates (e-/s); the row is dimmed by `falloff`, if any, and the sensor
-    /// reads it.
+    /// reads it. Returns the first pixel whose input `rates` found bad, for
+    /// the caller to name in its own terms.
     ///
     /// Working a row at a time keeps the input's loop (a dot product per
     /// pixel) apart from the noise's, so each stays simple enough to
@@ -202,7 +203,7 @@ impl Sensor {
         input: &[f32],
         out: &mut [u16],
         rates: F,
-    ) -> Result<()> {
+    ) -> Result<Option<usize>> {
         self.validate()?;
         check_out_len(out.len(), width * height, "the sensor")?;
         let row_len = input.len() / height.max(1);
@@ -232,10 +233,7 @@ impl Sensor {
             }
             first_bad
         });
-        match bad {
-            None => Ok(()),
-            Some(p) => Err(bad_pixel("the input", p, width)),
-        }
+        Ok(bad)
     }
 
     /// A frame of mean photo-electron rates `rates` `(height, width)`, e-/s:
@@ -251,11 +249,19 @@ impl Sensor {
         out: &mut [u16],
     ) -> Result<()> {
         check_input_len("rates", rates.len(), width * height)?;
-        self.read_frame((width, height), None, rates, out, |_, _, src, row| {
+        let bad = self.read_frame((width, height), None, rates, out, |_, _, src, row| {
             for (r, &v) in row.iter_mut().zip(src) {
                 *r = f64::from(v);
             }
             src.iter().position(|&v| !is_valid_sample(v))
+        })?;
+        bad.map_or(Ok(()), |p| {
+            Err(invalid!(
+                "rates must be finite and >= 0 (e-/s); pixel (row {}, column {}) is {}",
+                p / width,
+                p % width,
+                rates[p]
+            ))
         })
     }
 
@@ -293,9 +299,10 @@ impl Sensor {
             )));
         }
         let responses = Responses::new(response, grid_len);
-        self.read_frame((width, height), falloff, spectra, out, |y, x0, src, row| {
+        let bad = self.read_frame((width, height), falloff, spectra, out, |y, x0, src, row| {
             cfa_rates::row(src, (pattern.row(y), x0), &responses, row)
-        })
+        })?;
+        bad.map_or(Ok(()), |p| Err(bad_pixel("spectra", p, width)))
     }
 
     /// A raw capture of an RGB image `(height, width, 3)` whose pixels stand
@@ -322,7 +329,7 @@ impl Sensor {
     ) -> Result<()> {
         check_response(matrix, 3, 3)?;
         check_input_len("rgb", rgb.len(), 3 * width * height)?;
-        self.read_frame((width, height), falloff, rgb, out, |y, x0, src, row| {
+        let bad = self.read_frame((width, height), falloff, rgb, out, |y, x0, src, row| {
             let mut first_bad = None;
             let pixels = src.chunks_exact(3).zip(colors_from(pattern.row(y), x0));
             for (x, (r, (px, &c))) in row.iter_mut().zip(pixels).enumerate() {
@@ -334,6 +341,14 @@ impl Sensor {
                 }
             }
             first_bad
+        })?;
+        bad.map_or(Ok(()), |p| {
+            Err(invalid!(
+                "rgb must be finite in every channel; pixel (row {}, column {}) is {:?}",
+                p / width,
+                p % width,
+                &rgb[3 * p..3 * p + 3]
+            ))
         })
     }
 }
