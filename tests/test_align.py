@@ -278,6 +278,21 @@ def test_bad_input_raises_clear_errors():
         ig.align(a, a, max_shift=2.5)
 
 
+def test_counts_beyond_the_native_integers_are_value_errors():
+    """They were OverflowErrors from the conversion to Rust's i64 / usize."""
+    a = smooth_field(0, 30, 30).astype(np.float32)
+    for k in (2**63, -(2**63) - 1):
+        with pytest.raises(ValueError, match=r"max_shift must be >= 0 and smaller .* \(30x30\)"):
+            ig.align(a, a, max_shift=k)
+    for steps in (-1, 0, 2**64):
+        with pytest.raises(
+            ValueError, match=rf"max_iterations must be an int in \[1, 2\*\*64\), got {steps}"
+        ):
+            ig.align(a, a, max_shift=3, motion="euclidean", max_iterations=steps)
+    with pytest.raises(ValueError, match="pyramid must be"):
+        ig.align(a, a, max_shift=3, pyramid=2**64)
+
+
 def test_constant_images_have_a_defined_result():
     flat = np.full((40, 40), 9, np.uint8)
     other = as_dtype(smooth_field(1, 40, 40), np.uint8)
@@ -323,6 +338,26 @@ def test_fractional_apply_shift_interpolates_bilinearly():
     assert u8.dtype == np.uint8 and u8[0, 1] == 128
     with pytest.raises(ValueError, match="shift"):
         ig.apply_shift(img, (1.0, np.nan))
+
+
+@pytest.mark.parametrize("shift", [(1, 0), (1.5, 0)])
+def test_apply_shift_refuses_a_fill_the_dtype_cannot_hold(shift):
+    """-1 on uint8 was an OverflowError for an integer shift and became 0
+    for a fractional one."""
+    u8 = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    for fill in (-1, 256, 0.5, np.nan):
+        with pytest.raises(
+            ValueError, match=f"fill must be an integer from 0 to 255 for uint8, got {fill}"
+        ):
+            ig.apply_shift(u8, shift, fill=fill)
+    with pytest.raises(ValueError, match="fill must be an integer from -32768 to 32767 for int16"):
+        ig.apply_shift(u8.astype(np.int16), shift, fill=40000)
+    with pytest.raises(ValueError, match="fill must be within float32's range"):
+        ig.apply_shift(u8.astype(np.float32), shift, fill=1e300)
+    with pytest.raises(TypeError, match="fill must be a real number"):
+        ig.apply_shift(u8, shift, fill="7")
+    assert (ig.apply_shift(u8, shift, fill=255)[0] == 255).all()
+    assert np.isnan(ig.apply_shift(u8.astype(np.float32), shift, fill=np.nan)[0]).all()
 
 
 def test_stack_channels():
@@ -420,6 +455,27 @@ def test_cli_reports_a_bad_file_and_processes_the_rest(tmp_path, capsys):
     assert cv2.imread(str(out / "deep.png"), cv2.IMREAD_UNCHANGED).dtype == np.uint16
 
 
+@pytest.mark.parametrize(("writer", "channels"), [("ours", 3), ("cv2", 3), ("cv2", 4)])
+def test_a_16_bit_rgb_png_plate_keeps_its_16_bits(tmp_path, capsys, writer, channels):
+    """Pillow (imageio's PNG reader) keeps the high byte of a 16-bit colour
+    PNG; read_plate and the 16-bit output of ``imgform align`` need both."""
+    grey = np.clip(synthetic_plate(np.uint16), 1, 65534)
+    rgb = np.dstack([grey - 1, grey, grey + 1, grey // 2][:channels])  # averages to grey
+    path = tmp_path / "plate.png"
+    if writer == "ours":
+        write_png(path, rgb)
+    else:
+        cv2 = pytest.importorskip("cv2")  # libpng's filters: Sub, Up, Average, Paeth rows
+        assert cv2.imwrite(str(path), rgb[..., [2, 1, 0, 3][:channels]])
+    plate = ig.read_plate(path)
+    assert plate.dtype == np.uint16
+    np.testing.assert_array_equal(plate, grey)
+    out = tmp_path / "out"
+    assert main(["align", str(path), "-o", str(out)]) == 0
+    header = (out / "plate.png").read_bytes()[24:26]
+    assert header == bytes([16, 2])  # IHDR: bit depth 16, colour type RGB
+
+
 def test_cli_reports_the_score_and_a_low_confidence_translation(tmp_path, capsys):
     plate = tmp_path / "plate.png"
     write_png(plate, synthetic_plate())  # G (3, -2), R (-4, 5) onto B
@@ -443,6 +499,33 @@ def test_cli_keeps_existing_outputs_unless_overwrite(tmp_path, capsys):
     assert "kept" in capsys.readouterr().out
     assert main(["align", str(good), "-o", str(out), "--overwrite", "--metric", "ssd"]) == 0
     assert target.read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize("extra", [[], ["--overwrite"]])
+def test_cli_refuses_plates_with_one_output_before_writing_anything(tmp_path, capsys, extra):
+    plates = [tmp_path / "a" / "plate.png", tmp_path / "b" / "plate.png"]
+    for seed, path in enumerate(plates):
+        path.parent.mkdir()
+        write_png(path, synthetic_plate(seed=seed))
+    out = tmp_path / "out"
+    assert main(["align", *map(str, plates), "-o", str(out), *extra]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == (
+        f"imgform align: inputs would overwrite each other's output: {plates[0]} and "
+        f"{plates[1]} -> {out / 'plate.png'}; nothing was written (rename them, or run them "
+        "into different folders)\n"
+    )
+    assert not out.exists()
+
+
+def test_cli_says_in_one_line_that_the_output_folder_is_a_file(tmp_path, capsys):
+    plate = tmp_path / "plate.png"
+    write_png(plate, synthetic_plate())
+    out = tmp_path / "out"
+    out.write_bytes(b"a file, not a folder")
+    assert main(["align", str(plate), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == f"imgform align: the output folder {out} is a file\n"
 
 
 def test_cli_draws_a_progress_bar_on_a_terminal(tmp_path, monkeypatch, capsys):
@@ -599,6 +682,24 @@ def test_auto_balance_equalises_channel_means_and_stretches(dtype):
         ig.auto_balance(rgb, clip=0.5)
     with pytest.raises(TypeError, match="dtype"):
         ig.auto_balance(rgb.astype(np.int32))
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf])
+@pytest.mark.parametrize("options", [{}, {"contrast": False}, {"white_balance": False}])
+def test_auto_balance_refuses_a_nan_or_infinite_sample(value, options):
+    """One NaN made every gain NaN, so all of G and B (or did nothing)."""
+    rgb = np.random.default_rng(3).random((40, 50, 3)).astype(np.float32)
+    rgb[7, 9, 0] = value
+    with pytest.raises(ValueError, match=rf"finite numbers, got {value} at index \(7, 9, 0\)"):
+        ig.auto_balance(rgb, **options)
+
+
+@pytest.mark.parametrize("shape", [(0, 5, 3), (5, 0, 3)])
+def test_auto_balance_refuses_an_empty_image(shape):
+    with pytest.raises(
+        ValueError, match=r"non-empty \(H, W, 3\) image, got shape " + re.escape(str(shape))
+    ):
+        ig.auto_balance(np.zeros(shape, np.uint8))
 
 
 def test_colorize_plate_finishes_with_balance_on_request():

@@ -7,6 +7,7 @@ import dataclasses
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -307,6 +308,54 @@ def test_a_batch_removes_the_partial_files_of_its_own_outputs_only(tmp_path, cli
     assert outputs(out) == sorted(
         [f.name for f in foreign] + ["shot0.png", "shot1.png", report.path.name]
     )
+
+
+def test_inputs_with_one_output_are_refused_before_anything_is_written(
+    tmp_path, client, raws, capsys
+):
+    """a/shot0.dng and b/shot0.kdc would both write OUT/shot0.png: the batch
+    and the command line on a cluster refuse them, naming them, as the
+    command line without one does (tests/test_develop.py)."""
+    paths, _ = raws
+    twin = tmp_path / "b" / "shot0.kdc"
+    twin.parent.mkdir()
+    shutil.copyfile(paths[0], twin)
+    out = tmp_path / "out"
+    clash = re.escape(f"{paths[0]} and {twin} -> {out / 'shot0.png'}")
+    for many in (batch.develop_many, batch.align_many):
+        with pytest.raises(ValueError, match=clash):
+            many([paths[0], paths[1], str(twin)], out, client=client)
+    scheduler = client.scheduler.address
+    for command in ("develop", "align"):
+        argv = [command, paths[0], str(twin), "-o", str(out), "--scheduler", scheduler]
+        assert main([*argv, "--overwrite"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"imgform {command}: inputs would overwrite each other's output")
+        assert re.search(clash, err) and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_an_output_folder_that_is_a_file_is_one_clear_error(tmp_path, client, raws, capsys):
+    paths, _ = raws
+    out = tmp_path / "out"
+    out.write_bytes(b"a file, not a folder")
+    with pytest.raises(NotADirectoryError, match=f"the output folder {re.escape(str(out))} is"):
+        batch.develop_many(paths[:1], out, client=client)
+    scheduler = client.scheduler.address
+    assert main(["develop", paths[0], "-o", str(out), "--scheduler", scheduler]) == 2
+    assert capsys.readouterr().err == f"imgform develop: the output folder {out} is a file\n"
+
+
+def test_a_scheduler_the_cli_cannot_reach_is_one_clear_error(tmp_path, raws, capsys):
+    import dask
+
+    paths, _ = raws
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        code = main(["develop", paths[0], "-o", str(tmp_path), "--scheduler", "tcp://127.0.0.1:1"])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("imgform develop: Timed out trying to connect to tcp://127.0.0.1:1")
+    assert err.count("\n") == 1
 
 
 @pytest.mark.slow

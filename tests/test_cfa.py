@@ -46,6 +46,22 @@ def test_shifts_compose(p, a, b, c):
     np.testing.assert_array_equal(once, twice)
 
 
+@pytest.mark.parametrize(("dy", "dx"), [(1.7, 0), (0, 1.0), (np.float64(2), 0), (True, 0)])
+def test_shift_pattern_refuses_shifts_that_are_not_ints(dy, dx):
+    """1.7 was truncated to 1: no crop removes a fraction of a row."""
+    with pytest.raises(TypeError, match=r"d[yx] must be an int \(rows or columns cropped\)"):
+        ig.shift_pattern("RGGB", dy, dx)
+
+
+@given(p=patterns, a=st.integers(-(2**80), 2**80), b=st.integers(-(2**80), 2**80))
+def test_any_int_shift_is_its_remainder_modulo_the_tile(p, a, b):
+    """Beyond the native isize too (an OverflowError before)."""
+    np.testing.assert_array_equal(
+        ig.pattern_cells(ig.shift_pattern(p, a, b)),
+        ig.pattern_cells(ig.shift_pattern(p, a % 6, b % 6)),
+    )
+
+
 @given(
     p=patterns,
     dy=st.integers(0, 7),
@@ -147,14 +163,42 @@ def test_sensor_reads_integer_images_as_fractions_of_full_scale():
     [
         ({"full_well": 0.0}, "full_well must be"),
         ({"read_noise": -1.0}, "read_noise must be"),
-        ({"bit_depth": 17}, "bit_depth must be between 1 and 16, got 17"),
-        ({"black_level": 5000}, "black_level must be below the white level 4095"),
-        ({"seed": -1}, "seed must be an int >= 0"),
+        ({"bit_depth": 17}, "bit_depth must be an int from 1 to 16, got 17"),
+        ({"black_level": 5000}, "black_level must be an int from 0 to below the white level 4095"),
+        ({"seed": -1}, r"seed must be an int in \[0, 2\*\*64\), got -1"),
+        # Were OverflowErrors.
+        ({"black_level": -1}, "black_level must be an int from 0 .* got -1"),
+        ({"seed": 2**64}, r"seed must be an int in \[0, 2\*\*64\)"),
+        # Were truncated to 12 and 1.
+        ({"bit_depth": 12.7}, "bit_depth must be an int from 1 to 16, got 12.7"),
+        ({"black_level": 1.9}, "black_level must be an int .* got 1.9"),
+        ({"bit_depth": True}, "bit_depth must be an int"),
     ],
 )
 def test_bad_sensor_parameters_are_named(kw, match):
     with pytest.raises(ValueError, match=match):
         ig.simulate_sensor(np.zeros((4, 4, 3), np.float32), "RGGB", **kw)
+
+
+def test_sensor_parameters_at_their_limits_are_accepted():
+    white = np.ones((4, 4, 3), np.float32)
+    raw = ig.simulate_sensor(
+        white, "RGGB", bit_depth=np.int64(12), black_level=4094, seed=2**64 - 1
+    )
+    # A full well is the one DN from black to white (its photon noise 1 %).
+    assert (raw == 4095).all()
+
+
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf])
+def test_sensor_refuses_nan_and_infinite_radiance(value):
+    """These have no number of electrons: NaN became the black level, +inf
+    0 or the white level."""
+    rgb = np.full((6, 8, 3), 0.5, np.float32)
+    rgb[3, 5, 2] = value
+    with pytest.raises(
+        ValueError, match=rf"rgb must hold finite numbers, got {value} at index \(3, 5, 2\)"
+    ):
+        ig.simulate_sensor(rgb, "RGGB")
 
 
 def test_sensor_and_mosaic_do_not_depend_on_the_thread_count():
@@ -195,8 +239,44 @@ def test_pattern_from_rawpy_refuses_other_colours():
         (np.zeros((30, 30), np.float32), {}, TypeError, "uint16.*float32"),
         (np.zeros((30, 30, 3), np.uint16), {}, ValueError, r"\(H, W\) mosaic"),
         (np.zeros((30, 30), np.uint16), {"black_level": 5000}, ValueError, "black_level"),
+        # LibRaw read these as a zero matrix and white balance [0, 1, 0, 0].
+        (
+            np.zeros((30, 30), np.uint16),
+            {"color_matrix": np.eye(2)},
+            ValueError,
+            r"color_matrix must be a finite \(3, 3\) matrix, got shape \(2, 2\)",
+        ),
+        (
+            np.zeros((30, 30), np.uint16),
+            {"as_shot_neutral": (0.5, 1)},
+            ValueError,
+            r"as_shot_neutral must be three finite values > 0 .*got \(0\.5, 1\)",
+        ),
+        # These raised struct.error.
+        (np.zeros((30, 30), np.uint16), {"as_shot_neutral": (-1, 1, 1)}, ValueError, "> 0"),
+        (
+            np.zeros((30, 30), np.uint16),
+            {"color_matrix": np.full((3, 3), 1e12)},
+            ValueError,
+            r"cannot be written as TIFF SRATIONALs",
+        ),
+        (np.zeros((30, 30), np.uint16), {"pixel_aspect": 1e12}, ValueError, "TIFF RATIONALs"),
+        (
+            np.zeros((30, 30), np.uint16),
+            {"color_matrix": [[1, 0, 0], [0, np.nan, 0], [0, 0, 1]]},
+            ValueError,
+            "color_matrix must be a finite",
+        ),
+        (np.zeros((30, 30), np.uint16), {"as_shot_neutral": (1, np.inf, 1)}, ValueError, "> 0"),
+        (
+            np.zeros((30, 30), np.uint16),
+            {"forward_matrix": np.eye(4)},
+            ValueError,
+            r"forward_matrix must be a finite \(3, 3\)",
+        ),
     ],
 )
 def test_dng_writer_refuses_bad_input(tmp_path, cfa, kw, exc, match):
     with pytest.raises(exc, match=match):
         write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, **kw)
+    assert not (tmp_path / "x.dng").exists()

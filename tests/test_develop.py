@@ -392,8 +392,12 @@ def test_bad_options_are_refused(grey_card):
         (dict(white_balance="tungsten"), "white_balance must be one of"),
         (dict(white_balance=(1, 0, 1)), "three finite numbers > 0"),
         (dict(exposure=float("nan")), "exposure must be"),
-        (dict(exposure="bright"), 'exposure must be a finite number of stops or "auto"'),
+        (dict(exposure="bright"), 'exposure must be "auto" or a number of stops from -32 to 32'),
         (dict(exposure=None), "exposure must be"),
+        # An internal "scale must contain only finite numbers" or an OverflowError.
+        (dict(exposure=200), "from -32 to 32, got 200"),
+        (dict(exposure=1100), "from -32 to 32, got 1100"),
+        (dict(exposure=-33.5), "from -32 to 32, got -33.5"),
         (dict(demosaic="magic"), "magic"),
     ]
     for kwargs, message in cases:
@@ -401,6 +405,14 @@ def test_bad_options_are_refused(grey_card):
             ig.develop(raw, **kwargs)
     with pytest.raises(TypeError, match="demosaic must be a str"):
         ig.develop(raw, demosaic=3)
+
+
+def test_the_exposure_limits_make_every_pixel_white_or_black(grey_card):
+    """The range refuses no change a picture could show: at its ends the
+    card is all white, or black."""
+    _, raw = grey_card
+    assert (ig.develop(raw, exposure=32, demosaic="bilinear") == 255).all()
+    assert (ig.develop(raw, exposure=-32, bps=16, demosaic="bilinear") == 0).all()
 
 
 def test_orientation_follows_libraw_flip_codes():
@@ -504,11 +516,47 @@ def test_cli_dry_run_lists_and_touches_nothing(tmp_path, capsys, grey_card):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("extra", [[], ["--overwrite"], ["--dry-run"], ["-j", "2"]])
+def test_cli_refuses_inputs_with_one_output_before_writing_anything(
+    tmp_path, capsys, grey_card, extra
+):
+    """a/card.dng and b/card.kdc both develop to OUT/card.png: all but one
+    result would be lost, so the run refuses, naming them, and writes nothing."""
+    from imgform_rs.cli import main
+
+    good, _ = grey_card
+    twin = tmp_path / "b" / "card.kdc"
+    twin.parent.mkdir()
+    twin.write_bytes(good.read_bytes())
+    out = tmp_path / "out"
+    assert main(["develop", str(good), str(twin), "-o", str(out), *extra]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err == (
+        f"imgform develop: inputs would overwrite each other's output: {good} and {twin} -> "
+        f"{out / 'card.png'}; nothing was written (rename them, or run them into different "
+        "folders)\n"
+    )
+    assert not out.exists()
+
+
+def test_cli_says_in_one_line_that_the_output_folder_is_a_file(tmp_path, capsys, grey_card):
+    from imgform_rs.cli import main
+
+    good, _ = grey_card
+    out = tmp_path / "out"
+    out.write_bytes(b"a file, not a folder")
+    assert main(["develop", str(good), "-o", str(out)]) == 2
+    assert capsys.readouterr().err == f"imgform develop: the output folder {out} is a file\n"
+    assert out.read_bytes() == b"a file, not a folder"
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
         (["--exposure", "bright"], 'must be "auto" or a number of stops'),
         (["--exposure", "inf"], "number of stops"),
+        (["--exposure", "1100"], "a number of stops from -32 to 32, got '1100'"),
         (["--white-balance", "1,0,1"], "three multipliers R,G,B > 0"),
         (["--white-balance", "tungsten"], "camera, daylight, auto, none"),
         (["--color", "cmyk"], "invalid choice"),

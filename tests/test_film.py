@@ -64,11 +64,52 @@ def test_without_couplers_density_is_the_curve_exactly(name):
         np.testing.assert_allclose(dens[:, i], layer.curve(x), atol=2e-6)
 
 
-def test_a_spectral_image_of_the_reference_white_exposes_one_in_every_layer():
-    stock = film.load_stock("generic-negative")
-    white = film._white(stock).astype(np.float32)
+def reference_white(stock: film.Stock) -> np.ndarray:
+    """The documented reference white, built here from its definition: the
+    black body at the stock's balance temperature with Y = ∫ W ȳ dλ = 1."""
+    wl = stock.wavelengths
+    bb = sp.blackbody(wl, stock.balance_kelvin)
+    return bb / np.sum(bb * sp.cie_cmfs(wl)[:, 1] * sp.quadrature_weights(wl))
+
+
+@pytest.mark.parametrize("name", ["generic-negative", "generic-bw-pan"])
+def test_a_spectral_image_of_the_reference_white_exposes_one_in_every_layer(name):
+    stock = film.load_stock(name)
+    white = reference_white(stock).astype(np.float32)
     H = film.expose(np.tile(0.25 * white, (2, 3, 1)), stock, exposure_ev=2.0)
     np.testing.assert_allclose(H, 1.0, rtol=1e-5)
+    # In radiance units that white is 683 cd/m² (Y = luminance / 683).
+    wl = stock.wavelengths
+    bright = sp.luminance_scale(sp.blackbody(wl, stock.balance_kelvin), wl, 683.0)
+    np.testing.assert_allclose(film.expose(bright[None, None], stock), 1.0, rtol=1e-5)
+
+
+def test_rgb_and_its_spectra_under_the_reference_white_expose_alike():
+    """The RGB path is the spectral one with the upsampled reflectances lit
+    by the reference white: both give the same exposures, within the 0.1 %
+    by which the basis's sum departs from 1 (the RGB path's normalisation
+    takes it out, so that (1, 1, 1) exposes exactly 1)."""
+    stock = film.load_stock("generic-negative")
+    rgb = np.random.default_rng(5).uniform(0, 1, (4, 5, 3)).astype(np.float32)
+    spectra = sp.rgb_to_reflectance(rgb, stock.wavelengths) * reference_white(stock)
+    np.testing.assert_allclose(
+        film.expose(spectra.astype(np.float32), stock), film.expose(rgb, stock), rtol=1e-3
+    )
+
+
+def test_the_spectral_guides_chart_exposes_its_white_patch_below_the_reference():
+    """The spectral guide's ColorChecker, lit by D65 at 300 cd/m²: its white
+    patch (Y 0.89 of the light) exposes about 0.89 x 300 / 683 = 0.39 and
+    develops well below D_max, not crushed into it."""
+    stock = film.load_stock("generic-negative")
+    wl = stock.wavelengths
+    light = sp.luminance_scale(sp.illuminant("D65", wl), wl, 300.0)
+    scene, boxes = sp.colorchecker_scene(wl, light, patch=6, gap=2)
+    ys, xs = boxes[18]
+    H = film.expose(scene, stock)[ys, xs].mean(axis=(0, 1))
+    np.testing.assert_allclose(H, 0.887 * 300 / 683, rtol=0.15)
+    D = film.develop(film.expose(scene, stock), stock)[ys, xs].mean(axis=(0, 1))
+    assert (D < stock.dye_max - 0.5).all(), (D, stock.dye_max)
 
 
 def test_a_reversal_curve_falls_and_a_negative_rises():
@@ -222,6 +263,12 @@ def _broken(tmp_path, edit) -> str:
         (lambda d: d["layers"][0].pop("dye_density"), "missing field 'dye_density'"),
         (lambda d: d["layers"].append(3), "list of layer objects"),
         (lambda d: d.__setitem__("halation", {"strength": [2.0, 0, 0]}), "halation must hold"),
+        (lambda d: d.__setitem__("couplers", [0.1]), "couplers must be a JSON object.*list"),
+        (lambda d: d.__setitem__("provenance", ["me"]), "provenance must be a JSON object"),
+        (lambda d: d.__setitem__("grain", 0.01), "grain must be a JSON object.*float"),
+        (lambda d: d["layers"][1].__setitem__("curve", [0, 1]), "curve must be a JSON object"),
+        (lambda d: d.__setitem__("balance_kelvin", [5500]), "balance_kelvin must be a number"),
+        (lambda d: d["halation"].__setitem__("spread_um", "wide"), "spread_um must be a number"),
     ],
 )
 def test_bad_stocks_are_refused_with_a_clear_error(tmp_path, edit, message):
@@ -245,6 +292,38 @@ def test_bad_names_json_and_images_are_refused(tmp_path):
         film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm=0)
     with pytest.raises(ValueError, match="print needs a negative and a paper"):
         film.print(np.ones((2, 2, 3), np.float32), "generic-reversal", "generic-paper")
+    # balance_print refuses what print refuses: a negative is no paper.
+    with pytest.raises(ValueError, match="balance_print needs a negative and a paper"):
+        film.balance_print("generic-negative", "generic-negative")
+    with pytest.raises(ValueError, match=r"needs a negative and a paper, got a negative"):
+        film.simulate(np.ones((2, 2, 3), np.float32), paper="generic-negative")
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.int32])
+def test_integer_images_are_refused_not_read_as_reflectances(dtype):
+    """An integer picture has no one reading as reflectances (uint8 46 would
+    expose 46 times a perfect white): the error says how to convert it."""
+    image = np.full((2, 2, 3), 46, dtype)
+    for call in (film.expose, film.simulate):
+        with pytest.raises(TypeError, match=f"must be float.*got dtype {np.dtype(dtype)}"):
+            call(image, "generic-negative")
+
+
+def test_out_of_range_seeds_and_exposures_are_value_errors():
+    h = np.full((2, 2, 3), 0.18, np.float32)
+    for seed in (-1, 2**64, 1.5):
+        with pytest.raises(ValueError, match=r"seed must be an int in \[0, 2\*\*64\)"):
+            film.develop(h, "generic-negative", grain=True, seed=seed)
+    for ev in (2000.0, -2000.0, np.nan, np.inf):
+        with pytest.raises(ValueError, match=r"exposure_ev must be .* stops in \[-100, 100\]"):
+            film.expose(h, "generic-negative", exposure_ev=ev)
+        with pytest.raises(ValueError, match="exposure_ev must be"):
+            film.print(h, "generic-negative", "generic-paper", exposure_ev=ev)
+    # The ends of the range still work: the grey lands on the curves' ends.
+    neg = film.load_stock("generic-negative")
+    for ev, end in ((100.0, -1), (-100.0, 0)):
+        d = film.develop(film.expose(h, neg, exposure_ev=ev), neg, couplers=False)
+        np.testing.assert_allclose(d[0, 0], [lay.density[end] for lay in neg.layers], atol=1e-6)
 
 
 def test_the_native_functions_refuse_bad_arguments_without_crashing():
@@ -350,6 +429,31 @@ def test_the_cli_writes_a_print_of_each_image_and_reports_bad_files(tmp_path, ca
     assert iio.imread(tmp_path / "o" / "scene.png").shape == (24, 32, 3)
     assert "broken.png" in capsys.readouterr().err
     assert cli.main(["film", str(tmp_path / "scene.png"), "-o", str(tmp_path), "--stock", "x"]) == 2
+
+
+def test_the_film_cli_keeps_outputs_unless_asked_and_refuses_clashing_names(tmp_path, capsys):
+    import imageio.v3 as iio
+
+    from imgform_rs import cli
+
+    img = (np.random.default_rng(3).random((16, 24, 3)) * 255).astype(np.uint8)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    iio.imwrite(tmp_path / "a" / "x.png", img)
+    iio.imwrite(tmp_path / "b" / "x.tif", img)
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "x.png").write_bytes(b"kept")
+    assert cli.main(["film", str(tmp_path / "a" / "x.png"), "-o", str(out)]) == 0
+    assert (out / "x.png").read_bytes() == b"kept" and "kept" in capsys.readouterr().out
+    assert cli.main(["film", str(tmp_path / "a" / "x.png"), "-o", str(out), "--overwrite"]) == 0
+    assert iio.imread(out / "x.png").shape == (16, 24, 3)
+    clash = [str(tmp_path / "a" / "x.png"), str(tmp_path / "b" / "x.tif")]
+    assert cli.main(["film", *clash, "-o", str(tmp_path / "new"), "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert "overwrite each other" in err and not (tmp_path / "new").exists()
+    assert cli.main(["film", clash[0], "-o", str(tmp_path / "a" / "x.png")]) == 2
+    assert "is a file" in capsys.readouterr().err
 
 
 # --- halation and grain -------------------------------------------------------------------

@@ -97,6 +97,17 @@ def test_best_is_markesteijn_for_x_trans_and_unchanged_for_bayer():
     assert "markesteijn" not in ig.BAYER_DEMOSAIC_METHODS
 
 
+@pytest.mark.parametrize("alias", ["best", "quality"])
+def test_an_alias_has_the_halo_of_the_method_it_selects(alias):
+    """demosaic_dask pads chunks by the halo: for X-Trans that of
+    "markesteijn" (18), not of the aliases' Bayer methods (22, 24)."""
+    for layout in (TILE, LAYOUTS[7], "XTRANS"):
+        assert ig.demosaic_halo(alias, layout) == ig.demosaic_halo("markesteijn", layout)
+    bayer = {"best": "raisr_cd", "quality": "fusion_refined"}[alias]
+    for pattern in ("RGGB", np.array([[1, 0], [2, 1]])):
+        assert ig.demosaic_halo(alias, pattern) == ig.demosaic_halo(bayer, pattern)
+
+
 def test_results_do_not_depend_on_the_thread_count():
     # 400 columns and 130 rows: more than one tile each way.
     code = """

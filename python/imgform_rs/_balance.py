@@ -43,7 +43,8 @@ def auto_balance(
     Raises
     ------
     ValueError
-        An image that is not (H, W, 3) or ``clip`` outside [0, 0.5).
+        An image that is not (H, W, 3) or is empty, a NaN or infinite
+        sample, or ``clip`` outside [0, 0.5).
     TypeError
         An unsupported dtype.
 
@@ -58,8 +59,13 @@ def auto_balance(
     img = np.asarray(rgb)
     if img.dtype not in (np.uint8, np.uint16, np.float32):
         raise TypeError(f"rgb must be uint8, uint16 or float32, got dtype {img.dtype}")
-    if img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError(f"rgb must be an (H, W, 3) image, got shape {img.shape}")
+    if img.ndim != 3 or img.shape[2] != 3 or img.size == 0:
+        raise ValueError(f"rgb must be a non-empty (H, W, 3) image, got shape {img.shape}")
+    # One NaN or infinity would make the means and quantiles, so every
+    # channel's gain, NaN.
+    if img.dtype.kind == "f" and not np.isfinite(img).all():
+        at = tuple(int(i) for i in np.argwhere(~np.isfinite(img))[0])
+        raise ValueError(f"rgb must hold finite numbers, got {img[at]} at index {at}")
     if not 0 <= clip < 0.5:
         raise ValueError(f"clip must be in [0, 0.5), got {clip}")
     top = float(np.iinfo(img.dtype).max) if img.dtype.kind == "u" else 1.0

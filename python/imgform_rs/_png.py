@@ -1,14 +1,17 @@
-"""A minimal PNG encoder (8- or 16-bit grey or RGB) on the standard library's zlib.
+"""A minimal PNG encoder (8- or 16-bit grey or RGB) on the standard library's zlib,
+and a reader of 16-bit colour PNGs.
 
-It exists for what imageio cannot do: imageio's PNG writer is Pillow's, and
-Pillow has no 16-bit RGB mode (``Image.fromarray`` refuses (H, W, 3) uint16),
-so 16-bit colour PNGs are written here, with their ICC profile (``iCCP``) and
-EXIF (``eXIf``) chunks. :func:`imgform_rs.write_image` hands every other PNG to
+Both exist for what imageio cannot do: imageio's PNG codec is Pillow's, and
+Pillow has no 16-bit RGB mode (``Image.fromarray`` refuses (H, W, 3) uint16,
+and it reads such a file as 8-bit RGB), so 16-bit colour PNGs are written
+here, with their ICC profile (``iCCP``) and EXIF (``eXIf``) chunks, and read
+here at full depth. :func:`imgform_rs.write_image` hands every other PNG to
 imageio.
 """
 
 from __future__ import annotations
 
+import io
 import struct
 import zlib
 from pathlib import Path
@@ -18,6 +21,13 @@ import numpy as np
 # zlib level 1: level 6 took twice the time for files 0-5 % smaller (no
 # row filters here; 16-bit photographs barely compress either way).
 _LEVEL = 1
+
+_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+# Pillow's unpackers of 16-bit RGB and RGBA PNG pixels (big-endian samples,
+# of which it keeps the high bytes), and those of pixels of the same size
+# whose little-endian samples' high bytes are the other bytes.
+_LOW_BYTES = {"RGB;16B": "RGB;16L", "RGBA;16B": "RGBA;16L"}
 
 
 def _chunk(kind: bytes, payload: bytes) -> bytes:
@@ -60,6 +70,30 @@ def write_png(
     path = Path(path)
     path.write_bytes(data)
     return path
+
+
+def read_png16(data: bytes) -> np.ndarray | None:
+    """The samples of a 16-bit RGB or RGBA PNG file's bytes, uint16 (H, W, 3)
+    or (H, W, 4); None for any other file, which imageio reads whole.
+
+    Pillow decodes the file twice, inflating and undoing the row filters in
+    its own C code: once as it would (each sample's high byte) and once
+    unpacking the same pixels as if their samples were little-endian, which
+    gives the low bytes.
+    """
+    from PIL import Image
+
+    if not data.startswith(_SIGNATURE):
+        return None
+    with Image.open(io.BytesIO(data)) as im:
+        if len(im.tile) != 1 or im.tile[0][3] not in _LOW_BYTES:
+            return None
+        high = np.asarray(im)
+    with Image.open(io.BytesIO(data)) as im:
+        name, box, offset, rawmode = im.tile[0]
+        im.tile = [(name, box, offset, _LOW_BYTES[rawmode])]
+        low = np.asarray(im)
+    return high.astype(np.uint16) << 8 | low
 
 
 def for_png(rgb: np.ndarray) -> np.ndarray:

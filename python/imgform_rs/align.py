@@ -214,7 +214,7 @@ def _levels(pyramid: int | str) -> int | None:
             raise ValueError(f'pyramid must be "auto" or a number of levels >= 0, got {pyramid!r}')
         return None
     levels = operator.index(pyramid)
-    if levels < 0:
+    if not 0 <= levels < 2**64:  # the native usize
         raise ValueError(f'pyramid must be "auto" or a number of levels >= 0, got {levels}')
     return levels
 
@@ -336,9 +336,14 @@ def align(
     (3, -2)
     """
     features = _resolve_features(features, motion)
+    ref = _image(reference, "reference")
     k = operator.index(max_shift)
+    # Checked here too: a k beyond the native i64 is an OverflowError there.
+    if not 0 <= k < min(ref.shape):
+        h, w = ref.shape
+        raise ValueError(f"max_shift must be >= 0 and smaller than the image ({h}x{w}), got {k}")
     shift, score, surface, origin, levels = _native.align_images(
-        _image(reference, "reference"),
+        ref,
         _image(moving, "moving"),
         k,
         str(metric),
@@ -370,6 +375,10 @@ def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance
     """Each of ``founds`` (translations of ``movings`` onto ``reference``)
     refined under ``motion`` by ECC on ``features``, in one native call that
     builds the reference's pyramid and sums once for all of them."""
+    steps = operator.index(max_iterations)
+    # The native usize would make a negative or huge count an OverflowError.
+    if not 1 <= steps < 2**64:
+        raise ValueError(f"max_iterations must be an int in [1, 2**64), got {steps}")
     results = _native.refine_warp(
         _image(reference, "reference"),
         [_image(m, "moving") for m in movings],
@@ -377,7 +386,7 @@ def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance
         [f.matrix.tolist() for f in founds],
         float(crop),
         None,
-        operator.index(max_iterations),
+        steps,
         float(tolerance),
         str(features),
     )
@@ -419,6 +428,22 @@ def _roll_fill(image: np.ndarray, dy: int, dx: int, fill: Any) -> np.ndarray:
     return out
 
 
+def _check_fill(fill: Any, dtype: np.dtype) -> None:
+    """ValueError unless ``dtype`` holds ``fill``: an integer within its
+    range for integer images (NumPy would wrap or truncate it, or raise
+    OverflowError, and the interpolation would clip it), a number within
+    its range, NaN or an infinity for float ones."""
+    if not isinstance(fill, (int, float, np.integer, np.floating)):
+        raise TypeError(f"fill must be a real number, got {fill!r}")
+    value = float(fill)
+    if dtype.kind in "biu":
+        lo, hi = (0, 1) if dtype.kind == "b" else (np.iinfo(dtype).min, np.iinfo(dtype).max)
+        if not (value.is_integer() and lo <= fill <= hi):
+            raise ValueError(f"fill must be an integer from {lo} to {hi} for {dtype}, got {fill!r}")
+    elif math.isfinite(value) and abs(value) > float(np.finfo(dtype).max):
+        raise ValueError(f"fill must be within {dtype}'s range, NaN or infinite, got {fill!r}")
+
+
 def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
     """Move an image by ``shift = (dy, dx)`` the way ``np.roll`` would, but
     without wrap-around: pixels that come from outside get ``fill``.
@@ -441,7 +466,10 @@ def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
     Raises
     ------
     ValueError
-        A shift that is not two finite numbers, or an image that is not 2-D/3-D.
+        A shift that is not two finite numbers, an image that is not 2-D/3-D,
+        or a ``fill`` its dtype cannot hold (-1 or 0.5 for uint8).
+    TypeError
+        A ``fill`` that is not a real number.
 
     Examples
     --------
@@ -459,6 +487,7 @@ def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
     s = np.asarray(shift, dtype=np.float64)
     if s.shape != (2,) or not np.all(np.isfinite(s)):
         raise ValueError(f"shift must be two finite numbers (dy, dx), got {shift!r}")
+    _check_fill(fill, img.dtype)
     dy, dx = float(s[0]), float(s[1])
     if dy.is_integer() and dx.is_integer():
         return _roll_fill(img, int(dy), int(dx), fill)
@@ -820,7 +849,9 @@ def _shifted_crop(channel: np.ndarray, shift, area: tuple[slice, slice]) -> np.n
 
 def read_plate(path: str | Path) -> np.ndarray:
     """Read a plate scan (8-bit JPG, 16-bit TIFF, PNG...) as a 2-D array with
-    imageio; an RGB file of a grey scan is averaged to one channel.
+    imageio; an RGB file of a grey scan is averaged to one channel. 16-bit
+    scans stay uint16, 16-bit RGB PNGs too, which imageio would read as
+    8-bit (see :mod:`imgform_rs._png`).
 
     Raises
     ------
@@ -830,11 +861,15 @@ def read_plate(path: str | Path) -> np.ndarray:
     """
     import imageio.v3 as iio
 
+    from ._png import read_png16
+
     path = Path(path)
     try:
         # Decoding from bytes: imageio leaves a failed file open otherwise.
         data = path.read_bytes()
-        img = np.asarray(iio.imread(data, extension=path.suffix or None))
+        img = read_png16(data)
+        if img is None:
+            img = np.asarray(iio.imread(data, extension=path.suffix or None))
     except Exception as exc:  # imageio raises many types for bad files
         reason = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise ValueError(f"cannot read plate {str(path)!r}: {reason}") from exc

@@ -279,6 +279,41 @@ def _submit_all(
     return results
 
 
+def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple[Path, Path]]:
+    """Each source with its output, ``outdir/<stem><suffix>``.
+
+    Two sources with one stem (``a/x.dng`` and ``b/x.kdc``) would be written
+    to one output, the later replacing the earlier or skipped as if done
+    before: a ValueError names every such group, so that a batch refuses
+    before it writes anything and loses no result.
+    """
+    pairs = [(Path(s), Path(outdir) / f"{Path(s).stem}{suffix}") for s in sources]
+    writers: dict[Path, list[Path]] = {}
+    for source, target in pairs:
+        writers.setdefault(target, []).append(source)
+    clashes = [
+        f"{' and '.join(map(str, group))} -> {target}"
+        for target, group in writers.items()
+        if len(group) > 1
+    ]
+    if clashes:
+        raise ValueError(
+            f"inputs would overwrite each other's output: {'; '.join(clashes)}; nothing was "
+            "written (rename them, or run them into different folders)"
+        )
+    return pairs
+
+
+def output_folder(outdir: Any) -> Path:
+    """``outdir``, made if missing. A file in its place is a
+    NotADirectoryError saying so, where ``Path.mkdir`` says "File exists"."""
+    out = Path(outdir)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"the output folder {out} is a file")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
 def _run_batch(
     kind: str,
     sources: Iterable[Any],
@@ -294,12 +329,8 @@ def _run_batch(
     _distributed()
     if isinstance(sources, (str, os.PathLike)):
         raise TypeError(f"sources must be a list of paths, got the single path {sources!r}")
-    out = Path(outdir)
-    out.mkdir(parents=True, exist_ok=True)
-    pairs = [(Path(s), out / f"{Path(s).stem}{suffix}") for s in sources]
-    names = [t for _, t in pairs]
-    if len(set(names)) != len(names):
-        raise ValueError("sources must have distinct file names (stems): outputs would collide")
+    pairs = output_paths(sources, outdir, suffix)
+    out = output_folder(outdir)
     skipped = [
         FileResult(str(s), str(t), "skipped", "output exists", 0.0)
         for s, t in pairs
@@ -371,7 +402,10 @@ def develop_many(
     ImportError
         Without the ``dask`` extra.
     ValueError
-        For an unknown format or colliding output names (before any work).
+        For an unknown format, or sources with one file name (stem), which
+        would write one output: the message names them (before any work).
+    OSError
+        For an output folder that cannot be made, a file in its place.
 
     Examples
     --------

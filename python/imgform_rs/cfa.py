@@ -101,12 +101,25 @@ def shift_pattern(pattern: Pattern, dy: int, dx: int) -> str | npt.NDArray[np.ui
         The name when the result has one (every Bayer phase; the canonical
         X-Trans tile), else the tile.
 
+    Raises
+    ------
+    TypeError
+        For a shift that is not an int (a crop has no fraction of a row),
+        and as :func:`pattern_cells`.
+    ValueError
+        As :func:`pattern_cells`.
+
     Examples
     --------
     >>> shift_pattern("RGGB", 1, 0)
     'GBRG'
     """
-    return _native.shift_pattern(as_pattern(pattern), int(dy), int(dx))
+    for name, value in (("dy", dy), ("dx", dx)):
+        if not _is_int(value):
+            raise TypeError(f"{name} must be an int (rows or columns cropped), got {value!r}")
+    # Every tile is 2x2 or 6x6, so 6 rows or columns change no phase: the
+    # remainder also keeps any int within the native isize.
+    return _native.shift_pattern(as_pattern(pattern), int(dy) % 6, int(dx) % 6)
 
 
 def pattern_from_rawpy(raw: Any) -> str | npt.NDArray[np.uint8]:
@@ -248,10 +261,10 @@ def simulate_sensor(
     bit_depth : int
         1..16.
     black_level : int
-        Offset in digital numbers, below the white level.
+        Offset in digital numbers, 0 up to below the white level.
     seed : int
-        The noise is a pure function of ``(seed, y, x)``: equal seeds give
-        equal raws, whatever the number of threads.
+        0 <= seed < 2**64. The noise is a pure function of ``(seed, y, x)``:
+        equal seeds give equal raws, whatever the number of threads.
 
     Returns
     -------
@@ -260,7 +273,9 @@ def simulate_sensor(
     Raises
     ------
     TypeError, ValueError
-        For bad arrays or patterns; ValueError naming a bad parameter.
+        For bad arrays or patterns; ValueError naming a bad parameter (the
+        ints above must be ints, not floats to truncate), or the first NaN
+        or infinite sample of ``rgb``, which has no number of electrons.
 
     Examples
     --------
@@ -268,10 +283,24 @@ def simulate_sensor(
     >>> raw.dtype, raw.shape
     (dtype('uint16'), (4, 4))
     """
-    if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
+    # Checked here: int() would truncate a float, and an int beyond the
+    # native layer's u32 / u64 would be an OverflowError there.
+    if not (_is_int(bit_depth) and 1 <= bit_depth <= 16):
+        raise ValueError(f"bit_depth must be an int from 1 to 16, got {bit_depth!r}")
+    white = 2 ** int(bit_depth) - 1
+    if not (_is_int(black_level) and 0 <= black_level < white):
+        raise ValueError(
+            f"black_level must be an int from 0 to below the white level {white} of "
+            f"{bit_depth} bits, got {black_level!r}"
+        )
+    if not (_is_int(seed) and 0 <= seed < 2**64):
+        raise ValueError(f"seed must be an int in [0, 2**64), got {seed!r}")
+    arr = as_image(rgb, "rgb")
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        at = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
+        raise ValueError(f"rgb must hold finite numbers, got {arr[at]} at index {at}")
     return _native.simulate_sensor(
-        as_image(rgb, "rgb"),
+        arr,
         as_pattern(pattern),
         float(full_well),
         float(read_noise),
@@ -279,3 +308,8 @@ def simulate_sensor(
         int(black_level),
         int(seed),
     )
+
+
+def _is_int(value: Any) -> bool:
+    """Whether ``value`` is an int (a NumPy one too), and not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)

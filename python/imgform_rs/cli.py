@@ -79,7 +79,7 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
                 on_result=report,
                 **options,
             )
-    except ImportError as exc:
+    except (ImportError, OSError) as exc:  # no Dask; a scheduler it cannot reach
         print(f"{command}: {exc}", file=sys.stderr)
         return 2
     failed = len(batch.failed)
@@ -89,9 +89,31 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
     return 1 if failed else 0
 
 
+def _outputs(
+    args: argparse.Namespace, sources: list[str], suffix: str, *, dry_run: bool = False
+) -> list[tuple[Path, Path]] | None:
+    """Each input with its output file, the output folder made (not for a
+    dry run); None, after saying why on stderr, for inputs that would write
+    one output or a folder that cannot be made. Checked before any file is
+    processed, on a cluster too, so that such a run writes nothing."""
+    from .batch import output_folder, output_paths
+
+    try:
+        pairs = output_paths(sources, args.out, suffix)
+        if not dry_run:
+            output_folder(args.out)
+    except (ValueError, OSError) as exc:
+        print(f"imgform {args.command}: {exc}", file=sys.stderr)
+        return None
+    return pairs
+
+
 def _align(args: argparse.Namespace) -> int:
     import time
 
+    pairs = _outputs(args, args.plates, ".png")
+    if pairs is None:
+        return 2
     if args.scheduler or args.workers:
         from .batch import align_many
 
@@ -109,12 +131,8 @@ def _align(args: argparse.Namespace) -> int:
     from ._png import for_png, write_png
     from .align import _colorize, describe_estimate, read_plate
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     failed = 0
-    for i, name in enumerate(args.plates, start=1):
-        path = Path(name)
-        target = out / f"{path.stem}.png"
+    for i, (path, target) in enumerate(pairs, start=1):
         if target.exists() and not args.overwrite:
             print(f"{path}: {target} exists, kept (use --overwrite to replace it)")
         else:
@@ -167,7 +185,7 @@ def _film(args: argparse.Namespace) -> int:
     import numpy as np
 
     from . import film
-    from ._png import for_png, write_png
+    from ._png import for_png, read_png16, write_png
 
     try:
         stock = film.load_stock(args.stock)
@@ -175,15 +193,22 @@ def _film(args: argparse.Namespace) -> int:
     except (ValueError, OSError) as exc:
         print(f"imgform film: {exc}", file=sys.stderr)
         return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    pairs = _outputs(args, args.images, ".png")
+    if pairs is None:
+        return 2
     failed = 0
-    for i, name in enumerate(args.images, start=1):
-        path = Path(name)
-        target = out / f"{path.stem}.png"
+    for i, (path, target) in enumerate(pairs, start=1):
+        if target.exists() and not args.overwrite:
+            print(f"{path}: {target} exists, kept (use --overwrite to replace it)")
+            _progress(i, len(pairs), "images")
+            continue
         start = time.perf_counter()
         try:
-            rgb = _srgb_to_linear(np.asarray(iio.imread(path.read_bytes(), extension=path.suffix)))
+            data = path.read_bytes()
+            img = read_png16(data)
+            if img is None:
+                img = np.asarray(iio.imread(data, extension=path.suffix))
+            rgb = _srgb_to_linear(img)
             result = film.simulate(
                 rgb,
                 stock,
@@ -258,21 +283,19 @@ def _develop(args: argparse.Namespace) -> int:
     except (ValueError, ImportError) as exc:
         print(f"imgform develop: {exc}", file=sys.stderr)
         return 2
+    pairs = _outputs(args, args.raws, _SUFFIX[args.format], dry_run=args.dry_run)
+    if pairs is None:
+        return 2
     if args.dry_run:
-        return _develop_dry_run(args)
+        return _develop_dry_run(args, pairs)
     if args.scheduler or args.workers:
         from .batch import develop_many
 
         options = {**_develop_options(args), "format": args.format, "quality": args.quality}
         return _on_cluster(args, develop_many, args.raws, "raws", **options)
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    suffix = _SUFFIX[args.format]
     todo, failed = [], 0
-    for name in args.raws:
-        path = Path(name)
-        target = out / f"{path.stem}{suffix}"
+    for path, target in pairs:
         if target.exists() and not args.overwrite:
             print(f"{path}: {target} exists, kept (use --overwrite to replace it)")
         else:
@@ -294,16 +317,12 @@ def _develop(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-def _develop_dry_run(args: argparse.Namespace) -> int:
+def _develop_dry_run(args: argparse.Namespace, pairs: list[tuple[Path, Path]]) -> int:
     """Lists what ``imgform develop`` would write, and with which options,
     touching nothing (no folder is made, no raw is decoded)."""
-    out = Path(args.out)
-    suffix = _SUFFIX[args.format]
     options = ", ".join(f"{k}={v!r}" for k, v in _develop_options(args).items())
     print(f"develop options: {options}; {args.format}, quality {args.quality}")
-    for name in args.raws:
-        path = Path(name)
-        target = out / f"{path.stem}{suffix}"
+    for path, target in pairs:
         if not path.is_file():
             print(f"{path}: no such file, would fail")
         elif target.exists() and not args.overwrite:
@@ -332,15 +351,20 @@ def _white_balance(text: str) -> str | tuple[float, float, float]:
 
 
 def _exposure(text: str) -> str | float:
-    """ "auto" or a finite number of stops."""
+    """ "auto" or a number of stops that :func:`imgform_rs.develop` takes."""
+    from .develop import MAX_EXPOSURE
+
     if text == "auto":
         return text
     try:
         stops = float(text)
     except ValueError:
         stops = float("nan")
-    if not abs(stops) < float("inf"):
-        raise argparse.ArgumentTypeError(f'must be "auto" or a number of stops, got {text!r}')
+    if not abs(stops) <= MAX_EXPOSURE:
+        raise argparse.ArgumentTypeError(
+            f'must be "auto" or a number of stops from {-MAX_EXPOSURE:g} to {MAX_EXPOSURE:g}, '
+            f"got {text!r}"
+        )
     return stops
 
 
@@ -456,6 +480,9 @@ def build_parser() -> argparse.ArgumentParser:
     films.add_argument("--paper", default=None, help="printing paper (default: the generic one)")
     films.add_argument("--ev", type=float, default=0.0, help="exposure change in stops")
     films.add_argument("--no-couplers", action="store_true", help="switch DIR couplers off")
+    films.add_argument(
+        "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
+    )
     films.set_defaults(run=_film)
     from .demosaic import DEMOSAIC_METHODS
     from .develop import COLORS, DEFAULT_DEMOSAIC, HIGHLIGHTS, TONES

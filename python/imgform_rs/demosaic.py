@@ -417,7 +417,9 @@ def demosaic_halo(method: str, pattern: Pattern) -> int:
     Parameters
     ----------
     method : str
-        One of :data:`DEMOSAIC_METHODS`.
+        One of :data:`DEMOSAIC_METHODS`; an alias (``"best"``,
+        ``"quality"``) gives the halo of the method it selects for
+        ``pattern``.
     pattern : str or array_like
         X-Trans widens the bilinear window near corners.
 

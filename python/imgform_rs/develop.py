@@ -66,6 +66,12 @@ TONES: tuple[str, ...] = tuple(_native.TONES)
 space's own): ``"srgb"``, ``"linear"``, ``"bt709"``, ``"gamma22"`` (Adobe RGB's
 563/256 power), ``"romm"`` (ProPhoto's)."""
 
+MAX_EXPOSURE = 32.0
+"""The largest exposure change :func:`develop` takes, in stops either way:
+2**32 is more than a 16-bit raw's range times a 16-bit output's, so a
+larger change can only make every pixel white, or black in 8- and 16-bit
+output (and from about 128 stops the gain is beyond float32's range)."""
+
 WHITE_BALANCES = ("camera", "daylight", "auto", "none")
 HIGHLIGHTS = ("clip", "unclip")
 COLORS: tuple[str, ...] = (*COLOR_SPACES, "camera")
@@ -249,7 +255,8 @@ def develop(
         RGB, BT.709's for Rec. 2020, ROMM's for ProPhoto, linear for XYZ and
         ACES2065-1).
     exposure : float or "auto"
-        Exposure change in stops, applied before the sensor clip; or
+        Exposure change in stops, applied before the sensor clip, from
+        ``-MAX_EXPOSURE`` to ``MAX_EXPOSURE`` (32); or
         ``"auto"``, LibRaw's default brightening (``postprocess()`` without
         ``no_auto_bright``): the demosaiced image's histograms give, per
         channel, the level that only the brightest 1 % of pixels exceed, and
@@ -333,8 +340,13 @@ def develop(
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
     auto = isinstance(exposure, str) and exposure == "auto"
-    if not auto and not (isinstance(exposure, (int, float, np.number)) and np.isfinite(exposure)):
-        raise ValueError(f'exposure must be a finite number of stops or "auto", got {exposure!r}')
+    if not auto and not (
+        isinstance(exposure, (int, float, np.number)) and abs(exposure) <= MAX_EXPOSURE
+    ):
+        raise ValueError(
+            f'exposure must be "auto" or a number of stops from {-MAX_EXPOSURE:g} to '
+            f"{MAX_EXPOSURE:g}, got {exposure!r}"
+        )
     if not isinstance(demosaic, str):
         raise TypeError(f"demosaic must be a str, one of {DEMOSAIC_METHODS}, got {demosaic!r}")
     raw = source if isinstance(source, RawImage) else load_raw(source)

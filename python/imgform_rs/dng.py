@@ -43,13 +43,32 @@ XYZ_TO_SRGB = (
 
 
 def _rationals(values: Any, signed: bool) -> list[int]:
+    flat = np.asarray(values, np.float64).ravel()
     out = []
-    for v in np.asarray(values, np.float64).ravel():
+    for v in flat:
         f = Fraction(float(v)).limit_denominator(1_000_000)
         out += [f.numerator, f.denominator]
     fmt = "i" if signed else "I"
-    struct.pack(f"<{len(out)}{fmt}", *out)  # range check: raises for overflow
+    try:
+        struct.pack(f"<{len(out)}{fmt}", *out)  # range check: raises for overflow
+    except struct.error as exc:
+        kind = "SRATIONAL" if signed else "RATIONAL"
+        raise ValueError(
+            f"{flat.tolist()} cannot be written as TIFF {kind}s (32-bit {'signed ' * signed}"
+            "numerators over denominators up to 1000000)"
+        ) from exc
     return out
+
+
+def _matrix(value: Any, name: str) -> npt.NDArray[np.float64]:
+    """``value`` as a finite (3, 3) matrix; ValueError naming ``name``
+    otherwise (LibRaw reads a smaller one as zeros)."""
+    m = np.asarray(value, np.float64)
+    if m.shape != (3, 3):
+        raise ValueError(f"{name} must be a finite (3, 3) matrix, got shape {m.shape}")
+    if not np.isfinite(m).all():
+        raise ValueError(f"{name} must be a finite (3, 3) matrix, got {m.tolist()}")
+    return m
 
 
 class _Ifd:
@@ -170,10 +189,12 @@ def write_dng(
         For a non-integer mosaic.
     ValueError
         For a mosaic that is not 2-D or is empty, levels outside 0..65535 or
-        black not below white, a black pattern over 64 x 64, an orientation
-        outside 1..8, a pixel aspect, focal length or f-number that is not a
-        positive finite number (0 for the last two: unknown), or text that is
-        not ASCII.
+        black not below white, a black pattern over 64 x 64, a colour or
+        forward matrix that is not a finite (3, 3) one, a neutral that is not
+        three finite values > 0, an orientation outside 1..8, a pixel aspect,
+        focal length or f-number that is not a positive finite number (0 for
+        the last two: unknown), numbers beyond a TIFF rational's range, or
+        text that is not ASCII.
 
     Examples
     --------
@@ -201,6 +222,14 @@ def write_dng(
     for name, text in (("make", make), ("model", model), ("lens", lens)):
         if not (isinstance(text, str) and text.isascii()):
             raise ValueError(f"{name} must be an ASCII str (a TIFF ASCII tag), got {text!r}")
+    matrix = _matrix(color_matrix, "color_matrix")
+    forward = None if forward_matrix is None else _matrix(forward_matrix, "forward_matrix")
+    neutral = np.asarray(as_shot_neutral, np.float64)
+    if neutral.shape != (3,) or not (np.isfinite(neutral).all() and (neutral > 0).all()):
+        raise ValueError(
+            "as_shot_neutral must be three finite values > 0 (camera R, G, B of a neutral), "
+            f"got {as_shot_neutral!r}"
+        )
     tile = pattern_cells(pattern)
     h, w = arr.shape
     pixels = np.ascontiguousarray(arr, dtype="<u2").tobytes()
@@ -230,16 +259,11 @@ def write_dng(
     ifd.add(50714, _LONG, black.ravel())
     ifd.add(50717, _LONG, int(white_level))
     ifd.add(50718, _RATIONAL, (pixel_aspect, 1.0))  # DefaultScale
-    ifd.add(50721, _SRATIONAL, color_matrix)
-    ifd.add(50728, _RATIONAL, as_shot_neutral)
+    ifd.add(50721, _SRATIONAL, matrix)
+    ifd.add(50728, _RATIONAL, neutral)
     ifd.add(50778, _SHORT, _D65)
-    if forward_matrix is not None:
-        forward = np.asarray(forward_matrix, np.float64)
-        if forward.shape != (3, 3) or not np.isfinite(forward).all():
-            raise ValueError(
-                f"forward_matrix must be a finite (3, 3) matrix, got shape {forward.shape}"
-            )
-        ifd.add(50964, _SRATIONAL, forward.ravel())
+    if forward is not None:
+        ifd.add(50964, _SRATIONAL, forward)
 
     # Header, then the pixels (so the strip offset is known), then the EXIF
     # IFD if any (so IFD0 can point to it), then IFD0.

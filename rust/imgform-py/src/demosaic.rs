@@ -57,11 +57,13 @@ fn demosaic<'py>(
     dispatch_image!(img, demosaic_typed(py, &p, method, level, out))
 }
 
-/// How far a method's output reaches into the mosaic (see `Method::halo`).
+/// How far a method's output reaches into the mosaic (see `Method::halo`),
+/// an alias's being that of the method it selects for the pattern.
 #[pyfunction]
 fn demosaic_halo(method: &str, pattern: &Bound<'_, PyAny>) -> PyResult<usize> {
-    let method = Method::from_name(method).map_err(to_pyerr)?;
-    Ok(method.halo(&pattern_arg(pattern)?))
+    let pattern = pattern_arg(pattern)?;
+    let method = Method::from_name_for(method, &pattern).map_err(to_pyerr)?;
+    Ok(method.halo(&pattern))
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
