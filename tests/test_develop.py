@@ -398,6 +398,7 @@ def test_bad_options_are_refused(grey_card):
         (dict(exposure=200), "from -32 to 32, got 200"),
         (dict(exposure=1100), "from -32 to 32, got 1100"),
         (dict(exposure=-33.5), "from -32 to 32, got -33.5"),
+        (dict(exposure=True), "from -32 to 32, got True"),
         (dict(demosaic="magic"), "magic"),
     ]
     for kwargs, message in cases:
@@ -546,8 +547,9 @@ def test_cli_says_in_one_line_that_the_output_folder_is_a_file(tmp_path, capsys,
     good, _ = grey_card
     out = tmp_path / "out"
     out.write_bytes(b"a file, not a folder")
-    assert main(["develop", str(good), "-o", str(out)]) == 2
-    assert capsys.readouterr().err == f"imgform develop: the output folder {out} is a file\n"
+    for dry_run in ([], ["--dry-run"]):
+        assert main(["develop", str(good), "-o", str(out), *dry_run]) == 2
+        assert capsys.readouterr().err == f"imgform develop: the output folder {out} is a file\n"
     assert out.read_bytes() == b"a file, not a folder"
 
 

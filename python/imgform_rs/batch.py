@@ -304,13 +304,15 @@ def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple
     return pairs
 
 
-def output_folder(outdir: Any) -> Path:
-    """``outdir``, made if missing. A file in its place is a
-    NotADirectoryError saying so, where ``Path.mkdir`` says "File exists"."""
+def output_folder(outdir: Any, *, make: bool = True) -> Path:
+    """``outdir``, made if missing (unless not ``make``: a dry run). A file in
+    its place is a NotADirectoryError saying so, where ``Path.mkdir`` says
+    "File exists"."""
     out = Path(outdir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"the output folder {out} is a file")
-    out.mkdir(parents=True, exist_ok=True)
+    if make:
+        out.mkdir(parents=True, exist_ok=True)
     return out
 
 

@@ -92,16 +92,15 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
 def _outputs(
     args: argparse.Namespace, sources: list[str], suffix: str, *, dry_run: bool = False
 ) -> list[tuple[Path, Path]] | None:
-    """Each input with its output file, the output folder made (not for a
-    dry run); None, after saying why on stderr, for inputs that would write
+    """Each input with its output file, the output folder made (checked
+    only, for a dry run); None, after saying why on stderr, for inputs that would write
     one output or a folder that cannot be made. Checked before any file is
     processed, on a cluster too, so that such a run writes nothing."""
     from .batch import output_folder, output_paths
 
     try:
         pairs = output_paths(sources, args.out, suffix)
-        if not dry_run:
-            output_folder(args.out)
+        output_folder(args.out, make=not dry_run)
     except (ValueError, OSError) as exc:
         print(f"imgform {args.command}: {exc}", file=sys.stderr)
         return None

@@ -341,7 +341,9 @@ def develop(
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
     auto = isinstance(exposure, str) and exposure == "auto"
     if not auto and not (
-        isinstance(exposure, (int, float, np.number)) and abs(exposure) <= MAX_EXPOSURE
+        isinstance(exposure, (int, float, np.number))
+        and not isinstance(exposure, bool)
+        and abs(exposure) <= MAX_EXPOSURE
     ):
         raise ValueError(
             f'exposure must be "auto" or a number of stops from {-MAX_EXPOSURE:g} to '
