@@ -265,6 +265,43 @@ def test_blurred_foreground_veils_the_sharp_background_behind_its_edge():
     assert np.all(np.diff(edge) <= 0)
 
 
+def _layered_disc(mask, r):
+    """A mask blurred by the anti-aliased disc of radius ``r``: the coverage
+    of a blurred foreground layer composited over what is behind it."""
+    from scipy import ndimage
+
+    g = int(np.ceil(r + 1))
+    yy, xx = np.mgrid[-g : g + 1, -g : g + 1]
+    kernel = np.clip(r + 0.5 - np.hypot(yy, xx), 0.0, 1.0)
+    return ndimage.convolve(mask, kernel / kernel.sum(), mode="mirror")
+
+
+def test_a_blurred_foreground_edge_is_soft_on_both_sides_as_layers_composite():
+    pytest.importorskip("scipy")
+    img = np.zeros((48, 48), np.float32)
+    depth = np.full((48, 48), 1000.0)  # a sharp black background
+    img[:, :24] = 1.0
+    depth[:, :24] = 800.0  # a bright foreground half-plane, out of focus
+    r = ig.circle_of_confusion(50.0, 2.0, 1000.0, 800.0) / 0.02 / 2
+    want = _layered_disc((img > 0).astype(np.float64), r)
+    got = _defocus(img, depth)
+    # Within a few % of the layered rendering, inside the foreground's edge too
+    # (a normalised gather kept it at 1.0 up to the edge: a hard silhouette).
+    np.testing.assert_allclose(got[24, 10:38], want[24, 10:38], atol=0.03)
+    assert got[24, 23] < 0.7
+
+
+def test_a_blurred_point_in_front_of_a_dark_background_keeps_its_light():
+    img = np.zeros((40, 40), np.float32)
+    depth = np.full((40, 40), 1000.0)
+    img[20, 20] = 1.0
+    depth[20, 20] = 800.0
+    out = _defocus(img, depth)
+    # Spread over its disc (r ~ 8 px), not kept whole with a halo added.
+    assert out.sum() == pytest.approx(1.0, rel=1e-4)
+    assert out[20, 20] < 0.01 and out[20, 27] > 0.0
+
+
 def test_depth_may_be_float32_and_inputs_non_contiguous():
     img, depth = _fg_scene()
     # float32 depths differ from float64 ones by rounding, so compare like with like.

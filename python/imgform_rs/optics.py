@@ -231,14 +231,18 @@ def render_defocus(
     """Render an all-in-focus image as a thin lens focused at one distance sees it.
 
     Every pixel is spread over a disc whose diameter is its circle of confusion
-    (:func:`circle_of_confusion` at its depth, divided by ``pixel_pitch``), and
-    each output pixel gathers the discs covering it, weighted by light per unit
-    area. Occlusion follows depth: a nearer pixel's full disc covers what is
-    behind it, while a farther pixel spreads over a nearer one only within the
-    nearer one's own blur. So a sharp foreground neither bleeds into a blurred
-    background nor is smeared over by it, and a blurred foreground veils the
-    background behind its edge. Pixels whose disc is narrower than one pixel are
-    returned unchanged. Borders are mirrored.
+    (:func:`circle_of_confusion` at its depth, divided by ``pixel_pitch``), its
+    light summing to 1 over the disc, and each output pixel gathers the discs
+    covering it. Occlusion follows depth, composited front to back: nearer
+    pixels' discs are laid over the pixel's own surface, and a farther pixel
+    spreads over a nearer one only within the nearer one's own blur; where a
+    blurred surface covers a pixel only partly (near its edge), the rest is
+    what lies behind it, taken from the farther pixels around. So a sharp
+    foreground neither bleeds into a blurred background nor is smeared over by
+    it, a blurred foreground is soft on both sides of its edge and veils the
+    background behind it, and a small blurred object keeps its light. Pixels
+    whose disc is narrower than one pixel are returned unchanged. Borders are
+    mirrored.
 
     Parameters
     ----------

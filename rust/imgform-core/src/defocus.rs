@@ -4,33 +4,47 @@
 //! # Model
 //! Every source pixel `q` at depth `z_q` is spread by the lens over a disc of
 //! radius `r_q = coc(z_q) / (2 pixel_pitch)` pixels (the circle of confusion
-//! of [`crate::optics::circle_of_confusion`]), carrying its light uniformly,
-//! so with weight `1 / area`, which we take as `1 / (r_q + 1/2)^2` (the area of
-//! the anti-aliased disc below, up to the common factor pi). Scattering every
-//! disc and summing is computed as a gather: output pixel `p` visits the
-//! neighbours `q` whose disc covers it and takes the normalised weighted mean
-//! `sum_q w_q cov(q, p) I_q / sum_q w_q cov(q, p)`.
+//! of [`crate::optics::circle_of_confusion`]), carrying its light uniformly:
+//! with weight `cov / A(r_q)`, `A` the disc's total coverage on the pixel
+//! grid ([`disc_area`]), so that every pixel's light sums to 1 over its disc.
+//! Scattering every disc and summing is computed as a gather: output pixel
+//! `p` visits the neighbours `q` whose disc covers it.
 //!
 //! The disc edge is anti-aliased, `cov = clamp(r + 1/2 - |p - q|, 0, 1)`, so
 //! the blur grows continuously with the radius and a pixel whose disc is
 //! narrower than one pixel (`r < 1/2`) covers only itself: in-focus regions are
 //! returned unchanged, bit for bit.
 //!
-//! Occlusion follows depth order. A neighbour *nearer* than `p` spreads its
-//! full disc over `p` (a blurred foreground veils whatever is behind it). A
-//! neighbour *farther* than `p` is hidden by `p`'s own surface except within
-//! `p`'s own blur, so its radius is clamped to `min(r_q, r_p)`. Hence
+//! Occlusion follows depth order, composited front to back at `p`:
+//! - Neighbours *nearer* than `p` veil it: their light `F` and coverage
+//!   `a_F` (their weights' sum) are laid over the rest, `F + (1 - a_F) S`
+//!   (normalised if they cover it fully, `a_F >= 1`).
+//! - `S` is `p`'s own surface: the neighbours as near as `p` or farther. A
+//!   farther one is hidden by `p`'s surface except within `p`'s own blur, so
+//!   its radius is clamped to `min(r_q, r_p)`. Where that surface covers `p`
+//!   only partly (coverage `a_S < 1`: `p` is near the edge of a blurred
+//!   object), the rest of `p`'s light comes from behind it, which the pinhole
+//!   image hid: it is taken to be the farther neighbours' mean within `p`'s
+//!   disc, `S = S_light + (1 - a_S) B`. With nothing farther in reach, or a
+//!   full coverage, `S` is the surface's normalised mean.
+//!
+//! Hence
 //! - a sharp foreground does not bleed into a blurred background: its discs
 //!   are too small to reach any neighbour;
 //! - a blurred background does not smear over a sharp foreground edge: behind
 //!   a sharp `p` its radius is clamped to `r_p < 1/2`;
+//! - a blurred foreground is soft on both sides of its edge, and a small
+//!   blurred object keeps its light: a bright pixel in front of a dark
+//!   background is spread over its disc (a normalised mean would return it
+//!   whole and add the halo it casts);
 //! - two neighbours on the same blurred surface blur each other symmetrically
-//!   up to their common radius, so a slanted plane blurs smoothly.
+//!   up to their common radius, so a slanted plane blurs smoothly, and a
+//!   uniform depth is a normalised disc filter.
 //!
 //! This is the "scatter-as-gather" rule of real-time depth-of-field renderers
-//! evaluated exactly per pair of pixels; it cannot recover what the pinhole
-//! image never saw (background hidden behind a foreground object), so a
-//! blurred foreground edge spreads over the visible background only.
+//! evaluated exactly per pair of pixels, with layered compositing of the
+//! occluders; it cannot recover what the pinhole image never saw, so hidden
+//! background is guessed from the visible background around it.
 //!
 //! Borders are mirrored (`image::mirror`). The work is `O(r^2)` per pixel
 //! where `r` is the largest radius reaching it, found per 16x16 tile, so
@@ -42,19 +56,24 @@ use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::optics::{circle_of_confusion, try_fill};
 use crate::parallel::for_each_row;
+use std::sync::OnceLock;
 
 /// Largest accepted circle-of-confusion radius in pixels (a 64 px wide disc).
-/// A gather visits `~pi (r + 1)^2` neighbours per pixel, measured at ~4 ns
-/// each per core on the 2-core development machine: a 12 MP RGB image blurred
-/// at r = 9 px takes ~5 s of CPU, at this limit ~3400 visits per pixel it
-/// would take minutes. Larger blurs are better rendered on a downscaled image
-/// and upsampled.
+/// A gather visits `~pi (r + 1)^2` neighbours per pixel, measured at ~6 ns
+/// each per core on the 2-core development machine (three layers of light
+/// each): a 12 MP RGB image blurred at r = 9 px takes ~8 s of CPU; at this
+/// limit, ~3400 visits per pixel, it would take minutes. Larger blurs are
+/// better rendered on a downscaled image and upsampled.
 pub const MAX_RADIUS: f32 = 32.0;
 
 /// Side of the square tiles over which the search radius is bounded. 16 px
 /// tiles keep the tile map small (47 k tiles for 12 MP) while a tile's
 /// radius is rarely much above that of its own pixels.
 const TILE: usize = 16;
+
+/// The layers a pixel's gather keeps apart: its occluders, its own surface
+/// and what lies behind it.
+const LAYERS: usize = 3;
 
 /// What the gather needs to know of a source pixel.
 #[derive(Debug, Clone, Copy, Default)]
@@ -63,8 +82,34 @@ struct Disc {
     z: f32,
     /// Circle-of-confusion radius in pixels.
     r: f32,
-    /// Light per unit area of the disc, `1 / (r + 1/2)^2`.
+    /// Light per unit of coverage, `1 / A(r)` ([`disc_area`]).
     w: f32,
+}
+
+/// `A(r) = sum_o clamp(r + 1/2 - |o|, 0, 1)` over the integer offsets `o`:
+/// the total coverage of an anti-aliased disc of radius `r` on the pixel
+/// grid, the amount a pixel's light is divided by so that it sums to 1 over
+/// its disc. Exact, from the offsets' distances sorted once: those up to
+/// `r - 1/2` count 1, those below `r + 1/2` the rest of their ramp.
+fn disc_area(r: f64) -> f64 {
+    static DISTANCES: OnceLock<(Vec<f64>, Vec<f64>)> = OnceLock::new();
+    let (dist, prefix) = DISTANCES.get_or_init(|| {
+        let reach = MAX_RADIUS as i64 + 2;
+        let mut dist: Vec<f64> = (-reach..=reach)
+            .flat_map(|dy| (-reach..=reach).map(move |dx| ((dx * dx + dy * dy) as f64).sqrt()))
+            .collect();
+        dist.sort_by(f64::total_cmp);
+        let prefix = std::iter::once(0.0)
+            .chain(dist.iter().scan(0.0, |sum, d| {
+                *sum += d;
+                Some(*sum)
+            }))
+            .collect();
+        (dist, prefix)
+    });
+    let full = dist.partition_point(|&d| d <= r - 0.5);
+    let part = dist.partition_point(|&d| d < r + 0.5);
+    full as f64 + (r + 0.5) * (part - full) as f64 - (prefix[part] - prefix[full])
 }
 
 /// Lens and sensor of a defocus render, all lengths in one unit (mm).
@@ -104,7 +149,7 @@ impl Lens {
         Ok(Disc {
             z: depth as f32,
             r,
-            w: 1.0 / ((r + 0.5) * (r + 0.5)),
+            w: (1.0 / disc_area(f64::from(r))) as f32,
         })
     }
 }
@@ -249,14 +294,15 @@ impl<'a, T: Sample> Gather<'a, T> {
     fn run<const C: usize>(&self, out: &mut [T]) {
         let (w, c) = (self.image.width(), self.image.channels());
         for_each_row(out, w * c, |y, out_row| {
-            let mut acc = vec![0.0f32; c];
+            let mut acc = vec![0.0f32; LAYERS * c];
             for (x, out_px) in out_row.chunks_exact_mut(c).enumerate() {
                 self.pixel::<C>(x, y, &mut acc, out_px);
             }
         });
     }
 
-    /// Gathers output pixel `(x, y)`.
+    /// Gathers output pixel `(x, y)`: its occluders' light laid over its own
+    /// surface's (see the module docs).
     #[inline(always)]
     fn pixel<const C: usize>(&self, x: usize, y: usize, acc: &mut [f32], out_px: &mut [T]) {
         let w = self.image.width();
@@ -264,35 +310,51 @@ impl<'a, T: Sample> Gather<'a, T> {
         let g = self.radii[(y / TILE) * self.tiles_w + x / TILE];
         let g_max = self.g_max;
         acc.fill(0.0);
-        let mut wsum = 0.0f32;
+        let mut weights = [0.0f32; LAYERS];
         for oy in g_max - g..=g_max + g {
             let dy = oy.abs_diff(g_max);
             let span = ((g * g - dy * dy) as f32).sqrt() as usize;
             let (lo, qy) = (g_max - span, self.rows[y + oy]);
             // Away from the left and right borders the columns are direct,
             // which lets the compiler drop the table look-up.
-            wsum += if x >= span && x + span < w {
+            let row = if x >= span && x + span < w {
                 self.row::<C>(p, (qy, oy), lo..=g_max + span, |ox| x + ox - g_max, acc)
             } else {
                 self.row::<C>(p, (qy, oy), lo..=g_max + span, |ox| self.cols[x + ox], acc)
             };
+            weights.iter_mut().zip(row).for_each(|(a, b)| *a += b);
         }
+        let [front, own, behind] = weights;
         // p always covers itself with weight `self_wt` (r_p + 1/2 - 0 >= 1/2).
-        // When nothing else reached it, return it untouched: (wt I) / wt need
-        // not round back to I in f32.
+        // When nothing else reached it and nothing lies behind it, return it
+        // untouched: (wt I) / wt need not round back to I in f32.
         let self_wt = (p.r + 0.5).min(1.0) * p.w;
-        if wsum == self_wt {
+        if front == 0.0 && own == self_wt && behind == 0.0 {
             out_px.copy_from_slice(&self.image.row(y)[x * out_px.len()..(x + 1) * out_px.len()]);
-        } else {
-            for (o, a) in out_px.iter_mut().zip(acc.iter()) {
-                *o = T::from_f32(a / wsum);
-            }
+            return;
+        }
+        let c = out_px.len();
+        for (k, o) in out_px.iter_mut().enumerate() {
+            let (f, s, b) = (acc[k], acc[c + k], acc[2 * c + k]);
+            let surface = if own >= 1.0 || behind == 0.0 {
+                s / own
+            } else {
+                s + (1.0 - own) * b / behind
+            };
+            let v = if front >= 1.0 {
+                f / front
+            } else {
+                f + (1.0 - front) * surface
+            };
+            *o = T::from_f32(v);
         }
     }
 
     /// Adds the discs of source row `qy` (offset `oy - g_max` from the pixel)
-    /// at offsets `oxs` that cover `p` into `acc`; returns their total weight.
-    /// `col` maps an offset to the source column.
+    /// at offsets `oxs` that cover `p` into `acc`, by layer: the light of
+    /// nearer neighbours, of `p`'s own surface, and of the farther ones
+    /// within `p`'s disc (for what `p`'s surface leaves uncovered); returns
+    /// the weights of each. `col` maps an offset to the source column.
     #[inline(always)]
     fn row<const C: usize>(
         &self,
@@ -301,7 +363,7 @@ impl<'a, T: Sample> Gather<'a, T> {
         oxs: std::ops::RangeInclusive<usize>,
         col: impl Fn(usize) -> usize,
         acc: &mut [f32],
-    ) -> f32 {
+    ) -> [f32; LAYERS] {
         let c = if C == 0 { self.image.channels() } else { C };
         let w = self.image.width();
         let side = 2 * self.g_max + 1;
@@ -309,33 +371,43 @@ impl<'a, T: Sample> Gather<'a, T> {
         let dist_row = &self.dist[oy * side..(oy + 1) * side];
         // Register accumulators for the common channel counts; the run-time
         // channel count accumulates in `acc` directly.
-        let mut local = [0.0f32; 4];
-        let mut wsum = 0.0f32;
+        let mut local = [[0.0f32; 4]; LAYERS];
+        let mut sums = [0.0f32; LAYERS];
         for ox in oxs {
             let qx = col(ox);
-            let q = disc_row[qx];
+            let (q, d) = (disc_row[qx], dist_row[ox]);
             // Occlusion: a farther neighbour reaches p only within p's blur.
             let r = if q.z > p.z { q.r.min(p.r) } else { q.r };
-            // Branch-free: uncovered neighbours add a zero weight.
-            let wt = (r + 0.5 - dist_row[ox]).clamp(0.0, 1.0) * q.w;
-            wsum += wt;
-            let src = &img_row[qx * c..(qx + 1) * c];
-            if C == 0 {
-                for (a, s) in acc.iter_mut().zip(src) {
-                    *a += wt * s.to_f32();
-                }
+            // Branch-free: uncovered neighbours add zero weights.
+            let wt = (r + 0.5 - d).clamp(0.0, 1.0) * q.w;
+            let front = if q.z < p.z { wt } else { 0.0 };
+            let behind = if q.z > p.z {
+                (p.r + 0.5 - d).clamp(0.0, 1.0)
             } else {
-                for (a, s) in local.iter_mut().zip(src) {
-                    *a += wt * s.to_f32();
+                0.0
+            };
+            let layer = [front, wt - front, behind];
+            sums.iter_mut().zip(layer).for_each(|(a, b)| *a += b);
+            let src = &img_row[qx * c..(qx + 1) * c];
+            for (k, s) in src.iter().enumerate() {
+                let v = s.to_f32();
+                for (l, wl) in layer.iter().enumerate() {
+                    if C == 0 {
+                        acc[l * c + k] += wl * v;
+                    } else {
+                        local[l][k] += wl * v;
+                    }
                 }
             }
         }
         if C != 0 {
-            for (a, l) in acc.iter_mut().zip(local) {
-                *a += l;
+            for (l, light) in local.iter().enumerate() {
+                for (a, v) in acc[l * c..(l + 1) * c].iter_mut().zip(light) {
+                    *a += v;
+                }
             }
         }
-        wsum
+        sums
     }
 }
 
@@ -400,6 +472,18 @@ mod tests {
         let out = render(&img, &vec![1100.0; w * h], w, h, 1);
         assert!(out[7 * w + 7] < 60000 && out[7 * w + 8] > 0);
         assert_eq!(out[0], 0);
+    }
+
+    #[test]
+    fn disc_areas_are_the_sums_of_their_coverage() {
+        for r in [0.0, 0.3, 0.5, 1.25, 2.0, 7.7, 31.9] {
+            let g = (r + 1.0f64).ceil() as i64;
+            let brute: f64 = (-g..=g)
+                .flat_map(|dy| (-g..=g).map(move |dx| ((dx * dx + dy * dy) as f64).sqrt()))
+                .map(|d| (r + 0.5 - d).clamp(0.0, 1.0))
+                .sum();
+            assert!((disc_area(r) - brute).abs() < 1e-9, "r {r}: {}", disc_area(r));
+        }
     }
 
     #[test]
