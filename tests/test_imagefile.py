@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import datetime as dt
 import io
+import os
+import struct
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -34,6 +37,16 @@ SHOT = ig.ShotInfo(
 
 def description(icc: bytes) -> str:
     return ImageCms.getProfileDescription(ImageCms.ImageCmsProfile(io.BytesIO(icc))).strip()
+
+
+def ifd_entries(tiff: bytes, offset: int) -> dict[int, tuple[int, int, bytes]]:
+    """Tag -> (TIFF type, count, the entry's 4 value/offset bytes) of the IFD
+    at ``offset`` of a TIFF structure (EXIF without its Exif\\0\\0), read
+    here with struct rather than by Pillow, which hides the types."""
+    order = "<" if tiff[:2] == b"II" else ">"
+    (count,) = struct.unpack_from(order + "H", tiff, offset)
+    entries = (struct.unpack_from(order + "HHI4s", tiff, offset + 2 + 12 * i) for i in range(count))
+    return {tag: (kind, n, value) for tag, kind, n, value in entries}
 
 
 def rgb(dtype, h=24, w=32, seed=0):
@@ -78,6 +91,31 @@ def test_lossless_files_keep_every_sample_and_carry_profile_and_exif(tmp_path, n
         assert tags["Make"] == "Canon" and tags["Model"] == "Canon EOS Kiss X4"
         assert tags["DateTime"] == "2026:11:27 10:30:05" and tags["Artist"] == SHOT.artist
         assert tags["Orientation"] == 1
+
+
+def test_exif_numbers_are_rationals_and_the_exif_ifd_has_its_version(tmp_path):
+    """CIPA DC-008: ExposureTime, FNumber and FocalLength are RATIONAL (type
+    5), and the Exif IFD must carry ExifVersion (UNDEFINED, 4 bytes)."""
+    # LibRaw reports float32s: they are written as the camera's fractions.
+    single = replace(
+        SHOT, exposure_time=float(np.float32(1 / 125)), f_number=float(np.float32(5.6))
+    )
+    for shot in (SHOT, single):
+        path = ig.write_image(
+            tmp_path / "a.jpg", rgb(np.uint8), exif=exif_bytes(shot, 0, True), overwrite=True
+        )
+        with Image.open(path) as im:
+            tiff = im.info["exif"].removeprefix(b"Exif\0\0")
+        order = "<" if tiff[:2] == b"II" else ">"
+        (first,) = struct.unpack_from(order + "I", tiff, 4)
+        pointer = ifd_entries(tiff, first)[0x8769][2]
+        sub = ifd_entries(tiff, struct.unpack(order + "I", pointer)[0])
+        for tag, fraction in ((33434, (1, 125)), (33437, (28, 5)), (37386, (35, 1))):
+            kind, count, value = sub[tag]
+            assert (kind, count) == (5, 1)
+            (offset,) = struct.unpack(order + "I", value)
+            assert struct.unpack_from(order + "II", tiff, offset) == fraction
+        assert sub[36864] == (7, 4, b"0232")
 
 
 def test_exif_without_its_app1_prefix_is_accepted(tmp_path):
@@ -132,6 +170,35 @@ def test_a_profile_is_the_same_bytes_whenever_it_is_made():
     blank = bytearray(first)
     blank[44:48], blank[64:68], blank[84:100] = bytes(4), bytes(4), bytes(16)
     assert hashlib.md5(blank).digest() == first[84:100]
+
+
+@pytest.mark.parametrize(
+    ("name", "dtype"), [("g.png", np.uint16), ("g.jpg", np.uint8), ("g.tif", np.uint16)]
+)
+def test_a_grey_image_gets_a_grey_profile_that_keeps_its_curve(tmp_path, name, dtype):
+    """An RGB profile on a grey image is dropped by libpng and cannot be
+    applied by LittleCMS; a grey one converts linear 0.5 to sRGB's code for it."""
+    colour = pytest.importorskip("colour")
+    half = np.iinfo(dtype).max // 2 + 1
+    path = ig.write_image(tmp_path / name, np.full((8, 8), half, dtype), tone="linear")
+    if path.suffix == ".tif":
+        with tifffile.TiffFile(path) as tif:
+            icc = tif.pages[0].tags["InterColorProfile"].value
+    else:
+        with Image.open(path) as im:
+            icc = im.info["icc_profile"]
+    profile = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+    assert profile.profile.xcolor_space.strip() == "GRAY"
+    assert description(icc) == "sRGB grey, linear (imgform-rs)"
+    np.testing.assert_allclose(
+        profile.profile.media_white_point[0], (0.9642, 1.0, 0.8249), atol=1e-4
+    )
+    mode = "L" if dtype == np.uint8 else "I;16"
+    to_srgb = ImageCms.buildTransform(profile, ImageCms.createProfile("sRGB"), mode, "RGB")
+    shown = np.asarray(to_srgb.apply(Image.fromarray(np.full((2, 2), half, dtype))))
+    expected = 255 * colour.cctf_encoding(half / np.iinfo(dtype).max, "sRGB")  # 187.5 or 187.8
+    # LittleCMS works in 16 bits, so allow the last 8-bit code either way.
+    assert np.all(np.abs(shown - expected) <= 1)
 
 
 def test_profiles_convert_between_spaces_as_the_matrices_do(tmp_path):
@@ -213,6 +280,62 @@ def test_write_image_refuses_what_it_cannot_write(tmp_path, name, image, kwargs,
     assert not (tmp_path / name).exists()
 
 
+BIG_EXIF = Image.Exif()
+BIG_EXIF[270] = "x" * 70000  # ImageDescription: over one JPEG segment
+
+
+@pytest.mark.parametrize(
+    ("name", "image", "kwargs", "match"),
+    [
+        ("a.jpg", rgb(np.uint8, 0, 8), {}, r"at least one pixel, got shape \(0, 8, 3\)"),
+        ("a.png", rgb(np.uint16, 8, 0), {}, "at least one pixel"),
+        ("a.tif", rgb(np.uint16, 0, 5), {}, "at least one pixel"),
+        ("a.jpg", rgb(np.uint8, 1, 65501), {}, "at most 65500 pixels a side, got 65501 x 1"),
+        ("a.jpg", rgb(np.uint8), {"exif": BIG_EXIF.tobytes()}, "at most 65533 bytes of EXIF"),
+    ],
+)
+def test_what_an_encoder_would_refuse_halfway_is_refused_before_the_file(
+    tmp_path, name, image, kwargs, match
+):
+    """These failed inside the encoder, after it had emptied the target."""
+    target = ig.write_image(tmp_path / name, rgb(image.dtype.type))
+    kept = target.read_bytes()
+    with pytest.raises(ValueError, match=match):
+        ig.write_image(target, image, overwrite=True, **kwargs)
+    assert target.read_bytes() == kept and os.listdir(tmp_path) == [name]
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_a_write_that_fails_halfway_leaves_no_partial_file_and_the_old_one_whole(
+    tmp_path, monkeypatch, existing
+):
+    target = tmp_path / "a.tif"
+    if existing:
+        ig.write_image(target, rgb(np.uint16))
+        kept = target.read_bytes()
+
+    def disk_full(path, *args, **kwargs):
+        with open(path, "wb") as file:
+            file.write(b"II*\0")
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(tifffile, "imwrite", disk_full)
+    with pytest.raises(OSError, match="No space left"):
+        ig.write_image(target, rgb(np.uint16, seed=1), overwrite=True)
+    assert os.listdir(tmp_path) == (["a.tif"] if existing else [])
+    if existing:
+        assert target.read_bytes() == kept
+
+
+def test_a_written_file_gets_the_permissions_of_any_new_file(tmp_path):
+    """The temporary file becomes the output: it must not keep a temporary
+    file's private 0600 mode."""
+    umask = os.umask(0o022)
+    os.umask(umask)
+    path = ig.write_image(tmp_path / "a.png", rgb(np.uint8))
+    assert path.stat().st_mode & 0o777 == 0o666 & ~umask
+
+
 @pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
 def test_a_real_raw_keeps_its_shot_details_in_every_format(tmp_path):
     source = RAW_DIR / "canon_powershot_s40_CRW_0113.CRW"
@@ -273,6 +396,15 @@ def test_exr_keeps_linear_floats_with_chromaticities_and_shot_details(tmp_path, 
     assert header["capDate"] == "2026:11:27 10:30:05"
     assert header["expTime"] == pytest.approx(1 / 125) and header["aperture"] == pytest.approx(5.6)
     assert header["isoSpeed"] == 400 and header["focalLength"] == 35
+
+
+def test_exr_takes_the_first_set_value_of_a_multi_valued_exif_number(tmp_path):
+    openexr = pytest.importorskip("OpenEXR")
+    exif = Image.Exif()
+    exif.get_ifd(0x8769)[34855] = (0, 200)  # ISOSpeedRatings: count "any" in EXIF 2.2
+    path = ig.write_image(tmp_path / "a.exr", rgb(np.float32), tone="linear", exif=exif.tobytes())
+    with openexr.File(str(path)) as exr:
+        assert dict(exr.header())["isoSpeed"] == 200
 
 
 def test_a_grey_exr_has_one_luminance_channel(tmp_path):

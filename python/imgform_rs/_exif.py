@@ -13,13 +13,21 @@ as unknown too, rather than copied as a wrong exposure.
 The orientation tag says how to turn the stored pixels for display: 1 (as
 stored) when :func:`~imgform_rs.develop` has already turned them, else the
 raw's own orientation, converted from LibRaw's flip code.
+
+Exposure time, f-number and focal length are RATIONALs, the type CIPA
+DC-008 gives them (readers such as exiftool and piexif expect it; Pillow
+would write a float as DOUBLE), and the Exif IFD carries the ExifVersion it
+makes mandatory.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any
+
+import numpy as np
 
 # LibRaw flip code (bit 0 flips columns, bit 1 rows, bit 2 transposes, in
 # that order) -> the EXIF orientation that displays the stored pixels as
@@ -31,6 +39,8 @@ _MAKE, _MODEL, _ORIENTATION, _SOFTWARE, _DATETIME, _ARTIST = 271, 272, 274, 305,
 _EXIF_IFD = 0x8769
 _EXPOSURE_TIME, _F_NUMBER, _ISO, _DATETIME_ORIGINAL = 33434, 33437, 34855, 36867
 _FOCAL_LENGTH, _LENS_MAKE, _LENS_MODEL = 37386, 42035, 42036
+# ExifVersion: the tags written here are those of Exif 2.32 (CIPA DC-008-2019).
+_EXIF_VERSION, _VERSION = 36864, b"0232"
 
 _NO_DATE = dt.datetime(1970, 1, 1)
 
@@ -102,12 +112,25 @@ def shot_info(raw: Any, make: str, model: str) -> ShotInfo:
     )
 
 
+def _simplest(value: float) -> Fraction:
+    """The fraction of least denominator (up to 10^6) that rounds to the same
+    float32 as ``value``: LibRaw reports float32s, and 1/125 s or f/5.6 is
+    what a camera wrote, not the binary fraction 0.008 rounds to."""
+    single = np.float32(value)
+    for limit in (10**k for k in range(7)):
+        fraction = Fraction(float(value)).limit_denominator(limit)
+        if np.float32(fraction.numerator / fraction.denominator) == single:
+            return fraction
+    return Fraction(float(value)).limit_denominator(10**6)
+
+
 def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
     """EXIF for a picture developed from a raw: ``info`` and its orientation
     (``flip`` is LibRaw's code; ``oriented``: the pixels are already turned).
     The bytes start with ``Exif\\0\\0``, as Pillow's JPEG and PNG writers take
     them."""
     from PIL import Image
+    from PIL.TiffImagePlugin import IFDRational
 
     exif = Image.Exif()
     exif[_ORIENTATION] = 1 if oriented else _EXIF_ORIENTATION.get(flip & 7, 1)
@@ -116,6 +139,7 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
         if text:
             exif[tag] = text
     sub = exif.get_ifd(_EXIF_IFD)
+    sub[_EXIF_VERSION] = _VERSION
     if info.taken is not None:
         stamp = info.taken.strftime("%Y:%m:%d %H:%M:%S")
         exif[_DATETIME] = sub[_DATETIME_ORIGINAL] = stamp
@@ -126,7 +150,8 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
     )
     for tag, value in numbers:
         if value:
-            sub[tag] = value
+            fraction = _simplest(value)
+            sub[tag] = IFDRational(fraction.numerator, fraction.denominator)
     if info.iso:
         sub[_ISO] = round(info.iso)
     for tag, text in ((_LENS_MAKE, info.lens_make), (_LENS_MODEL, info.lens)):

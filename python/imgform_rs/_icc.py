@@ -9,6 +9,12 @@ every byte of a profile is LittleCMS's: we only choose the numbers, those of
 connection space, its ``chad`` tag holding the Bradford adaptation from the
 space's white).
 
+A greyscale image gets a grey profile (``cmsCreateGrayProfile``: the tone
+curve as ``grayTRC`` and the D50 media white point) rather than its space's
+RGB profile, which libpng drops from a grey PNG ("iCCP: RGB color space not
+permitted on grayscale PNG") and LittleCMS cannot apply to one channel, so
+the tone curve would be lost.
+
 XYZ and camera RGB get no profile: an ICC RGB profile needs real primaries
 for RGB data, and PNG and JPEG embed only RGB or grey profiles.
 """
@@ -65,6 +71,8 @@ def _lcms() -> Any:
         "cmsBuildParametricToneCurve": (vp, [vp, ctypes.c_int32, ctypes.POINTER(ctypes.c_double)]),
         "cmsFreeToneCurve": (None, [vp]),
         "cmsCreateRGBProfile": (vp, [ctypes.POINTER(_XyY), ctypes.POINTER(_XyYTriple), vp * 3]),
+        "cmsCreateGrayProfile": (vp, [ctypes.POINTER(_XyY), vp]),
+        "cmsD50_xyY": (ctypes.POINTER(_XyY), []),
         "cmsMLUalloc": (vp, [vp, u32]),
         "cmsMLUsetASCII": (ctypes.c_int, [vp, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p]),
         "cmsMLUfree": (None, [vp]),
@@ -90,8 +98,9 @@ def _text(lib: Any, profile: int, tag: int, text: str) -> None:
 
 
 @functools.cache
-def icc_profile(color: str, tone: str) -> bytes | None:
-    """The ICC profile of RGB ``color`` encoded with ``tone``, or None for a
+def icc_profile(color: str, tone: str, *, grey: bool = False) -> bytes | None:
+    """The ICC profile of RGB ``color`` encoded with ``tone``, or with
+    ``grey`` that of its greys (a grey profile: the curve alone); None for a
     space that has none (XYZ, camera RGB; see the module docstring)."""
     space = COLOR_SPACES.get(color)
     if space is None or space.primaries is None or tone not in _CURVES:
@@ -101,19 +110,27 @@ def icc_profile(color: str, tone: str) -> bytes | None:
     curve = lib.cmsBuildParametricToneCurve(None, kind, (ctypes.c_double * len(params))(*params))
     if not curve:
         raise RuntimeError(f"LittleCMS could not build the {tone} curve")
-    white = _XyY(*space.white, 1.0)
-    primaries = _XyYTriple(*(_XyY(x, y, 1.0) for x, y in space.primaries))
-    profile = lib.cmsCreateRGBProfile(
-        ctypes.byref(white), ctypes.byref(primaries), (ctypes.c_void_p * 3)(curve, curve, curve)
-    )
+    if grey:
+        # A grey profile has no chromatic adaptation tag: its white is the
+        # connection space's D50, the white every v4 profile adapts to, so a
+        # grey of any space's white point shows neutral.
+        title = f"{space.title} grey"
+        profile = lib.cmsCreateGrayProfile(lib.cmsD50_xyY(), curve)
+    else:
+        title = space.title
+        white = _XyY(*space.white, 1.0)
+        primaries = _XyYTriple(*(_XyY(x, y, 1.0) for x, y in space.primaries))
+        profile = lib.cmsCreateRGBProfile(
+            ctypes.byref(white), ctypes.byref(primaries), (ctypes.c_void_p * 3)(curve, curve, curve)
+        )
     lib.cmsFreeToneCurve(curve)
     if not profile:
-        raise RuntimeError(f"LittleCMS could not build a profile for {space.title}")
+        raise RuntimeError(f"LittleCMS could not build a profile for {title}")
     try:
         encoding = "linear" if tone == "linear" else f"{tone} curve"
-        _text(lib, profile, _DESC, f"{space.title}, {encoding} (imgform-rs)")
+        _text(lib, profile, _DESC, f"{title}, {encoding} (imgform-rs)")
         _text(lib, profile, _CPRT, "No copyright, use freely")
-        stamped = _save(lib, profile, space.title)
+        stamped = _save(lib, profile, title)
     finally:
         lib.cmsCloseProfile(profile)
     # LittleCMS has no setter for the date: it reads it back from the header.
@@ -121,10 +138,10 @@ def icc_profile(color: str, tone: str) -> bytes | None:
     dated = stamped[:_CREATED_AT] + _CREATED + stamped[end:]
     profile = lib.cmsOpenProfileFromMem(dated, len(dated))
     if not profile:
-        raise RuntimeError(f"LittleCMS could not read back the {space.title} profile")
+        raise RuntimeError(f"LittleCMS could not read back the {title} profile")
     try:
         lib.cmsMD5computeID(profile)
-        return _save(lib, profile, space.title)
+        return _save(lib, profile, title)
     finally:
         lib.cmsCloseProfile(profile)
 

@@ -24,11 +24,19 @@ An EXR holds linear light by definition: it is written only for a linear
 tone, with the colour space's ``chromaticities`` (OpenEXR's standard
 attribute, in place of an ICC profile) and the EXIF as OpenEXR's standard
 camera attributes (``cameraMake``, ``lensModel``, ``expTime``, ...).
+
+Every file is written under a hidden name in the target's folder, then
+renamed onto the target (``os.replace``, atomic within one file system):
+an encoder that fails halfway (disk full, a limit it checks only as it
+writes) leaves no partial file and, with ``overwrite=True``, keeps the old
+file whole. The limits we know are checked before that, with a clear error.
 """
 
 from __future__ import annotations
 
+import numbers
 import os
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -81,6 +89,11 @@ _EXR_SHOT = {
     42036: "lensModel",
 }
 _EXIF_IFD = 0x8769
+# libjpeg's JPEG_MAX_DIMENSION (the format itself allows 65535).
+_JPEG_MAX_SIDE = 65500
+# The EXIF of a JPEG is one APP1 segment, whose 16-bit length counts itself:
+# 65533 bytes from Exif\0\0 on (Pillow's MAX_BYTES_IN_MARKER).
+_JPEG_MAX_EXIF = 65533
 
 
 def path_kind(path: str | os.PathLike[str]) -> str:
@@ -127,13 +140,31 @@ def _check_exif(exif: Any) -> bytes:
     return b"Exif\0\0" + exif.removeprefix(b"Exif\0\0")
 
 
-def _check_image(img: np.ndarray, kind: str) -> None:
+def _check_image(img: np.ndarray, kind: str, exif: bytes | None) -> None:
+    """ValueError for an image ``kind`` cannot hold, before any file is
+    opened: the encoders find an empty image, or JPEG's size limits, only
+    once they write."""
     allowed = _DTYPES[kind]
     if img.dtype not in allowed or not (img.ndim == 2 or (img.ndim == 3 and img.shape[2] == 3)):
         names = ", ".join(np.dtype(t).name for t in allowed)
         raise ValueError(
             f"{kind.upper()} takes {names} images of shape (H, W) or (H, W, 3), "
             f"got {img.dtype} {img.shape}"
+        )
+    if img.size == 0:
+        raise ValueError(f"image must have at least one pixel, got shape {img.shape}")
+    if kind != "jpeg":
+        return
+    if max(img.shape[:2]) > _JPEG_MAX_SIDE:
+        height, width = img.shape[:2]
+        raise ValueError(
+            f"JPEG images are at most {_JPEG_MAX_SIDE} pixels a side, got {width} x {height} "
+            "(write PNG or TIFF)"
+        )
+    if exif and len(exif) > _JPEG_MAX_EXIF:
+        raise ValueError(
+            f"JPEG holds at most {_JPEG_MAX_EXIF} bytes of EXIF (from Exif\\0\\0 on), "
+            f"got {len(exif)}"
         )
 
 
@@ -212,9 +243,13 @@ def _exr_attributes(exif: bytes | None) -> dict[str, Any]:
     for ifd, names in ((ifd0, _EXR_TEXT), (sub, _EXR_SHOT)):
         for tag, name in names.items():
             value = ifd.get(tag)
+            if isinstance(value, tuple):
+                # A tag of several values (EXIF 2.2's ISOSpeedRatings may be
+                # (0, 200)): the first one that is set; OpenEXR's is a float.
+                value = next((v for v in value if v), None)
             if isinstance(value, str):
                 attributes[name] = value
-            elif value is not None:  # numbers, rationals as Pillow's IFDRational
+            elif isinstance(value, numbers.Real):  # rationals are Pillow's IFDRational
                 attributes[name] = float(value)
     return attributes
 
@@ -260,6 +295,29 @@ def check_exr(color: str, tone: str, exif: bytes | None) -> None:
     _openexr()
 
 
+def partial_path(target: Path) -> Path:
+    """A unique name beside ``target`` with its suffix (writers pick the
+    format from it), hidden, so a half-written file is never mistaken for
+    an output."""
+    return target.with_name(f".{target.stem}.part-{uuid.uuid4().hex}{target.suffix}")
+
+
+def _reserve(target: Path) -> Path:
+    """A new, empty file beside ``target`` for the encoder to write
+    (:func:`partial_path`).
+
+    Created here ("x": no one else has it) rather than by :mod:`tempfile`,
+    whose files are private (0600): this one becomes the output, so it gets
+    the permissions any new file gets. Its failure names ``target``.
+    """
+    partial = partial_path(target)
+    try:
+        partial.open("xb").close()
+    except OSError as exc:  # no such folder, no permission
+        raise type(exc)(exc.errno, exc.strerror, str(target)) from None
+    return partial
+
+
 def write_image(
     path: str | os.PathLike[str],
     image: npt.NDArray[Any],
@@ -286,7 +344,9 @@ def write_image(
         LittleCMS, is embedded (none for ``"xyz"`` and ``"camera"``, which an
         RGB profile cannot describe). An EXR takes only a linear tone and
         carries the space's primaries and white as its ``chromaticities``
-        (XYZ by OpenEXR's convention for it; none for ``"camera"``).
+        (XYZ by OpenEXR's convention for it; none for ``"camera"``). An
+        (H, W) image gets a grey profile with the tone curve alone: an RGB
+        profile does not apply to one channel (libpng drops it).
     exif : bytes, optional
         EXIF to embed, e.g. :func:`~imgform_rs.raw_exif` of the raw (TIFF
         files keep its IFD0 tags only: make, model, date, artist,
@@ -297,6 +357,8 @@ def write_image(
         JPEG quality, 1 to 100.
     overwrite : bool
         Replace an existing file; by default an existing file is never touched.
+        The file is written under a temporary name beside ``path`` and
+        renamed onto it, so a failed write leaves the old file as it was.
 
     Returns
     -------
@@ -307,9 +369,10 @@ def write_image(
     FileExistsError
         When ``path`` exists and ``overwrite`` is False.
     ValueError
-        For another extension, dtype or shape, an unknown colour space or
-        tone, or a quality outside 1..100; for EXR, a tone other than linear
-        or an EXIF orientation other than 1.
+        For another extension, dtype or shape, an empty image, an unknown
+        colour space or tone, or a quality outside 1..100; for JPEG, a side
+        over 65500 pixels or EXIF over 65533 bytes; for EXR, a tone other
+        than linear or an EXIF orientation other than 1.
     ImportError
         For EXR without OpenEXR installed.
 
@@ -335,19 +398,25 @@ def write_image(
     if exif is not None:
         exif = _check_exif(exif)
     img = np.asarray(image)
-    _check_image(img, kind)
+    _check_image(img, kind, exif)
     if kind == "exr":
         check_exr(color, _tone_for(color, tone), exif)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
-    if kind == "exr":
-        _exr(target, img, color, exif)
-        return target
-    icc = icc_profile(color, _tone_for(color, tone))
-    if kind == "tiff":
-        _tiff(target, img, icc, exif)
-    elif kind == "png" and img.dtype == np.uint16 and img.ndim == 3:
-        write_png(target, img, icc=icc, exif=exif)
-    else:
-        _pillow(target, img, kind, icc, exif, quality)
+    grey = img.ndim == 2
+    icc = None if kind == "exr" else icc_profile(color, _tone_for(color, tone), grey=grey)
+    partial = _reserve(target)
+    try:
+        if kind == "exr":
+            _exr(partial, img, color, exif)
+        elif kind == "tiff":
+            _tiff(partial, img, icc, exif)
+        elif kind == "png" and img.dtype == np.uint16 and img.ndim == 3:
+            write_png(partial, img, icc=icc, exif=exif)
+        else:
+            _pillow(partial, img, kind, icc, exif, quality)
+        os.replace(partial, target)
+    except BaseException:  # an interrupt too: the partial file must not stay
+        partial.unlink(missing_ok=True)
+        raise
     return target

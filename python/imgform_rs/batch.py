@@ -24,7 +24,8 @@ returned and written as JSON next to the outputs, atomically too.
 
 :func:`demosaic_dask` and :func:`develop_dask` process one mosaic too large
 for one machine's memory as a ``dask.array``, with results identical to the
-whole-image :func:`imgform_rs.demosaic` and :func:`imgform_rs.develop`.
+whole-image :func:`imgform_rs.demosaic` and :func:`imgform_rs.develop`
+(without lens corrections, which need the whole image: develop_dask refuses them).
 """
 
 from __future__ import annotations
@@ -34,13 +35,13 @@ import itertools
 import json
 import os
 import time
-import uuid
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from ._chunked import demosaic_dask, develop_dask
+from ._imagefile import partial_path
 
 __all__ = [
     "WORKER_CONFIG",
@@ -175,17 +176,10 @@ def local_client(workers: int = 2, *, env: dict[str, str] | None = None) -> Iter
             cluster.close()
 
 
-def _temporary(target: Path) -> Path:
-    """A unique name beside ``target`` with its suffix (writers pick the
-    format from it), hidden, so a half-written file is never mistaken for
-    an output."""
-    return target.with_name(f".{target.stem}.part-{uuid.uuid4().hex}{target.suffix}")
-
-
 def write_atomically(target: Path, write: Callable[[Path], Any]) -> None:
     """Calls ``write(temporary)`` then renames the file to ``target``; the
     temporary file is removed if ``write`` fails."""
-    tmp = _temporary(target)
+    tmp = partial_path(target)
     try:
         write(tmp)
         os.replace(tmp, target)
@@ -244,14 +238,23 @@ def _write_report(outdir: Path, kind: str, results: list[FileResult]) -> BatchRe
 
 
 def _remove_leftovers(outdir: Path, targets: Iterable[Path]) -> None:
-    """Temporary files (see :func:`_temporary`) that workers killed mid-write
-    left behind: one scan of the folder, not one per file, which for
-    thousands of files would be quadratic."""
+    """Temporary files (:func:`~imgform_rs._imagefile.partial_path`) that
+    workers killed mid-write left behind: one scan of the folder, not one
+    per file, which for thousands of files would be quadratic."""
     wanted = {(t.stem, t.suffix) for t in targets}
     for tmp in outdir.glob(".*.part-*"):
-        stem = tmp.name[1:].rpartition(".part-")[0]
-        if (stem, tmp.suffix) in wanted:
+        if any((stem, tmp.suffix) in wanted for stem in _partial_stems(tmp.name)):
             tmp.unlink(missing_ok=True)
+
+
+def _partial_stems(name: str) -> Iterator[str]:
+    """The target stems a temporary file's name may stand for, outermost
+    first: ``write_image`` writes its own temporary file beside the one a
+    task writes, so a worker killed then leaves ``..x.part-A.part-B.png``
+    (a hidden stem ``.x`` leaves ``..x.part-A.png`` alone)."""
+    while name.startswith(".") and ".part-" in name:
+        name = name[1:]
+        yield name.partition(".part-")[0]
 
 
 OnResult = Callable[[FileResult, int, int], None]
