@@ -27,6 +27,7 @@ from imgform_rs import (
 )
 from imgform_rs.cli import main
 from imgform_rs.dng import write_dng
+from imgform_rs.lens import LensMatch, LensProfile
 
 da = pytest.importorskip("dask.array")
 distributed = pytest.importorskip("distributed")
@@ -161,6 +162,53 @@ def test_demosaic_dask_refuses_bad_input():
         batch.demosaic_dask(negative, "RGGB")
 
 
+@pytest.mark.parametrize(
+    ("dtype", "bad"),
+    [
+        (np.float32, {(10, 10): np.nan}),
+        # The first in row-major order is in the third chunk column, the
+        # first chunk's one on a later row.
+        (np.float32, {(30, 5): np.inf, (25, 50): np.nan}),
+        (np.float64, {(60, 85): -np.inf}),
+    ],
+)
+def test_demosaic_dask_names_a_non_finite_sample_where_the_whole_mosaic_has_it(dtype, bad):
+    raw = np.random.default_rng(0).random((61, 86)).astype(dtype)
+    for (y, x), value in bad.items():
+        raw[y, x] = value
+    with pytest.raises(ValueError) as whole:
+        demosaic(raw, "RGGB", "rcd")
+    # Before: when computed, the row and column within a chunk (4, 10).
+    with pytest.raises(ValueError, match=re.escape(str(whole.value))):
+        batch.demosaic_dask(da.from_array(raw, chunks=21), "RGGB", "rcd")
+
+
+@pytest.mark.parametrize(
+    ("shape", "pattern"),
+    [((1, 1), "RGGB"), ((1, 7), "GRBG"), ((7, 1), "RGGB"), ((1, 40), "BGGR"), ((5, 30), "XTRANS")],
+)
+def test_demosaic_dask_refuses_a_mosaic_smaller_than_one_cfa_tile(shape, pattern):
+    raw = np.arange(np.prod(shape), dtype=np.uint16).reshape(shape)
+    with pytest.raises(ValueError, match="at least"):
+        demosaic(raw, pattern)
+    # Before: "zero-size array to reduction operation fmin".
+    tile = "6x6" if pattern == "XTRANS" else "2x2"
+    message = f"one full CFA tile, {tile} pixels, got {shape}"
+    with pytest.raises(ValueError, match=re.escape(message)):
+        batch.demosaic_dask(da.from_array(raw, chunks=4), pattern)
+
+
+def test_demosaic_dask_asks_for_unknown_chunk_sizes_to_be_computed():
+    raw = np.random.default_rng(1).integers(0, 4096, (61, 40)).astype(np.uint16)
+    rows = np.arange(61) % 3 > 0
+    lazy = da.from_array(raw, chunks=20)[da.from_array(rows, chunks=20)]
+    # Before: "cannot convert float NaN to integer".
+    with pytest.raises(ValueError, match=r"unknown chunk sizes.*compute_chunk_sizes\(\)"):
+        batch.demosaic_dask(lazy, "RGGB")
+    got = batch.demosaic_dask(lazy.compute_chunk_sizes(), "RGGB", "malvar2004")
+    np.testing.assert_array_equal(got.compute(), demosaic(raw[rows], "RGGB", "malvar2004"))
+
+
 @pytest.mark.parametrize("dtype", [np.int32, np.uint64, np.float64])
 def test_demosaic_dask_converts_other_dtypes_as_demosaic_does(dtype):
     rng = np.random.default_rng(5)
@@ -212,6 +260,57 @@ def test_develop_dask_refuses_what_it_cannot_do(tmp_path):
         batch.develop_dask(raw.cfa)
     with pytest.raises(ValueError, match="pixel_aspect"):
         batch.develop_dask(dataclasses.replace(raw, pixel_aspect=0.5))
+
+
+def lens_profile() -> LensProfile:
+    """Strong vignetting and barrel distortion, centred on the image."""
+    return LensProfile(
+        "test", "test", 1.0, 1.0, 1.5, (0.0, 0.0), 50.0, 2.8, 10.0,
+        ("poly3", (0.05,)), None, (-0.5, 0.1, 0.0),
+    )  # fmt: skip
+
+
+def test_develop_dask_refuses_lens_corrections_it_cannot_make(tmp_path):
+    raw = load_raw(write_raw(tmp_path / "a.dng"))
+    # Before: each chunk corrected as if centred on itself, a different picture.
+    for lens in (lens_profile(), LensMatch(lens_profile(), "test"), "auto"):
+        with pytest.raises(ValueError, match=r"whole image's coordinates.*use develop"):
+            batch.develop_dask(raw, chunks=24, lens_correction=lens)
+    for off in ("off", None):
+        got = batch.develop_dask(raw, chunks=24, lens_correction=off)
+        np.testing.assert_array_equal(got.compute(scheduler="synchronous"), develop(raw))
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"bps": 12},
+        {"color": "nope"},
+        {"tone": "nope"},
+        {"white_balance": "bogus"},
+        {"white_balance": (1.0, 0.0, 1.0)},
+        {"exposure": 1e9},
+        {"exposure": "bright"},
+        {"highlights": "keep"},
+        {"demosaic": 3},
+        {"demosaic": "sharpest"},
+    ],
+)
+def test_develop_dask_refuses_what_develop_refuses_when_the_array_is_made(tmp_path, options):
+    raw = load_raw(write_raw(tmp_path / "a.dng"))
+    with pytest.raises((TypeError, ValueError)) as whole:
+        develop(raw, **options)
+    # Before: a lazy array that failed in a worker, at compute().
+    with pytest.raises(whole.type, match=re.escape(str(whole.value))):
+        batch.develop_dask(raw, chunks=24, **options)
+
+
+def test_develop_dask_names_the_options_it_takes(tmp_path):
+    raw = load_raw(write_raw(tmp_path / "a.dng"))
+    with pytest.raises(TypeError, match=r"unknown options \['foo'\]; it takes \['bps', 'color'"):
+        batch.develop_dask(raw, foo=1)
+    with pytest.raises(ValueError, match=r'lens_correction="off" only, got \'bogus\''):
+        batch.develop_dask(raw, lens_correction="bogus")
 
 
 # --- file batches on a real cluster ---

@@ -241,6 +241,8 @@ def test_render_light_field_of_the_sample_scene():
         (np.zeros((2, 2, 4, 4), np.uint8), {"aperture": 0.0}, ValueError, "no view"),
         (np.zeros((3, 3, 4, 4), np.uint8), {"aperture": np.ones((3, 2), bool)}, ValueError, "grid"),
         (np.zeros((3, 3, 4, 4), np.uint8), {"aperture": "all"}, TypeError, "aperture"),
+        # Refocused at the first alpha alone before.
+        (np.zeros((2, 2, 4, 4), np.uint8), {"alpha": [1.0]}, ValueError, r"shape \(1,\)"),
     ],
 )
 def test_bad_input_is_refused(light_field, kwargs, error, match):
@@ -264,6 +266,42 @@ def test_bad_alphas_and_native_shapes_are_refused():
         _native.focal_stack(views[:-1].astype(np.int64), (3, 3), [0.0], [True] * 9)
 
 
+def test_one_depths_disparity_refocuses_and_several_make_a_focal_stack(planes):
+    # The guide's calls: one depth's disparity is a scalar refocus takes.
+    alpha = ig.view_disparity(camera(), BASELINE, DEPTH["near"])
+    assert np.ndim(alpha) == 0
+    np.testing.assert_array_equal(ig.refocus(planes, alpha), ig.refocus(planes, 2.0))
+    alphas = ig.view_disparity(camera(), BASELINE, list(DEPTH.values()))
+    np.testing.assert_array_equal(ig.focal_stack(planes, alphas)[0], ig.refocus(planes, 2.0))
+    with pytest.raises(ValueError, match=r"got shape \(3,\); for several, call focal_stack"):
+        ig.refocus(planes, alphas)
+
+
+@pytest.mark.parametrize(
+    ("args", "error", "match"),
+    [
+        # Before: inf with a warning, negative disparities and NaN silently.
+        ((BASELINE, 0.0), ValueError, r"depth must be finite and > 0, got 0\.0"),
+        ((BASELINE, -2.0), ValueError, r"depth must be finite and > 0, got -2\.0"),
+        ((BASELINE, [1.0, np.nan]), ValueError, "depth must be finite and > 0, got nan"),
+        ((BASELINE, np.inf), ValueError, "depth must be finite"),
+        ((BASELINE, "far"), TypeError, "depth must be real numbers"),
+        ((-BASELINE, 2.0), ValueError, r"baseline must be a finite number > 0, got -0\.02"),
+        ((np.nan, 2.0), ValueError, "baseline must be a finite number > 0"),
+        (([BASELINE], 2.0), TypeError, "baseline must be a real number"),
+    ],
+)
+def test_view_disparity_refuses_what_has_no_disparity(args, error, match):
+    with pytest.raises(error, match=match):
+        ig.view_disparity(camera(), *args)
+
+
+def test_view_disparity_needs_a_camera():
+    # Before: AttributeError: 'str' object has no attribute 'K'.
+    with pytest.raises(TypeError, match=r"camera must be an imgform_rs\.Camera, got str"):
+        ig.view_disparity("pinhole", BASELINE, 2.0)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "error", "match"),
     [
@@ -271,6 +309,7 @@ def test_bad_alphas_and_native_shapes_are_refused():
         ({"grid": 3}, ValueError, "grid"),
         ({"baseline": 0.0}, ValueError, "baseline"),
         ({"baseline": np.nan}, ValueError, "baseline"),
+        ({"baseline": "0.02"}, TypeError, "baseline must be a real number"),
         ({"supersample": 0}, ValueError, "supersample"),
         ({"dtype": np.uint16}, TypeError, "dtype"),
         ({"camera": "pinhole"}, TypeError, "Camera"),

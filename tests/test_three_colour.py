@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import functools
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -274,3 +278,46 @@ def test_bad_scenes_and_scans_are_refused():
         tc.colourise(plate, matrix=np.eye(3)[:2])
     with pytest.raises(ValueError, match="ev_spread"):
         tc.photograph(textured_scene(0, (40, 40)), ev_spread=-1)
+
+
+def test_exposure_errors_beyond_films_range_are_refused():
+    scene = textured_scene(0, (40, 40))
+    # Film's whole range is usable: red 100 stops over saturates its frame,
+    # green 100 under leaves its frame at base plus fog.
+    extreme = tc.photograph(scene, exposure_ev={"r": film.MAX_EV, "g": -film.MAX_EV, "b": 0.0})
+    (h, w), b = extreme.frame_shape, extreme.border
+    blue, green, red = (extreme.image[i * (h + 2 * b) + b :][:h, b : b + w] for i in range(3))
+    assert red.min() > blue.max() and blue.min() > green.max()
+    # 2 ** 1e6 overflowed a float: OverflowError, not a word on the range.
+    for ev in (1e6, -1e6):
+        errors = {"r": ev, "g": 0.0, "b": 0.0}
+        stops = r"exposure_ev must be finite numbers of stops in \[-100, 100\], got "
+        with pytest.raises(ValueError, match=stops + re.escape(repr(errors))):
+            tc.photograph(scene, exposure_ev=errors)
+        with pytest.raises(ValueError, match=stops):
+            tc.colourise(extreme, exposure_ev=errors)
+    with pytest.raises(ValueError, match=r"ev_spread must be .* from 0 to 100, got 1000000\.0"):
+        tc.photograph(scene, ev_spread=1e6)
+
+
+@pytest.mark.slow
+def test_the_figure_captions_quote_what_the_demo_measures(monkeypatch):
+    from imgform_rs import demo
+
+    pinhole, _ = demo._render(demo._camera(demo.SUPERSAMPLE))
+    experiment = tc.experiment
+    measured = []
+    for known in (True, False):
+        # The figure's own code, run with and without the exposure record.
+        monkeypatch.setattr(tc, "experiment", functools.partial(experiment, known_exposures=known))
+        lines: list[str] = []
+        demo._three_colour_figure(pinhole, lines.append)
+        measured += re.findall(r"over (\d+) px: mean (\d+\.\d\d), max (\d+\.\d\d)", lines[-1])
+    (pixels, mean, top), (_, tinted_mean, tinted_top) = measured
+    root = Path(__file__).resolve().parents[1]
+    guide = " ".join((root / "docs" / "guide" / "three_colour.rst").read_text().split())
+    count = f"{int(pixels):,}".replace(",", " ")  # the guide's thousands separator
+    assert f"CIEDE2000 mean {mean}, max {top} over the {count} pixels" in guide
+    assert f"({tinted_mean} and {tinted_top} without the exposure record)" in guide
+    readme = " ".join((root / "README.md").read_text().split())
+    assert f"mean CIEDE2000 {float(mean):.1f} (max {float(top):.1f})" in readme

@@ -22,6 +22,7 @@ bit to the whole-image call.
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import itertools
 import math
 from typing import Any
@@ -69,14 +70,44 @@ def snap_chunks(chunks: tuple[int, ...], step: int, minimum: int) -> tuple[int, 
 
 
 def phase_extremes(mosaic: Any, period: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-site minima and maxima, each a ``(period, period)`` array."""
+    """Per-site minima and maxima, each a ``(period, period)`` array.
+
+    A NaN or an infinity anywhere shows in them (plain ``min``/``max``
+    propagate NaN), so this pass over the whole mosaic, made anyway, also
+    refuses a non-finite sample before any worker runs: a ValueError naming
+    its row and column in the whole mosaic, as :func:`imgform_rs.demosaic`
+    would (a worker would only know them within its chunk)."""
     import dask
 
     da = require_dask()
     cells = [(i, j) for i in range(period) for j in range(period)]
-    reductions = [f(mosaic[i::period, j::period]) for i, j in cells for f in (da.nanmin, da.nanmax)]
+    reductions = [f(mosaic[i::period, j::period]) for i, j in cells for f in (da.min, da.max)]
     values = np.array(dask.compute(*reductions), mosaic.dtype).reshape(period, period, 2)
+    if not np.isfinite(values).all():
+        y, x = _first_non_finite(mosaic)
+        value = float(mosaic[y, x].compute())
+        raise ValueError(
+            "the mosaic must hold finite numbers, got "
+            f"{'NaN' if math.isnan(value) else value} at row {y}, column {x}"
+        )
     return values[..., 0], values[..., 1]
+
+
+def _first_non_finite(mosaic: Any) -> tuple[int, int]:
+    """Row and column of the first non-finite sample in row-major order: the
+    earliest of each chunk's first one (a second pass, made only when the
+    extremes show there is one)."""
+
+    def first(block: np.ndarray, block_info: Any = None) -> np.ndarray:
+        (y0, _), (x0, _) = block_info[0]["array-location"]
+        bad = ~np.isfinite(block)
+        i = int(np.argmax(bad))
+        hit = divmod(i, block.shape[1]) if bad.flat[i] else (np.inf, np.inf)
+        return np.array([[[y0 + hit[0], x0 + hit[1]]]], np.float64)
+
+    hits = mosaic.map_blocks(first, new_axis=2, chunks=(1, 1, 2), dtype=np.float64).compute()
+    y, x = min(map(tuple, hits.reshape(-1, 2)))
+    return int(y), int(x)
 
 
 def _with_extremes(block: np.ndarray, extremes: tuple, period: int, side: str) -> np.ndarray:
@@ -143,6 +174,12 @@ def _check_mosaic(mosaic: Any, dtypes: tuple | None) -> None:
         raise TypeError(f"mosaic must be a dask.array.Array, got {type(mosaic).__name__}")
     if mosaic.ndim != 2:
         raise ValueError(f"mosaic must have shape (H, W), got shape {mosaic.shape}")
+    if any(math.isnan(c) for axis in mosaic.chunks for c in axis):
+        # Boolean indexing and the like leave sizes Dask learns only by computing.
+        raise ValueError(
+            f"mosaic has unknown chunk sizes, got chunks {mosaic.chunks}; call "
+            "mosaic.compute_chunk_sizes() first"
+        )
     if dtypes is None:
         _samples.check_dtype(mosaic.dtype, "mosaic")
     elif mosaic.dtype not in dtypes:
@@ -160,8 +197,9 @@ def demosaic_dask(
     the mosaic's extremes, so also its default white level. Chunk boundaries
     are moved to multiples of the CFA period (2 for Bayer, 6 for X-Trans) and
     chunks shorter than the margin are merged with a neighbour. The per-site
-    minima and maxima are computed at once (one pass over the mosaic); the
-    demosaic itself stays lazy.
+    minima and maxima are computed at once (one pass over the mosaic, which
+    also finds a NaN or an infinity before any worker runs); the demosaic
+    itself stays lazy.
 
     Parameters
     ----------
@@ -186,8 +224,11 @@ def demosaic_dask(
         For something other than a dask array of a supported dtype, a
         method that is not a str, or a white level that is not a number.
     ValueError
-        For another shape, an unknown method or pattern, or a white level
-        :func:`imgform_rs.demosaic` refuses.
+        For another shape, a mosaic smaller than one CFA tile, unknown chunk
+        sizes (call ``compute_chunk_sizes()`` first), an unknown method or
+        pattern, a white level :func:`imgform_rs.demosaic` refuses, or a NaN
+        or an infinity (the message names the first one's row and column in
+        the whole mosaic).
 
     Examples
     --------
@@ -203,6 +244,11 @@ def demosaic_dask(
     pat = as_pattern(pattern)
     period = pattern_cells(pat).shape[0]
     halo = demosaic_halo(method, pat)
+    if min(mosaic.shape) < period:
+        raise ValueError(
+            f"demosaic_dask needs a mosaic of at least one full CFA tile, {period}x{period} "
+            f"pixels, got {mosaic.shape}"
+        )
     # Fail now, not in a worker: one tile through the native checks refuses
     # a method that cannot demosaic this pattern (X-Trans).
     demosaic(np.zeros((6, 6), mosaic.dtype), pat, method, white_level=white_level)
@@ -211,6 +257,10 @@ def demosaic_dask(
         return demosaic(block, pat, method, white_level=white_level)
 
     return map_cfa(mosaic, period, halo, period, block_fn, mosaic.dtype)
+
+
+_DEVELOP_OPTIONS = set(inspect.signature(develop).parameters) - {"source", "orientation"}
+"""The keywords :func:`develop_dask` passes on to :func:`imgform_rs.develop`."""
 
 
 def _grey_world(raw: RawImage, cfa: Any) -> np.ndarray:
@@ -256,7 +306,12 @@ def develop_dask(
     orientation : {"auto", "none"}
     **develop_kwargs
         ``demosaic``, ``white_balance``, ``color``, ``tone``, ``exposure``,
-        ``highlights``, ``bps`` as for :func:`imgform_rs.develop`.
+        ``highlights``, ``bps`` as for :func:`imgform_rs.develop`, checked
+        here, before any chunk is developed. ``lens_correction`` only
+        ``"off"`` (or None): vignetting and distortion are functions of the
+        whole image's coordinates, and distortion reads pixels far beyond a
+        chunk's margin, so a chunk cannot be corrected on its own; use
+        :func:`imgform_rs.develop` for a corrected picture.
 
     Returns
     -------
@@ -265,10 +320,11 @@ def develop_dask(
     Raises
     ------
     TypeError
-        For something other than a RawImage.
+        For something other than a RawImage, or an option
+        :func:`imgform_rs.develop` does not have.
     ValueError
         For non-square photosites (``pixel_aspect != 1``), ``exposure="auto"``,
-        or options that :func:`imgform_rs.develop` refuses.
+        lens corrections, or options that :func:`imgform_rs.develop` refuses.
 
     Examples
     --------
@@ -293,16 +349,37 @@ def develop_dask(
         )
     if orientation not in ("auto", "none"):
         raise ValueError(f'orientation must be "auto" or "none", got {orientation!r}')
-    if isinstance(develop_kwargs.get("exposure"), str):
+    exposure = develop_kwargs.get("exposure")
+    if isinstance(exposure, str) and exposure == "auto":
         # Each chunk would brighten by its own histogram.
         raise ValueError(
             'develop_dask takes exposure in stops; exposure="auto" needs the whole '
             "image's histogram: use develop"
         )
-    cfa = raw.cfa if isinstance(raw.cfa, da.Array) else da.from_array(raw.cfa, chunks=chunks)
-    _check_mosaic(cfa, (np.uint16,))
+    unknown = sorted(set(develop_kwargs) - _DEVELOP_OPTIONS)
+    if unknown:
+        raise TypeError(
+            f"develop_dask got unknown options {unknown}; it takes {sorted(_DEVELOP_OPTIONS)}"
+        )
+    lens = develop_kwargs.get("lens_correction", "off")
+    if lens is not None and not (isinstance(lens, str) and lens == "off"):
+        # Each chunk would be corrected as if it were a whole image centred on itself.
+        given = repr(lens) if isinstance(lens, str) else f"a {type(lens).__name__}"
+        raise ValueError(
+            f'develop_dask takes lens_correction="off" only, got {given}: vignetting and '
+            "distortion are functions of the whole image's coordinates, and distortion "
+            "reads pixels far beyond a chunk's margin; use develop(raw, "
+            "lens_correction=...) for a corrected picture"
+        )
     period = raw.channel_tile.shape[0]
     step = math.lcm(period, _GREY_BLOCK)
+    # Fail now, not in a worker: develop checks every option against this
+    # raw's metadata, and one tile of photosites develops in 1-2 ms. Its
+    # dtype is the output's.
+    tile = dataclasses.replace(raw, cfa=np.zeros((step, step), np.uint16))
+    dtype = develop(tile, orientation="none", **develop_kwargs).dtype
+    cfa = raw.cfa if isinstance(raw.cfa, da.Array) else da.from_array(raw.cfa, chunks=chunks)
+    _check_mosaic(cfa, (np.uint16,))
     cfa = cfa.rechunk(tuple(snap_chunks(c, step, 1) for c in cfa.chunks))
     meta: dict[str, Any] = {"flip": 0, "pixel_aspect": 1.0}
     wb = develop_kwargs.get("white_balance", "camera")
@@ -314,8 +391,6 @@ def develop_dask(
     template = dataclasses.replace(raw, cfa=np.zeros((0, 0), np.uint16), **meta)
     method = develop_kwargs.get("demosaic", DEFAULT_DEMOSAIC)
     halo = demosaic_halo(method, raw.pattern)
-    bps = develop_kwargs.get("bps", 8)
-    dtype = {8: np.uint8, 16: np.uint16}.get(bps, np.float32)
 
     def block_fn(block: np.ndarray) -> np.ndarray:
         chunk = dataclasses.replace(template, cfa=block)

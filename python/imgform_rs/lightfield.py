@@ -65,6 +65,16 @@ def _offsets(grid: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     return u - (grid[0] - 1) / 2, v - (grid[1] - 1) / 2
 
 
+def _positive_length(value: Any, name: str) -> float:
+    """``value`` as a float, checked: one real number, finite and > 0."""
+    arr = np.asarray(value)
+    if arr.ndim or arr.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    if not (math.isfinite(arr) and arr > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    return float(arr)
+
+
 def view_disparity(camera: Camera, baseline: float, depth: Any) -> Any:
     """Disparity in pixels per view step of points at ``depth``:
     ``baseline * f / depth`` with ``f`` the camera's horizontal focal length
@@ -74,13 +84,47 @@ def view_disparity(camera: Camera, baseline: float, depth: Any) -> Any:
     focus, for a light field from :func:`render_light_field` with the same
     ``camera`` and ``baseline`` (lengths in the scene's unit).
 
+    Parameters
+    ----------
+    camera : Camera
+    baseline : float
+        Distance between neighbouring views (finite, > 0), as given to
+        :func:`render_light_field`.
+    depth : float or array_like of float
+        Depths along the optical axis (finite, > 0: a point at or behind
+        the pinhole has no disparity, and a negative one would refocus the
+        wrong way silently).
+
+    Returns
+    -------
+    float or ndarray
+        A NumPy float for a scalar ``depth``, else an array of its shape.
+
+    Raises
+    ------
+    TypeError
+        ``camera`` is not a :class:`Camera`, or ``baseline`` or ``depth`` not
+        real numbers.
+    ValueError
+        A ``baseline`` or a ``depth`` that is not finite and > 0.
+
     Examples
     --------
     >>> cam = Camera.from_intrinsics(500.0, 500.0, 63.5, 47.5)
     >>> view_disparity(cam, 0.02, [2.0, 5.0, 10.0])
     array([5., 2., 1.])
     """
-    return float(baseline) * float(camera.K[0, 0]) / np.asarray(depth, dtype=np.float64)
+    if not isinstance(camera, Camera):
+        raise TypeError(f"camera must be an imgform_rs.Camera, got {type(camera).__name__}")
+    b = _positive_length(baseline, "baseline")
+    z = np.asarray(depth)
+    if z.dtype.kind not in "iuf":
+        raise TypeError(f"depth must be real numbers, got {depth!r}")
+    z = z.astype(np.float64)
+    bad = ~(np.isfinite(z) & (z > 0))
+    if bad.any():
+        raise ValueError(f"depth must be finite and > 0, got {float(z[bad].flat[0])}")
+    return b * float(camera.K[0, 0]) / z
 
 
 def render_light_field(
@@ -148,8 +192,7 @@ def render_light_field(
         raise TypeError(f"camera must be an imgform_rs.Camera, got {type(camera).__name__}")
     if camera.image_size is None:
         raise ValueError("camera needs image_size=(height, width) to render views")
-    if not (math.isfinite(baseline) and baseline > 0):
-        raise ValueError(f"baseline must be a finite number > 0, got {baseline}")
+    baseline = _positive_length(baseline, "baseline")
     if np.dtype(dtype) not in (np.uint8, np.float32):
         raise TypeError(f"dtype must be numpy.uint8 or numpy.float32, got {np.dtype(dtype)}")
     grid = _grid(grid)
@@ -288,7 +331,8 @@ def refocus(light_field: Image, alpha: float, *, aperture: Any = None) -> Image:
     light_field : ndarray, uint8, uint16 or float32, shape (U, V, H, W[, C])
         Sub-aperture views in the grid convention of the module docs.
     alpha : float
-        Disparity in focus, pixels per view step (finite).
+        Disparity in focus, pixels per view step (finite); one number, a
+        NumPy scalar or 0-d array included. For several, :func:`focal_stack`.
     aperture : None, float or ndarray of bool, shape (U, V)
         As in :func:`focal_stack`.
 
@@ -300,7 +344,8 @@ def refocus(light_field: Image, alpha: float, *, aperture: Any = None) -> Image:
     Raises
     ------
     TypeError, ValueError
-        As :func:`focal_stack`.
+        As :func:`focal_stack`; ValueError also for an ``alpha`` of more than
+        one value, which would otherwise refocus at its first alone.
 
     Examples
     --------
@@ -315,4 +360,9 @@ def refocus(light_field: Image, alpha: float, *, aperture: Any = None) -> Image:
     >>> refocus(lf, 1.0, aperture=0.0)[0]  # the central view alone
     array([0, 1, 2, 3, 4, 5, 6, 7], dtype=uint8)
     """
+    if np.ndim(alpha) != 0:
+        raise ValueError(
+            f"alpha must be one disparity, got shape {np.shape(alpha)}; for several, call "
+            "focal_stack(light_field, alphas)"
+        )
     return focal_stack(light_field, [alpha], aperture=aperture)[0]  # type: ignore[no-any-return]

@@ -420,18 +420,24 @@ def _exposure_errors(exposure_ev: Any, spread: float, rng: np.random.Generator) 
     """Each exposure's error in stops: given, or uniform in [-spread, spread]."""
     if exposure_ev is not None:
         return _checked_errors(exposure_ev)
-    if not (np.isfinite(spread) and spread >= 0):
-        raise ValueError(f"ev_spread must be a finite number >= 0, got {spread!r}")
+    if not (np.isfinite(spread) and 0 <= spread <= film.MAX_EV):
+        raise ValueError(
+            f"ev_spread must be a finite number of stops from 0 to {film.MAX_EV:g}, got {spread!r}"
+        )
     return {c: float(e) for c, e in zip(CHANNELS, rng.uniform(-spread, spread, 3), strict=True)}
 
 
 def _checked_errors(exposure_ev: Any) -> dict[str, float]:
-    """``{"r": ev, "g": ev, "b": ev}``, finite floats."""
+    """``{"r": ev, "g": ev, "b": ev}``, finite floats within film's range of
+    ``MAX_EV`` stops either way (beyond it, ``2**ev`` overflows a float)."""
     if not isinstance(exposure_ev, dict) or set(exposure_ev) != set(CHANNELS):
         raise ValueError(f'exposure_ev must be a dict with keys "r", "g", "b", got {exposure_ev!r}')
     out = {c: float(exposure_ev[c]) for c in CHANNELS}
-    if not all(np.isfinite(v) for v in out.values()):
-        raise ValueError(f"exposure_ev must be finite, got {exposure_ev!r}")
+    if not all(np.isfinite(v) and abs(v) <= film.MAX_EV for v in out.values()):
+        raise ValueError(
+            f"exposure_ev must be finite numbers of stops in [-{film.MAX_EV:g}, "
+            f"{film.MAX_EV:g}], got {exposure_ev!r}"
+        )
     return out
 
 
@@ -473,8 +479,10 @@ def photograph(
         side (at least 1), so frames differ by up to 4 %, the order of
         Prokudin-Gorskii's own shifts.
     exposure_ev : dict, optional
-        Each exposure's error in stops; drawn uniformly in ``[-ev_spread,
-        ev_spread]`` from ``seed`` if not given.
+        Each exposure's error in stops, at most :data:`imgform_rs.film.MAX_EV`
+        (100) either way, film's own range; drawn uniformly in ``[-ev_spread,
+        ev_spread]`` from ``seed`` if not given (``ev_spread`` likewise at
+        most 100).
     border : int, optional
         Unexposed plate around each frame; default 2 % of the frame's
         shorter side (at least 1). Border plus the largest shift between
