@@ -50,3 +50,16 @@ def shared_path(rel: str) -> Path | None:
         if p.exists():
             return p
     return None
+
+
+def assert_clash_refused(captured, command: str, inputs: list, out: Path) -> None:
+    """``imgform command`` refused two ``inputs`` that would write one output
+    in ``out`` in one line, and wrote nothing."""
+    first, second = inputs
+    assert captured.out == ""
+    assert captured.err == (
+        f"imgform {command}: inputs would overwrite each other's output: {first} and {second} "
+        f"-> {out / (Path(first).stem + '.png')}; nothing was written (rename them, or run "
+        "them into different folders)\n"
+    )
+    assert not out.exists()

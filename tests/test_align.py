@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import imgform_rs as ig
-from conftest import output_with_threads
+from conftest import assert_clash_refused, output_with_threads
 from imgform_rs._png import write_png
 from imgform_rs.align import FRAME_SEARCH, default_max_shift, frame_box
 from imgform_rs.cli import main
@@ -509,14 +509,7 @@ def test_cli_refuses_plates_with_one_output_before_writing_anything(tmp_path, ca
         write_png(path, synthetic_plate(seed=seed))
     out = tmp_path / "out"
     assert main(["align", *map(str, plates), "-o", str(out), *extra]) == 2
-    captured = capsys.readouterr()
-    assert captured.out == ""
-    assert captured.err == (
-        f"imgform align: inputs would overwrite each other's output: {plates[0]} and "
-        f"{plates[1]} -> {out / 'plate.png'}; nothing was written (rename them, or run them "
-        "into different folders)\n"
-    )
-    assert not out.exists()
+    assert_clash_refused(capsys.readouterr(), "align", plates, out)
 
 
 def test_cli_says_in_one_line_that_the_output_folder_is_a_file(tmp_path, capsys):

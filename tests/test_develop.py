@@ -9,7 +9,7 @@ import pytest
 import rawpy
 
 import imgform_rs as ig
-from conftest import output_with_threads, shared_path
+from conftest import assert_clash_refused, output_with_threads, shared_path
 from imgform_rs.dng import write_dng
 
 RAW_DIR = shared_path("data/raw")
@@ -531,14 +531,7 @@ def test_cli_refuses_inputs_with_one_output_before_writing_anything(
     twin.write_bytes(good.read_bytes())
     out = tmp_path / "out"
     assert main(["develop", str(good), str(twin), "-o", str(out), *extra]) == 2
-    captured = capsys.readouterr()
-    assert captured.out == ""
-    assert captured.err == (
-        f"imgform develop: inputs would overwrite each other's output: {good} and {twin} -> "
-        f"{out / 'card.png'}; nothing was written (rename them, or run them into different "
-        "folders)\n"
-    )
-    assert not out.exists()
+    assert_clash_refused(capsys.readouterr(), "develop", [good, twin], out)
 
 
 def test_cli_says_in_one_line_that_the_output_folder_is_a_file(tmp_path, capsys, grey_card):
