@@ -311,6 +311,9 @@ def test_develop_dask_names_the_options_it_takes(tmp_path):
         batch.develop_dask(raw, foo=1)
     with pytest.raises(ValueError, match=r'lens_correction="off" only, got \'bogus\''):
         batch.develop_dask(raw, lens_correction="bogus")
+    for zero in (0, (0, 8)):  # a ZeroDivisionError from Dask before
+        with pytest.raises(ValueError, match=r"chunks must be sizes > 0"):
+            batch.develop_dask(raw, chunks=zero)
 
 
 # --- file batches on a real cluster ---

@@ -279,6 +279,8 @@ def test_bad_stocks_are_refused_with_a_clear_error(tmp_path, edit, message):
 def test_bad_names_json_and_images_are_refused(tmp_path):
     with pytest.raises(ValueError, match="unknown stock"):
         film.load_stock("kodachrome")
+    with pytest.raises(ValueError, match="a stock is a JSON object"):
+        film.stock_from_dict([1, 2])
     (tmp_path / "x.json").write_text("{nope")
     with pytest.raises(ValueError, match="not valid JSON"):
         film.load_stock(tmp_path / "x.json")

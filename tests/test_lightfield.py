@@ -243,6 +243,8 @@ def test_render_light_field_of_the_sample_scene():
         (np.zeros((3, 3, 4, 4), np.uint8), {"aperture": "all"}, TypeError, "aperture"),
         # Refocused at the first alpha alone before.
         (np.zeros((2, 2, 4, 4), np.uint8), {"alpha": [1.0]}, ValueError, r"shape \(1,\)"),
+        # Read as 1.0 before.
+        (np.zeros((2, 2, 4, 4), np.uint8), {"alpha": "1"}, TypeError, "must be numbers"),
     ],
 )
 def test_bad_input_is_refused(light_field, kwargs, error, match):

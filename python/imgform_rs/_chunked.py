@@ -378,6 +378,10 @@ def develop_dask(
     # dtype is the output's.
     tile = dataclasses.replace(raw, cfa=np.zeros((step, step), np.uint16))
     dtype = develop(tile, orientation="none", **develop_kwargs).dtype
+    sizes = chunks if isinstance(chunks, tuple) else (chunks,)
+    if any(isinstance(n, (int, np.integer)) and n == 0 for n in sizes):
+        # Dask divides by it: a ZeroDivisionError that names nothing.
+        raise ValueError(f"chunks must be sizes > 0 (or -1 for a whole axis), got {chunks!r}")
     cfa = raw.cfa if isinstance(raw.cfa, da.Array) else da.from_array(raw.cfa, chunks=chunks)
     _check_mosaic(cfa, (np.uint16,))
     cfa = cfa.rechunk(tuple(snap_chunks(c, step, 1) for c in cfa.chunks))

@@ -316,6 +316,8 @@ def stock_from_dict(data: dict[str, Any]) -> Stock:
         ``spread_um`` numbers), wrong grids, non-monotone curves, negative
         densities: the message names the stock, key, layer and sample.
     """
+    if not isinstance(data, dict):
+        raise ValueError(f"a stock is a JSON object {{...}}, got a {type(data).__name__}")
     name = str(data.get("name", "<unnamed>"))
     if data.get("format") != STOCK_FORMAT:
         _fail(name, f"format must be {STOCK_FORMAT!r}, got {data.get('format')!r}")

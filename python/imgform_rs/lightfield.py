@@ -303,7 +303,11 @@ def focal_stack(light_field: Image, alphas: Any, *, aperture: Any = None) -> Ima
             0.        , 0.        ]], dtype=float32)
     """
     arr, grid = _as_light_field(light_field)
-    alpha_list = np.asarray(alphas, dtype=np.float64).ravel()
+    given = np.asarray(alphas)
+    if given.dtype.kind not in "iuf":
+        # np.asarray(..., float64) would read the string "1" as 1.0.
+        raise TypeError(f"alphas must be numbers, got {alphas!r}")
+    alpha_list = given.astype(np.float64).ravel()
     if alpha_list.size == 0:
         raise ValueError("alphas must hold at least one disparity, got none")
     if not np.all(np.isfinite(alpha_list)):
