@@ -437,6 +437,14 @@ def test_inputs_with_one_output_are_refused_before_anything_is_written(
     assert not out.exists()
 
 
+def test_names_that_differ_only_in_case_are_one_output(tmp_path):
+    # One file on macOS and Windows: refused everywhere, so no result is lost.
+    with pytest.raises(ValueError, match=re.escape(f"a/X.dng and b/x.nef -> {tmp_path / 'X.png'}")):
+        batch.output_paths(["a/X.dng", "b/x.nef"], tmp_path, ".png")
+    pairs = batch.output_paths(["a/X.dng", "b/Y.nef"], tmp_path, ".png")
+    assert [t.name for _, t in pairs] == ["X.png", "Y.png"]
+
+
 def test_an_output_folder_that_is_a_file_is_one_clear_error(tmp_path, client, raws, capsys):
     paths, _ = raws
     out = tmp_path / "out"

@@ -288,15 +288,18 @@ def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple
     Two sources with one stem (``a/x.dng`` and ``b/x.kdc``) would be written
     to one output, the later replacing the earlier or skipped as if done
     before: a ValueError names every such group, so that a batch refuses
-    before it writes anything and loses no result.
+    before it writes anything and loses no result. Stems that differ only
+    in case (``X.dng``, ``x.nef``) count as one: on macOS and Windows they
+    are one file.
     """
     pairs = [(Path(s), Path(outdir) / f"{Path(s).stem}{suffix}") for s in sources]
-    writers: dict[Path, list[Path]] = {}
+    writers: dict[str, list[Path]] = {}
     for source, target in pairs:
-        writers.setdefault(target, []).append(source)
+        writers.setdefault(str(target).casefold(), []).append(source)
+    named = {str(target).casefold(): target for _, target in reversed(pairs)}
     clashes = [
-        f"{' and '.join(map(str, group))} -> {target}"
-        for target, group in writers.items()
+        f"{' and '.join(map(str, group))} -> {named[key]}"
+        for key, group in writers.items()
         if len(group) > 1
     ]
     if clashes:
