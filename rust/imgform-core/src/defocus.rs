@@ -482,7 +482,11 @@ mod tests {
                 .flat_map(|dy| (-g..=g).map(move |dx| ((dx * dx + dy * dy) as f64).sqrt()))
                 .map(|d| (r + 0.5 - d).clamp(0.0, 1.0))
                 .sum();
-            assert!((disc_area(r) - brute).abs() < 1e-9, "r {r}: {}", disc_area(r));
+            assert!(
+                (disc_area(r) - brute).abs() < 1e-9,
+                "r {r}: {}",
+                disc_area(r)
+            );
         }
     }
 
