@@ -54,3 +54,16 @@ def as_matrix(value: Any, shape: tuple[int, ...], name: str) -> Float64Array:
 def as_float_array(value: Any, name: str) -> Float64Array:
     """Any real scalar or array as float64, for the vectorised optics formulas."""
     return _numeric(value, name).astype(np.float64, copy=False)
+
+
+def is_int(value: Any) -> bool:
+    """Whether ``value`` is an int (a NumPy one too), and not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def as_seed(value: Any, name: str) -> int:
+    """``value`` as a seed of the native generators: an int in [0, 2**64),
+    checked here because the native layer would raise OverflowError."""
+    if not (is_int(value) and 0 <= value < 2**64):
+        raise ValueError(f"{name} must be an int in [0, 2**64), got {value!r}")
+    return int(value)

@@ -15,6 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native, _samples
+from ._arrays import as_seed, is_int
 
 Pattern = str | npt.ArrayLike
 """A pattern name or a (2, 2) / (6, 6) array of channel indices."""
@@ -115,7 +116,7 @@ def shift_pattern(pattern: Pattern, dy: int, dx: int) -> str | npt.NDArray[np.ui
     'GBRG'
     """
     for name, value in (("dy", dy), ("dx", dx)):
-        if not _is_int(value):
+        if not is_int(value):
             raise TypeError(f"{name} must be an int (rows or columns cropped), got {value!r}")
     # Every tile is 2x2 or 6x6, so 6 rows or columns change no phase: the
     # remainder also keeps any int within the native isize.
@@ -285,16 +286,15 @@ def simulate_sensor(
     """
     # Checked here: int() would truncate a float, and an int beyond the
     # native layer's u32 / u64 would be an OverflowError there.
-    if not (_is_int(bit_depth) and 1 <= bit_depth <= 16):
+    if not (is_int(bit_depth) and 1 <= bit_depth <= 16):
         raise ValueError(f"bit_depth must be an int from 1 to 16, got {bit_depth!r}")
     white = 2 ** int(bit_depth) - 1
-    if not (_is_int(black_level) and 0 <= black_level < white):
+    if not (is_int(black_level) and 0 <= black_level < white):
         raise ValueError(
             f"black_level must be an int from 0 to below the white level {white} of "
             f"{bit_depth} bits, got {black_level!r}"
         )
-    if not (_is_int(seed) and 0 <= seed < 2**64):
-        raise ValueError(f"seed must be an int in [0, 2**64), got {seed!r}")
+    as_seed(seed, "seed")
     arr = as_image(rgb, "rgb")
     if arr.dtype.kind == "f" and not np.isfinite(arr).all():
         at = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
@@ -308,8 +308,3 @@ def simulate_sensor(
         int(black_level),
         int(seed),
     )
-
-
-def _is_int(value: Any) -> bool:
-    """Whether ``value`` is an int (a NumPy one too), and not a bool."""
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)

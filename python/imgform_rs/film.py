@@ -62,7 +62,7 @@ import numpy.typing as npt
 
 from . import _native
 from . import spectral as sp
-from ._arrays import Float64Array
+from ._arrays import Float64Array, as_seed
 
 Float32Array = npt.NDArray[np.float32]
 Kind = Literal["negative", "reversal", "paper"]
@@ -870,7 +870,7 @@ def develop(
     arr = _image(exposure, "exposure", len(st.layers))
     if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
         raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
-    grain_seed = sp._check_seed(seed, "seed")
+    grain_seed = as_seed(seed, "seed")
     matrix = st.coupler_matrix if couplers else np.zeros_like(st.coupler_matrix)
     pixel_um = frame_width_mm * 1000.0 / arr.shape[1]
     spread = (st.halation.tolist(), st.halation_um / pixel_um)

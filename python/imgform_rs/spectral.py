@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array
+from ._arrays import Float64Array, as_float_array, as_seed
 from .cfa import as_pattern, pattern_cells
 
 Float32Array = npt.NDArray[np.float32]
@@ -101,13 +101,6 @@ def check_wavelengths(wl: Any) -> Float64Array:
         raise ValueError(f"wavelengths must be a 1-D array, got shape {arr.shape}")
     _native.check_wavelengths(arr.tolist())
     return np.ascontiguousarray(arr)
-
-
-def _check_seed(value: Any, name: str) -> int:
-    """``value`` as a seed of the native generators: an int in [0, 2**64)."""
-    if not isinstance(value, (int, np.integer)) or not 0 <= value < 2**64:
-        raise ValueError(f"{name} must be an int in [0, 2**64), got {value!r}")
-    return int(value)
 
 
 def _check_int(value: Any, name: str, least: int) -> int:
@@ -393,8 +386,8 @@ class Sensor:
 
     def native(self, *, seed: int, exposure_time: float) -> _native.NativeSensor:
         """The validated native sensor for one frame."""
-        _check_seed(seed, "seed")
-        _check_seed(self.pattern_seed, "pattern_seed")
+        as_seed(seed, "seed")
+        as_seed(self.pattern_seed, "pattern_seed")
         return _native.NativeSensor(
             exposure_time=float(exposure_time),
             full_well=float(self.full_well),
