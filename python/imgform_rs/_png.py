@@ -96,6 +96,17 @@ def read_png16(data: bytes) -> np.ndarray | None:
     return high.astype(np.uint16) << 8 | low
 
 
+def read_image(path: Path) -> np.ndarray:
+    """The pixels of an image file: a 16-bit colour PNG at its full depth
+    (:func:`read_png16`), any other file by imageio. Decoded from the file's
+    bytes, as imageio leaves a file it fails on open otherwise."""
+    import imageio.v3 as iio
+
+    data = path.read_bytes()
+    img = read_png16(data)
+    return img if img is not None else np.asarray(iio.imread(data, extension=path.suffix or None))
+
+
 def for_png(rgb: np.ndarray) -> np.ndarray:
     """uint8/uint16 pass through; float images are clipped to [0, 1] and
     written with 16 bits."""

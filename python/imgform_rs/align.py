@@ -859,17 +859,11 @@ def read_plate(path: str | Path) -> np.ndarray:
         A file that cannot be read or decoded, or is not a 2-D / RGB image
         of uint8, uint16 or float32 samples; the message names the file.
     """
-    import imageio.v3 as iio
-
-    from ._png import read_png16
+    from ._png import read_image
 
     path = Path(path)
     try:
-        # Decoding from bytes: imageio leaves a failed file open otherwise.
-        data = path.read_bytes()
-        img = read_png16(data)
-        if img is None:
-            img = np.asarray(iio.imread(data, extension=path.suffix or None))
+        img = read_image(path)
     except Exception as exc:  # imageio raises many types for bad files
         reason = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise ValueError(f"cannot read plate {str(path)!r}: {reason}") from exc

@@ -180,11 +180,8 @@ def _srgb_to_linear(img: np.ndarray) -> np.ndarray:
 def _film(args: argparse.Namespace) -> int:
     import time
 
-    import imageio.v3 as iio
-    import numpy as np
-
     from . import film
-    from ._png import for_png, read_png16, write_png
+    from ._png import for_png, read_image, write_png
 
     try:
         stock = film.load_stock(args.stock)
@@ -203,11 +200,7 @@ def _film(args: argparse.Namespace) -> int:
             continue
         start = time.perf_counter()
         try:
-            data = path.read_bytes()
-            img = read_png16(data)
-            if img is None:
-                img = np.asarray(iio.imread(data, extension=path.suffix))
-            rgb = _srgb_to_linear(img)
+            rgb = _srgb_to_linear(read_image(path))
             result = film.simulate(
                 rgb,
                 stock,
