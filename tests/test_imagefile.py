@@ -118,6 +118,65 @@ def test_exif_numbers_are_rationals_and_the_exif_ifd_has_its_version(tmp_path):
         assert sub[36864] == (7, 4, b"0232")
 
 
+def exif_ifd(path) -> tuple[str, dict[int, tuple[int, int, bytes]]]:
+    """The byte order and the Exif IFD's entries of a JPEG or PNG, with
+    their TIFF types."""
+    with Image.open(path) as im:
+        tiff = im.info["exif"].removeprefix(b"Exif\0\0")
+    order = "<" if tiff[:2] == b"II" else ">"
+    (first,) = struct.unpack_from(order + "I", tiff, 4)
+    pointer = ifd_entries(tiff, first)[0x8769][2]
+    return order, ifd_entries(tiff, struct.unpack(order + "I", pointer)[0])
+
+
+@pytest.mark.parametrize(
+    ("name", "color", "tone", "space"),
+    [
+        ("a.jpg", "srgb", "auto", 1),
+        ("a.png", "srgb", "srgb", 1),
+        ("a.jpg", "display_p3", "auto", 0xFFFF),  # no Exif value but sRGB's
+        ("a.png", "srgb", "linear", 0xFFFF),  # sRGB primaries, not its curve
+    ],
+)
+def test_the_exif_ifd_describes_the_written_image(tmp_path, name, color, tone, space):
+    """Exif 2.32's tags of the image itself: ColorSpace, PixelXDimension,
+    PixelYDimension, FlashpixVersion and, for JPEG (compressed),
+    ComponentsConfiguration Y Cb Cr; the shot's tags stay."""
+    path = ig.write_image(
+        tmp_path / name,
+        rgb(np.uint8, h=24, w=32),
+        color=color,
+        tone=tone,
+        exif=exif_bytes(SHOT, 0, True),
+    )
+    order, sub = exif_ifd(path)
+    assert sub[40961][:2] == (3, 1) and sub[40961][2][:2] == struct.pack(order + "H", space)
+    assert [sub[t][2][:2] for t in (40962, 40963)] == [
+        struct.pack(order + "H", 32),
+        struct.pack(order + "H", 24),
+    ]
+    assert sub[40960] == (7, 4, b"0100") and sub[36864] == (7, 4, b"0232")
+    if name.endswith(".jpg"):
+        assert sub[37121] == (7, 4, b"\x01\x02\x03\x00")
+    else:
+        assert 37121 not in sub
+    assert sub[34855][2][:2] == struct.pack(order + "H", 400)
+
+
+def test_an_iso_beyond_a_short_is_the_recommended_exposure_index(tmp_path):
+    """PhotographicSensitivity is a SHORT: ISO 102400 is written as 65535
+    there and in full as RecommendedExposureIndex (LONG), SensitivityType 2."""
+    shot = replace(SHOT, iso=102400)
+    path = ig.write_image(tmp_path / "a.jpg", rgb(np.uint8), exif=exif_bytes(shot, 0, True))
+    order, sub = exif_ifd(path)
+    assert sub[34855] == (3, 1, struct.pack(order + "HH", 65535, 0))
+    assert sub[34864] == (3, 1, struct.pack(order + "HH", 2, 0))
+    assert sub[34866] == (4, 1, struct.pack(order + "I", 102400))
+    # At ISO 65535 and below, neither extra tag.
+    path = ig.write_image(tmp_path / "b.jpg", rgb(np.uint8), exif=exif_bytes(SHOT, 0, True))
+    assert not {34864, 34866} & exif_ifd(path)[1].keys()
+
+
 def test_exif_without_its_app1_prefix_is_accepted(tmp_path):
     bare = exif_bytes(SHOT, 0, True).removeprefix(b"Exif\0\0")
     for name in ("a.jpg", "a.png", "a.tif"):

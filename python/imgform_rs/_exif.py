@@ -18,11 +18,23 @@ Exposure time, f-number and focal length are RATIONALs, the type CIPA
 DC-008 gives them (readers such as exiftool and piexif expect it; Pillow
 would write a float as DOUBLE), and the Exif IFD carries the ExifVersion it
 makes mandatory.
+
+The tags that describe the written image rather than the shot are added by
+:func:`for_image` as the file is written: its size (PixelXDimension,
+PixelYDimension), whether its colours are sRGB (ColorSpace 1) or anything else
+(0xFFFF, "uncalibrated": Exif has no other value for Display P3 or Adobe RGB,
+whose ICC profile then says what they are), FlashpixVersion and, for JPEG, how
+its components are stored (ComponentsConfiguration Y, Cb, Cr), which Exif 2.32
+makes mandatory for compressed images. An ISO above 65535, which the SHORT
+PhotographicSensitivity tag cannot hold, is written as 65535 there and in full
+as the RecommendedExposureIndex (a LONG), with SensitivityType 2 saying so, as
+cameras record their highest ISO settings.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import struct
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -41,6 +53,18 @@ _EXPOSURE_TIME, _F_NUMBER, _ISO, _DATETIME_ORIGINAL = 33434, 33437, 34855, 36867
 _FOCAL_LENGTH, _LENS_MAKE, _LENS_MODEL = 37386, 42035, 42036
 # ExifVersion: the tags written here are those of Exif 2.32 (CIPA DC-008-2019).
 _EXIF_VERSION, _VERSION = 36864, b"0232"
+_SENSITIVITY_TYPE, _RECOMMENDED_EXPOSURE_INDEX = 34864, 34866
+# What PhotographicSensitivity (a SHORT) holds at most, and the
+# SensitivityType saying the full value is the RecommendedExposureIndex.
+_ISO_SHORT_MAX, _REI_ONLY = 65535, 2
+# The written image's tags: its components' order (Y, Cb, Cr; mandatory for
+# compressed files), Flashpix version 1.0, colour space, size.
+_COMPONENTS, _YCBCR = 37121, b"\x01\x02\x03\x00"
+# The TIFF type of opaque bytes.
+_UNDEFINED = 7
+_FLASHPIX_VERSION, _FLASHPIX_1_0 = 40960, b"0100"
+_COLOR_SPACE, _SRGB, _UNCALIBRATED = 40961, 1, 0xFFFF
+_PIXEL_X, _PIXEL_Y = 40962, 40963
 
 _NO_DATE = dt.datetime(1970, 1, 1)
 
@@ -153,8 +177,59 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
             fraction = _simplest(value)
             sub[tag] = IFDRational(fraction.numerator, fraction.denominator)
     if info.iso:
-        sub[_ISO] = round(info.iso)
+        iso = round(info.iso)
+        sub[_ISO] = min(iso, _ISO_SHORT_MAX)
+        if iso > _ISO_SHORT_MAX:
+            sub[_SENSITIVITY_TYPE] = _REI_ONLY
+            sub[_RECOMMENDED_EXPOSURE_INDEX] = iso
     for tag, text in ((_LENS_MAKE, info.lens_make), (_LENS_MODEL, info.lens)):
         if text:
             sub[tag] = text
     return exif.tobytes()
+
+
+def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -> bytes:
+    """``exif`` (led by ``Exif\\0\\0``) with the tags of the image it goes
+    into, ``width`` x ``height`` pixels: size, colour space (``srgb``: sRGB
+    primaries and curve), Flashpix version and, for a ``jpeg``, the YCbCr
+    components; the Exif IFD is made if ``exif`` has none. Other tags are
+    kept as they are."""
+    from PIL import Image
+
+    tags = Image.Exif()
+    tags.load(exif)
+    sub = tags.get_ifd(_EXIF_IFD)
+    sub.setdefault(_EXIF_VERSION, _VERSION)
+    sub[_FLASHPIX_VERSION] = _FLASHPIX_1_0
+    sub[_COLOR_SPACE] = _SRGB if srgb else _UNCALIBRATED
+    sub[_PIXEL_X], sub[_PIXEL_Y] = width, height
+    if jpeg:
+        sub[_COMPONENTS] = _YCBCR
+    else:
+        sub.pop(_COMPONENTS, None)
+    written = tags.tobytes()
+    return _undefined(written, _COMPONENTS) if jpeg else written
+
+
+def _undefined(exif: bytes, tag: int) -> bytes:
+    """``exif`` with the Exif IFD's ``tag`` typed UNDEFINED (7), as CIPA
+    DC-008 types ComponentsConfiguration: Pillow knows no type for it and
+    writes its four bytes as BYTE (1), whose entry is laid out the same."""
+    tiff = bytearray(exif.removeprefix(b"Exif\0\0"))
+    order = "<" if tiff[:2] == b"II" else ">"
+    (ifd0,) = struct.unpack_from(order + "I", tiff, 4)
+    sub = next(
+        struct.unpack_from(order + "I", tiff, entry + 8)[0]
+        for entry in _entries(tiff, order, ifd0)
+        if struct.unpack_from(order + "H", tiff, entry)[0] == _EXIF_IFD
+    )
+    for entry in _entries(tiff, order, sub):
+        if struct.unpack_from(order + "H", tiff, entry)[0] == tag:
+            struct.pack_into(order + "H", tiff, entry + 2, _UNDEFINED)
+    return b"Exif\0\0" + bytes(tiff)
+
+
+def _entries(tiff: bytes, order: str, offset: int) -> range:
+    """The offsets of the 12-byte entries of the IFD at ``offset``."""
+    (count,) = struct.unpack_from(order + "H", tiff, offset)
+    return range(offset + 2, offset + 2 + 12 * count, 12)

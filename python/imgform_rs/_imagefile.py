@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from . import _exif
 from ._icc import icc_profile
 from ._png import write_png
 
@@ -348,11 +349,14 @@ def write_image(
         (H, W) image gets a grey profile with the tone curve alone: an RGB
         profile does not apply to one channel (libpng drops it).
     exif : bytes, optional
-        EXIF to embed, e.g. :func:`~imgform_rs.raw_exif` of the raw (TIFF
-        files keep its IFD0 tags only: make, model, date, artist,
-        orientation; EXR files its camera, lens, exposure and date as
-        OpenEXR's standard attributes, and refuse an orientation other than
-        1, which EXR cannot record).
+        EXIF to embed, e.g. :func:`~imgform_rs.raw_exif` of the raw. JPEG
+        and PNG files get it with the Exif tags of the image itself added:
+        its size, ColorSpace (sRGB for ``"srgb"`` with the sRGB curve, else
+        uncalibrated, the profile saying what it is), FlashpixVersion and,
+        for JPEG, ComponentsConfiguration. TIFF files keep its IFD0 tags
+        only (make, model, date, artist, orientation); EXR files its camera,
+        lens, exposure and date as OpenEXR's standard attributes, and refuse
+        an orientation other than 1, which EXR cannot record.
     quality : int
         JPEG quality, 1 to 100.
     overwrite : bool
@@ -398,6 +402,10 @@ def write_image(
     if exif is not None:
         exif = _check_exif(exif)
     img = np.asarray(image)
+    if exif is not None and kind in ("jpeg", "png") and img.ndim in (2, 3):
+        srgb = color == "srgb" and _tone_for(color, tone) == "srgb"
+        height, width = img.shape[:2]
+        exif = _exif.for_image(exif, width, height, jpeg=kind == "jpeg", srgb=srgb)
     _check_image(img, kind, exif)
     if kind == "exr":
         check_exr(color, _tone_for(color, tone), exif)
