@@ -70,7 +70,7 @@ filters: $(BUILT) ## rebuild the leung2011 demosaicer's least-squares filters
 	$(PY) -m imgform_rs.training.leung2011
 
 WEIGHTS := $(addprefix rust/imgform-core/src/demosaic/,raisr_weights.bin raisr_fast_weights.bin \
-	raisr_cd_weights.bin fusion_weights.bin fusion_refined_weights.bin)
+	raisr_cd_weights.bin fusion_weights.bin fusion_refined_weights.bin fusion_cnn_weights.bin)
 # include_bytes! makes the weights part of the extension.
 $(BUILT): $(WEIGHTS)
 
@@ -106,7 +106,7 @@ $(TRAINING_DATA)/.fetched-extended: $(TRAINING_DATA)/.fetched
 training-data: $(TRAINING_DATA)/.fetched-extended ## fetch the training photographs (Debian + PyPI)
 
 .PHONY: weights
-weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "raisr_fast", "raisr_cd", "fusion", "fusion_refined") and check the shipped weights bit for bit
+weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demosaicers ("raisr", "raisr_fast", "raisr_cd", "fusion", "fusion_refined", "fusion_cnn") and check the shipped weights bit for bit
 	mkdir -p out
 	# fusion_refined trains over the built extension's fusion, so it comes last.
 	for m in raisr raisr_fast raisr_cd fusion fusion_refined; do \
@@ -114,6 +114,12 @@ weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demo
 		cmp out/$${m}_weights.bin rust/imgform-core/src/demosaic/$${m}_weights.bin && \
 		echo "$$m weights reproduced bit for bit" || exit 1; \
 	done
+	# fusion_cnn's network trains over fusion_refined, with PyTorch (about 40
+	# minutes on one core).
+	$(PY) -m pip install --quiet "torch==2.15.0"
+	$(PY) -m imgform_rs.training.cnn --out out/fusion_cnn_weights.bin
+	cmp out/fusion_cnn_weights.bin rust/imgform-core/src/demosaic/fusion_cnn_weights.bin
+	@echo "fusion_cnn weights reproduced bit for bit"
 
 # The docs extra (Sphinx and friends, named in pyproject.toml) on top of the
 # release build; maturin reinstalls the built extension with the extras, so

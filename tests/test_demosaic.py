@@ -61,13 +61,14 @@ def test_methods_are_exactly_the_documented_ones():
         "raisr_cd",
         "fusion",
         "fusion_refined",
+        "fusion_cnn",
         "markesteijn",
         "best",
         "quality",
     )
 
 
-@pytest.mark.parametrize(("alias", "method"), [("best", "raisr_cd"), ("quality", "fusion_refined")])
+@pytest.mark.parametrize(("alias", "method"), [("best", "raisr_cd"), ("quality", "fusion_cnn")])
 def test_aliases_name_a_method(alias, method):
     raw = np.random.default_rng(4).integers(0, 4096, (40, 52)).astype(np.uint16)
     for pattern in ["RGGB", "GBRG"]:
@@ -148,10 +149,19 @@ def test_bilinear_reproduces_a_linear_ramp_in_the_interior(a, b, h, w, p, dtype)
 
 
 # The learned filters of "raisr", "raisr_fast", "raisr_cd", "fusion" and
-# "fusion_refined" ("best" and "quality" name learned methods) are not mirror-symmetric,
-# so flips change their output slightly; tests/test_raisr.py checks their tile seams by
-# a shift instead.
-LEARNED = ("raisr", "raisr_fast", "raisr_cd", "best", "fusion", "fusion_refined", "quality")
+# "fusion_refined", and "fusion_cnn"'s network ("best" and "quality" name learned
+# methods) are not mirror-symmetric, so flips change their output slightly;
+# tests/test_raisr.py and tests/test_cnn.py check their tile seams by a shift instead.
+LEARNED = (
+    "raisr",
+    "raisr_fast",
+    "raisr_cd",
+    "best",
+    "fusion",
+    "fusion_refined",
+    "fusion_cnn",
+    "quality",
+)
 FLIP_SYMMETRIC = [m for m in METHODS if m not in LEARNED]
 
 

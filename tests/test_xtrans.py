@@ -103,7 +103,7 @@ def test_an_alias_has_the_halo_of_the_method_it_selects(alias):
     "markesteijn" (18), not of the aliases' Bayer methods (22, 24)."""
     for layout in (TILE, LAYOUTS[7], "XTRANS"):
         assert ig.demosaic_halo(alias, layout) == ig.demosaic_halo("markesteijn", layout)
-    bayer = {"best": "raisr_cd", "quality": "fusion_refined"}[alias]
+    bayer = {"best": "raisr_cd", "quality": "fusion_cnn"}[alias]
     for pattern in ("RGGB", np.array([[1, 0], [2, 1]])):
         assert ig.demosaic_halo(alias, pattern) == ig.demosaic_halo(bayer, pattern)
 

@@ -188,37 +188,62 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"mlri"`` (unbounded, before the saturated classes) it would score 0.02 / 0.08 /
   0.07 dB more, at 1.23 times the time and with 1.64 times the zone plate's false
   colour (13157). 54 MP/s at 24 MP on two cores, 1.13x the time of ``"fusion"`` and
-  1.93x LibRaw's AHD (56 MP/s and 1.98x as ``"quality"`` in the same run;
-  ``benchmarks/demosaic.py``, 2026-12-06), 4.8 % of the output in extra memory.
+  1.93x LibRaw's AHD (``benchmarks/demosaic.py``, 2026-12-06), 4.8 % of the output
+  in extra memory.
   Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
+- ``"fusion_cnn"``: ``"fusion_refined"`` corrected by a small convolutional network,
+  run by our own kernel (no deep-learning runtime): six 3x3 convolutions over the
+  mosaic's 2x2 cells (12 values in, 32 channels between, ReLU, no biases; 26 x 26
+  pixels seen), whose output is added to every missing colour (python -m
+  imgform_rs.training.cnn; 175 KB). The hashed filters of the learned methods are
+  linear within a class, and a class cannot always tell aliasing from texture; the
+  network decides that non-linearly over a wider window. Without biases it is
+  positively homogeneous: the network needs no white level (its base does). Mean
+  CPSNR 40.05 dB on the scikit-image seven, 40.44 on CBSD68, 36.44 on Urban24: 0.06
+  and 0.31 dB above ``"fusion_refined"`` on the first two but 0.14 below it on
+  Urban24, whose buildings alias in ways the training photographs rarely do (37.81
+  on the nine held-out photographs, 0.42 more); still 0.9-1.6 dB below demosaicnet,
+  which has about twelve times its network's work per pixel. On the grey zone plate
+  less false colour than any learned method of ours (4822; ``"fusion_refined"``
+  5665) but more zipper (39.8 % of pixels against 35.3 %). Trained with PyTorch on
+  the CPU (the ``train`` extra; 30 000 steps, 40 minutes on one core) on the 293
+  photographs alone: with the 192 synthetic images too, whose errors are ten times
+  the photographs', the small network gained nothing on the validation subsets.
+  9 MP/s at 24 MP on two cores with AVX-512, 0.36x LibRaw AHD's speed and 32 times
+  demosaicnet's (``benchmarks/demosaic.py``, 2026-12-06), nearly all of it the
+  network's ~11 k multiply-adds per pixel; CPUs without AVX-512 run a portable kernel
+  that gives the same bits several times slower. 3.9 % of the output in extra
+  memory. Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently
   ``"raisr_cd"``, chosen on the benchmark's three validation subsets (``python
   benchmarks/demosaic.py quality``: the seven scikit-image images, the 68 CBSD68
   photographs and the first 24 Urban100 images; 8-bit protocol, RGGB, 10 px crop).
   Mean CPSNR per subset:
 
-  ========================  ==========  ======  =======
-  method                    scikit 7    CBSD68  Urban24
-  ========================  ==========  ======  =======
-  ``"fusion_refined"``      39.99       40.13   36.58
-  ``"fusion"``              39.96       39.96   36.47
-  ``"raisr"``               39.90       39.92   36.29
-  ``"raisr_cd"`` (best)     39.67       39.84   36.26
-  ``"raisr_fast"``          39.69       39.84   36.20
-  ``"ri_cd"``               39.72       39.10   35.77
-  ``"mlri"``                39.80       38.89   35.70
-  ``"rcd_menon"``           39.63       37.38   34.89
-  ``"menon2007"``           38.76       37.60   34.72
-  eari-demosaic RI          38.80       38.99   35.56
-  LibRaw AAHD               38.78       35.67   32.73
-  ========================  ==========  ======  =======
+  ============================  ==========  ======  =======
+  method                        scikit 7    CBSD68  Urban24
+  ============================  ==========  ======  =======
+  ``"fusion_cnn"`` (quality)    40.05       40.44   36.45
+  ``"fusion_refined"``          39.99       40.13   36.58
+  ``"fusion"``                  39.96       39.96   36.47
+  ``"raisr"``                   39.90       39.92   36.29
+  ``"raisr_cd"`` (best)         39.67       39.84   36.26
+  ``"raisr_fast"``              39.69       39.84   36.20
+  ``"ri_cd"``                   39.72       39.10   35.77
+  ``"mlri"``                    39.80       38.89   35.70
+  ``"rcd_menon"``               39.63       37.38   34.89
+  ``"menon2007"``               38.76       37.60   34.72
+  eari-demosaic RI              38.80       38.99   35.56
+  LibRaw AAHD                   38.78       35.67   32.73
+  ============================  ==========  ======  =======
 
   The residual-interpolation peer (Kiku et al. 2013, in NumPy), the strongest
   classical one, is 0.87 / 0.85 / 0.70 dB behind ``"best"`` and 0.09 dB ahead of
   ``"mlri"`` alone on CBSD68; LibRaw and colour-demosaicing's Menon2007 are further
   behind on every subset.
 - ``"quality"``: the most accurate method whatever its speed, by the mean over the
-  three subsets: currently ``"fusion_refined"``; ``"markesteijn"`` for X-Trans.
+  three subsets: currently ``"fusion_cnn"`` (0.08 dB above ``"fusion_refined"`` on
+  that mean, but 0.14 dB below it on Urban24), ``"markesteijn"`` for X-Trans.
 
 - ``"markesteijn"`` (X-Trans only): Frank Markesteijn's X-Trans method, as in dcraw's
   and LibRaw's ``xtrans_interpolate`` (one pass) — green interpolated along rows,
@@ -242,7 +267,7 @@ method                 Bayer           X-Trans
 ``"bilinear"``         yes             yes
 ``"markesteijn"``      no              yes
 ``"best"``             raisr_cd        markesteijn
-``"quality"``          fusion_refined  markesteijn
+``"quality"``          fusion_cnn      markesteijn
 every other method     yes             no
 =====================  ==============  =========
 
@@ -310,7 +335,7 @@ def demosaic(
     method : str
         One of :data:`BAYER_DEMOSAIC_METHODS` for Bayer patterns, of
         :data:`XTRANS_DEMOSAIC_METHODS` for X-Trans. ``"best"`` is ``"raisr_cd"``
-        for Bayer, ``"quality"`` ``"fusion_refined"``; both are ``"markesteijn"``
+        for Bayer, ``"quality"`` ``"fusion_cnn"``; both are ``"markesteijn"``
         for X-Trans.
     white_level : float, optional
         The value of a saturated sample, a finite number > 0. The methods of
