@@ -282,11 +282,11 @@ def test_one_depths_disparity_refocuses_and_several_make_a_focal_stack(planes):
 @pytest.mark.parametrize(
     ("args", "error", "match"),
     [
-        # Before: inf with a warning, negative disparities and NaN silently.
-        ((BASELINE, 0.0), ValueError, r"depth must be finite and > 0, got 0\.0"),
-        ((BASELINE, -2.0), ValueError, r"depth must be finite and > 0, got -2\.0"),
-        ((BASELINE, [1.0, np.nan]), ValueError, "depth must be finite and > 0, got nan"),
-        ((BASELINE, np.inf), ValueError, "depth must be finite"),
+        # Before: negative disparities and NaN silently.
+        ((BASELINE, 0.0), ValueError, r"depth must be > 0 \(inf for the far distance\), got 0\.0"),
+        ((BASELINE, -2.0), ValueError, r"depth must be > 0 .*, got -2\.0"),
+        ((BASELINE, [1.0, np.nan]), ValueError, "depth must be > 0 .*, got nan"),
+        ((BASELINE, -np.inf), ValueError, "depth must be > 0 .*, got -inf"),
         ((BASELINE, "far"), TypeError, "depth must be real numbers"),
         ((-BASELINE, 2.0), ValueError, r"baseline must be a finite number > 0, got -0\.02"),
         ((np.nan, 2.0), ValueError, "baseline must be a finite number > 0"),
@@ -296,6 +296,12 @@ def test_one_depths_disparity_refocuses_and_several_make_a_focal_stack(planes):
 def test_view_disparity_refuses_what_has_no_disparity(args, error, match):
     with pytest.raises(error, match=match):
         ig.view_disparity(camera(), *args)
+
+
+def test_the_far_distance_has_disparity_zero_and_refocuses_to_the_plain_mean(planes):
+    alphas = ig.view_disparity(camera(), BASELINE, [np.inf, DEPTH["near"]])
+    assert alphas[0] == 0.0 and alphas[1] > 0
+    np.testing.assert_array_equal(ig.refocus(planes, alphas[0]), ig.refocus(planes, 0.0))
 
 
 def test_view_disparity_needs_a_camera():

@@ -91,9 +91,10 @@ def view_disparity(camera: Camera, baseline: float, depth: Any) -> Any:
         Distance between neighbouring views (finite, > 0), as given to
         :func:`render_light_field`.
     depth : float or array_like of float
-        Depths along the optical axis (finite, > 0: a point at or behind
-        the pinhole has no disparity, and a negative one would refocus the
-        wrong way silently).
+        Depths along the optical axis (> 0: a point at or behind the
+        pinhole has no disparity, and a negative one would refocus the
+        wrong way silently). ``inf`` is the far distance, disparity 0: the
+        views' plain mean (``refocus(lf, 0.0)``) focuses there.
 
     Returns
     -------
@@ -106,13 +107,14 @@ def view_disparity(camera: Camera, baseline: float, depth: Any) -> Any:
         ``camera`` is not a :class:`Camera`, or ``baseline`` or ``depth`` not
         real numbers.
     ValueError
-        A ``baseline`` or a ``depth`` that is not finite and > 0.
+        A ``baseline`` that is not finite and > 0, or a ``depth`` that is NaN
+        or not > 0.
 
     Examples
     --------
     >>> cam = Camera.from_intrinsics(500.0, 500.0, 63.5, 47.5)
-    >>> view_disparity(cam, 0.02, [2.0, 5.0, 10.0])
-    array([5., 2., 1.])
+    >>> view_disparity(cam, 0.02, [2.0, 5.0, 10.0, float("inf")])
+    array([5., 2., 1., 0.])
     """
     if not isinstance(camera, Camera):
         raise TypeError(f"camera must be an imgform_rs.Camera, got {type(camera).__name__}")
@@ -121,9 +123,10 @@ def view_disparity(camera: Camera, baseline: float, depth: Any) -> Any:
     if z.dtype.kind not in "iuf":
         raise TypeError(f"depth must be real numbers, got {depth!r}")
     z = z.astype(np.float64)
-    bad = ~(np.isfinite(z) & (z > 0))
+    bad = ~(z > 0)  # NaN too
     if bad.any():
-        raise ValueError(f"depth must be finite and > 0, got {float(z[bad].flat[0])}")
+        got = float(z[bad].flat[0])
+        raise ValueError(f"depth must be > 0 (inf for the far distance), got {got}")
     return b * float(camera.K[0, 0]) / z
 
 
