@@ -558,3 +558,17 @@ def test_tiff_keeps_the_exif_in_ifd0_for_the_reason_the_module_gives(tmp_path):
         tags = tif.pages[0].tags
         assert "ExifTag" not in tags and tags["Make"].value == "Canon"
     assert 34665 in tifffile.TIFF.TAG_FILTERED
+
+
+def test_a_replaced_file_keeps_its_permissions_and_a_link_stays_a_link(tmp_path):
+    real = ig.write_image(tmp_path / "real.png", rgb(np.uint8))
+    real.chmod(0o640)
+    link = tmp_path / "link.png"
+    link.symlink_to(real.name)
+    new = rgb(np.uint8, seed=1)
+    assert ig.write_image(link, new, overwrite=True) == link
+    assert link.is_symlink() and os.readlink(link) == "real.png"
+    assert real.stat().st_mode & 0o777 == 0o640
+    with Image.open(real) as im:
+        np.testing.assert_array_equal(np.asarray(im), new)
+    assert sorted(os.listdir(tmp_path)) == ["link.png", "real.png"]

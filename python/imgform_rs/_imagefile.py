@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import numbers
 import os
+import stat
 import uuid
 from pathlib import Path
 from typing import Any
@@ -303,6 +304,24 @@ def partial_path(target: Path) -> Path:
     return target.with_name(f".{target.stem}.part-{uuid.uuid4().hex}{target.suffix}")
 
 
+def landing(target: Path) -> Path:
+    """Where a file written to ``target`` lands: through a symbolic link to
+    the file it names (as ``open`` writes), so that replacing a linked file
+    keeps the link, and the partial file beside it is on its file system."""
+    return target.resolve() if target.is_symlink() else target
+
+
+def replace_onto(partial: Path, dest: Path) -> None:
+    """Renames the finished ``partial`` onto ``dest`` (atomic), giving it the
+    permission bits of the file it replaces: a replaced file stays as
+    readable, or as private, as it was. (Its owner becomes the writer.)"""
+    try:
+        os.chmod(partial, stat.S_IMODE(dest.stat().st_mode))
+    except FileNotFoundError:
+        pass
+    os.replace(partial, dest)
+
+
 def _reserve(target: Path) -> Path:
     """A new, empty file beside ``target`` for the encoder to write
     (:func:`partial_path`).
@@ -362,7 +381,9 @@ def write_image(
     overwrite : bool
         Replace an existing file; by default an existing file is never touched.
         The file is written under a temporary name beside ``path`` and
-        renamed onto it, so a failed write leaves the old file as it was.
+        renamed onto it, so a failed write leaves the old file as it was. A
+        replaced file keeps its permission bits; a symbolic link stays, and
+        the file it names is replaced.
 
     Returns
     -------
@@ -413,7 +434,8 @@ def write_image(
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
     grey = img.ndim == 2
     icc = None if kind == "exr" else icc_profile(color, _tone_for(color, tone), grey=grey)
-    partial = _reserve(target)
+    dest = landing(target)
+    partial = _reserve(dest)
     try:
         if kind == "exr":
             _exr(partial, img, color, exif)
@@ -423,7 +445,7 @@ def write_image(
             write_png(partial, img, icc=icc, exif=exif)
         else:
             _pillow(partial, img, kind, icc, exif, quality)
-        os.replace(partial, target)
+        replace_onto(partial, dest)
     except BaseException:  # an interrupt too: the partial file must not stay
         partial.unlink(missing_ok=True)
         raise

@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any
 
 from ._chunked import demosaic_dask, develop_dask
-from ._imagefile import partial_path
+from ._imagefile import landing, partial_path, replace_onto
 
 __all__ = [
     "WORKER_CONFIG",
@@ -177,12 +177,14 @@ def local_client(workers: int = 2, *, env: dict[str, str] | None = None) -> Iter
 
 
 def write_atomically(target: Path, write: Callable[[Path], Any]) -> None:
-    """Calls ``write(temporary)`` then renames the file to ``target``; the
+    """Calls ``write(temporary)`` then renames the file to ``target`` (through
+    a symbolic link, keeping a replaced file's permission bits); the
     temporary file is removed if ``write`` fails."""
-    tmp = partial_path(target)
+    dest = landing(target)
+    tmp = partial_path(dest)
     try:
         write(tmp)
-        os.replace(tmp, target)
+        replace_onto(tmp, dest)
     finally:
         tmp.unlink(missing_ok=True)
 
