@@ -212,7 +212,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   9 MP/s at 24 MP on two cores with AVX-512, 0.36x LibRaw AHD's speed and 32 times
   demosaicnet's (``benchmarks/demosaic.py``, 2026-12-06), nearly all of it the
   network's ~11 k multiply-adds per pixel; AVX2 CPUs run it at about two thirds of that
-  speed, others a portable kernel ninety times slower, all giving the same bits. 3.9 % of
+  speed, x86 CPUs without FMA a hundred times slower, all giving the same bits. 3.9 % of
   the output in extra memory. Not flip-symmetric. Outputs are clamped to the range
   of the input mosaic.
 - ``"best"``: our most accurate method at about the speed of the fast ones, currently

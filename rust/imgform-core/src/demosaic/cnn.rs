@@ -27,9 +27,10 @@
 //! Speed: the layers are ~11 k multiply-adds per pixel, nearly all of the
 //! time; AVX-512 runs them at ~60 G multiply-adds per second per thread in
 //! [`avx512::block`] (8.4 MP/s for the whole method on two threads).
-//! AVX2 CPUs run [`avx2::block`] (5.5 MP/s, `IMGFORM_ISA=avx2` on the same
-//! machine), others the portable [`block`] (0.1 MP/s: without FMA in
-//! hardware each fused multiply-add is a call); they give the same bits.
+//! Other CPUs run the portable [`block`], which the compiler vectorises:
+//! AVX2 ones compiled for AVX2 and FMA ([`avx2::block`], 5.5 MP/s with
+//! `IMGFORM_ISA=avx2` on the same machine). x86 CPUs without FMA are slow
+//! (0.07 MP/s: each fused multiply-add is a call). All give the same bits.
 
 use super::ring::Ring;
 use super::tiled::{Emit, Load, StreamKernel, Tile};
@@ -451,7 +452,11 @@ fn conv_row<const CIN: usize, const V: usize, const B: usize, const RELU: bool>(
 
 /// Output quads `x .. x + B` of [`conv_row`], in portable code: the same
 /// fused multiply-adds in the same order as [`avx512::block`], so the
-/// same bits.
+/// same bits. Run by [`avx2::block`] too, compiled for AVX2 and FMA.
+///
+/// It works in runs of a few quads whose sums (`V` vectors of 16 floats a
+/// quad) fit in registers with one input channel's weights: AVX2's 16
+/// take four quads of 16 channels or two of 32 (NEON's 32 the same).
 #[inline(always)]
 fn block<const CIN: usize, const V: usize, const B: usize, const RELU: bool>(
     rows: [&[f32]; 3],
@@ -459,26 +464,56 @@ fn block<const CIN: usize, const V: usize, const B: usize, const RELU: bool>(
     out: &mut [f32],
     x: usize,
 ) {
+    if V == 1 && B.is_multiple_of(4) {
+        for s in (0..B).step_by(4) {
+            run::<CIN, V, 4, RELU>(rows, weights, out, x + s);
+        }
+    } else if V == 2 && B.is_multiple_of(2) {
+        for s in (0..B).step_by(2) {
+            run::<CIN, V, 2, RELU>(rows, weights, out, x + s);
+        }
+    } else {
+        for s in 0..B {
+            run::<CIN, V, 1, RELU>(rows, weights, out, x + s);
+        }
+    }
+}
+
+/// Output quads `x .. x + S` of [`block`]. The loops over a quad's sums
+/// are nested zips over whole arrays, which the compiler unrolls into
+/// registers; a `flatten` over them was left as a loop over the sums in
+/// memory, at a thirtieth of the speed.
+#[inline(always)]
+fn run<const CIN: usize, const V: usize, const S: usize, const RELU: bool>(
+    rows: [&[f32]; 3],
+    weights: &[f32],
+    out: &mut [f32],
+    x: usize,
+) {
     let cout = V * LANES;
-    let mut sums = [[[0.0f32; LANES]; V]; B];
+    let mut sums = [[[0.0f32; LANES]; V]; S];
     for (dy, row) in rows.iter().enumerate() {
-        let window = &row[(x - 1) * CIN..(x + B + 1) * CIN];
+        let window = &row[(x - 1) * CIN..(x + S + 1) * CIN];
         for dx in 0..3 {
             let tap = &weights[(3 * dy + dx) * CIN * cout..][..CIN * cout];
             for (ci, w) in tap.chunks_exact(cout).enumerate() {
                 for (b, sum) in sums.iter_mut().enumerate() {
                     let v = window[(b + dx) * CIN + ci];
-                    for (s, w) in sum.iter_mut().flatten().zip(w) {
-                        *s = v.mul_add(*w, *s);
+                    for (s, w) in sum.iter_mut().zip(w.chunks_exact(LANES)) {
+                        for (s, w) in s.iter_mut().zip(w) {
+                            *s = v.mul_add(*w, *s);
+                        }
                     }
                 }
             }
         }
     }
-    let out = &mut out[x * cout..(x + B) * cout];
+    let out = &mut out[x * cout..(x + S) * cout];
     for (dst, sum) in out.chunks_exact_mut(cout).zip(&sums) {
-        for (d, &s) in dst.iter_mut().zip(sum.iter().flatten()) {
-            *d = if RELU { s.max(0.0) } else { s };
+        for (d, s) in dst.chunks_exact_mut(LANES).zip(sum) {
+            for (d, &s) in d.iter_mut().zip(s) {
+                *d = if RELU { s.max(0.0) } else { s };
+            }
         }
     }
 }
@@ -490,8 +525,8 @@ mod avx512 {
 
     /// [`super::block`] in AVX-512: `B x V` sums in registers (24 of the
     /// 32 for 32 channels out), each input value broadcast once for them.
-    /// Rust's autovectoriser spilled the sums of the portable code to the
-    /// stack inside the tile's kernel, at a twentieth of this speed.
+    /// The compiler's own vectors of the portable code, over a whole block
+    /// of 12 quads, left most sums in memory at a fifth of this speed.
     ///
     /// # Safety
     /// The CPU must have AVX-512F and FMA.
@@ -692,16 +727,8 @@ mod tests {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::LANES;
-    use std::arch::x86_64::*;
-
-    /// Floats in an AVX2 register.
-    const HALF: usize = LANES / 2;
-
-    /// [`super::block`] in AVX2: its `B` outputs in runs of `S` that fit
-    /// AVX2's 16 registers with the sums (`2 V` a quad), the weights of one
-    /// input channel (`2 V`) and a broadcast value: four quads of 16
-    /// channels, two of 32, one of 48.
+    /// [`super::block`] compiled for AVX2 and FMA: the compiler's own
+    /// vectors of the portable loops, its fused multiply-adds in hardware.
     ///
     /// # Safety
     /// The CPU must have AVX2 and FMA.
@@ -717,75 +744,6 @@ mod avx2 {
         out: &mut [f32],
         x: usize,
     ) {
-        if V == 1 && B.is_multiple_of(4) {
-            for s in (0..B).step_by(4) {
-                run::<CIN, V, 4, RELU>(rows, weights, out, x + s);
-            }
-        } else if V == 2 && B.is_multiple_of(2) {
-            for s in (0..B).step_by(2) {
-                run::<CIN, V, 2, RELU>(rows, weights, out, x + s);
-            }
-        } else {
-            for s in 0..B {
-                run::<CIN, V, 1, RELU>(rows, weights, out, x + s);
-            }
-        }
-    }
-
-    /// Outputs `x .. x + S`, the same fused multiply-adds in the same
-    /// order as the other paths.
-    ///
-    /// # Safety
-    /// As [`block`].
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    unsafe fn run<const CIN: usize, const V: usize, const S: usize, const RELU: bool>(
-        rows: [&[f32]; 3],
-        weights: &[f32],
-        out: &mut [f32],
-        x: usize,
-    ) {
-        let cout = V * LANES;
-        let mut sums = [[[_mm256_setzero_ps(); 2]; V]; S];
-        for (dy, row) in rows.iter().enumerate() {
-            let window = &row[(x - 1) * CIN..(x + S + 1) * CIN];
-            for dx in 0..3 {
-                let tap = &weights[(3 * dy + dx) * CIN * cout..][..CIN * cout];
-                for ci in 0..CIN {
-                    // SAFETY: `tap` holds `CIN` rows of `cout` weights.
-                    let w: [[__m256; 2]; V] = std::array::from_fn(|k| {
-                        std::array::from_fn(|h| unsafe {
-                            _mm256_loadu_ps(tap.as_ptr().add(ci * cout + k * LANES + h * HALF))
-                        })
-                    });
-                    for (b, sum) in sums.iter_mut().enumerate() {
-                        // SAFETY: `window` holds `S + 2` quads of `CIN`.
-                        let v =
-                            _mm256_set1_ps(unsafe { *window.get_unchecked((b + dx) * CIN + ci) });
-                        // Nested zips, not `flatten`: its iterator was not
-                        // unrolled, which left the sums on the stack.
-                        for (s, w) in sum.iter_mut().zip(&w) {
-                            for (s, w) in s.iter_mut().zip(w) {
-                                *s = _mm256_fmadd_ps(v, *w, *s);
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        let out = &mut out[x * cout..(x + S) * cout];
-        for (dst, sum) in out.chunks_exact_mut(cout).zip(sums) {
-            for (d, s) in dst.chunks_exact_mut(LANES).zip(sum) {
-                for (d, s) in d.chunks_exact_mut(HALF).zip(s) {
-                    let s = if RELU {
-                        _mm256_max_ps(s, _mm256_setzero_ps())
-                    } else {
-                        s
-                    };
-                    // SAFETY: `d` is `HALF` floats long.
-                    unsafe { _mm256_storeu_ps(d.as_mut_ptr(), s) };
-                }
-            }
-        }
+        super::block::<CIN, V, B, RELU>(rows, weights, out, x);
     }
 }
