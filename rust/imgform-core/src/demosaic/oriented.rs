@@ -376,7 +376,8 @@ fn add_avx2<const WIDE: bool>(
         );
         for (x, d) in [(x, lo), (x + 8, hi)] {
             let dst = [&mut *own, &mut *green, &mut *other];
-            super::raisr::add8_avx2(kind, src, dst, (x, limit), d);
+            // SAFETY: AVX2 is enabled here.
+            unsafe { super::raisr::add8_avx2(kind, src, dst, (x, limit), d) };
         }
         x += 16;
     }
