@@ -525,8 +525,8 @@ mod avx512 {
 
     /// [`super::block`] in AVX-512: `B x V` sums in registers (24 of the
     /// 32 for 32 channels out), each input value broadcast once for them.
-    /// The compiler's own vectors of the portable code, over a whole block
-    /// of 12 quads, left most sums in memory at a fifth of this speed.
+    /// The compiler's own vectors of the portable code over a whole block
+    /// of 12 quads ran at a fifth of this speed.
     ///
     /// # Safety
     /// The CPU must have AVX-512F and FMA.
