@@ -114,8 +114,8 @@ weights: $(BUILT) $(TRAINING_DATA)/.fetched-extended ## retrain the learned demo
 		cmp out/$${m}_weights.bin rust/imgform-core/src/demosaic/$${m}_weights.bin && \
 		echo "$$m weights reproduced bit for bit" || exit 1; \
 	done
-	# fusion_cnn's network trains over fusion_refined, with PyTorch (about 40
-	# minutes on one core).
+	# fusion_cnn's network trains over fusion_refined, with PyTorch (41 minutes
+	# on one core with AMX, ~7 GB of memory).
 	$(PY) -m pip install --quiet "torch==2.15.0"
 	$(PY) -m imgform_rs.training.cnn --out out/fusion_cnn_weights.bin
 	cmp out/fusion_cnn_weights.bin rust/imgform-core/src/demosaic/fusion_cnn_weights.bin

@@ -199,16 +199,16 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   linear within a class, and a class cannot always tell aliasing from texture; the
   network decides that non-linearly over a wider window. Without biases it is
   positively homogeneous: the network needs no white level (its base does). Mean
-  CPSNR 40.05 dB on the scikit-image seven, 40.44 on CBSD68, 36.44 on Urban24: 0.06
-  and 0.31 dB above ``"fusion_refined"`` on the first two but 0.14 below it on
-  Urban24, whose buildings alias in ways the training photographs rarely do (37.81
-  on the nine held-out photographs, 0.42 more); still 0.9-1.6 dB below demosaicnet,
-  which has about twelve times its network's work per pixel. On the grey zone plate
-  less false colour than any learned method of ours (4822; ``"fusion_refined"``
-  5665) but more zipper (39.8 % of pixels against 35.3 %). Trained with PyTorch on
-  the CPU (the ``train`` extra; 30 000 steps, 40 minutes on one core) on the 293
-  photographs alone: with the 192 synthetic images too, whose errors are ten times
-  the photographs', the small network gained nothing on the validation subsets.
+  CPSNR 40.29 dB on the scikit-image seven, 40.84 on CBSD68, 36.97 on Urban24: 0.30,
+  0.71 and 0.39 dB above ``"fusion_refined"`` (38.26 on the nine held-out
+  photographs, 0.87 more); 1.35 / 0.46 / 1.07 dB below demosaicnet, which has about
+  twelve times its network's work per pixel. On the grey zone plate less false colour
+  than any learned method of ours (3499; ``"fusion_refined"`` 5665) and about as much
+  zipper (35.7 % of pixels against 35.3 %). Trained with PyTorch on the CPU (the
+  ``train`` extra; 60 000 steps, 41 minutes on one core with AMX) on the 293
+  photographs, each in its eight flips and transpositions: with the 192 synthetic
+  images too, whose errors are ten times the photographs', the small network gained
+  nothing on the validation subsets.
   9 MP/s at 24 MP on two cores with AVX-512, 0.36x LibRaw AHD's speed and 32 times
   demosaicnet's (``benchmarks/demosaic.py``, 2026-12-06), nearly all of it the
   network's ~11 k multiply-adds per pixel; AVX2 CPUs run it at about two thirds of that
@@ -224,7 +224,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ============================  ==========  ======  =======
   method                        scikit 7    CBSD68  Urban24
   ============================  ==========  ======  =======
-  ``"fusion_cnn"`` (quality)    40.05       40.44   36.45
+  ``"fusion_cnn"`` (quality)    40.29       40.84   36.97
   ``"fusion_refined"``          39.99       40.13   36.58
   ``"fusion"``                  39.96       39.96   36.47
   ``"raisr"``                   39.90       39.92   36.29
@@ -243,8 +243,8 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   ``"mlri"`` alone on CBSD68; LibRaw and colour-demosaicing's Menon2007 are further
   behind on every subset.
 - ``"quality"``: the most accurate method whatever its speed, by the mean over the
-  three subsets: currently ``"fusion_cnn"`` (0.08 dB above ``"fusion_refined"`` on
-  that mean, but 0.14 dB below it on Urban24), ``"markesteijn"`` for X-Trans.
+  three subsets: currently ``"fusion_cnn"`` (0.30-0.71 dB above ``"fusion_refined"``
+  on each), ``"markesteijn"`` for X-Trans.
 
 - ``"markesteijn"`` (X-Trans only): Frank Markesteijn's X-Trans method, as in dcraw's
   and LibRaw's ``xtrans_interpolate`` (one pass) — green interpolated along rows,
