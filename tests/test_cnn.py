@@ -1,6 +1,6 @@
 """``"fusion_cnn"``: a small network over ``"fusion_refined"``. What the shared
 demosaic tests don't cover (it is not flip-symmetric): range, tile seams, the
-network the training script encodes, and what it is for."""
+network the training script encodes, the views it trains on, and what it is for."""
 
 from pathlib import Path
 
@@ -79,3 +79,20 @@ def test_the_kernel_runs_the_network_the_training_script_encodes():
     got = ig.demosaic(raw, "RGGB", "fusion_cnn")
     inner = (slice(edge, -edge), slice(edge, -edge))
     np.testing.assert_allclose(got[inner], np.clip(want, raw.min(), raw.max())[inner], atol=2e-6)
+
+
+def test_the_training_views_are_the_eight_flips_and_transpositions():
+    from imgform_rs.training import cnn
+
+    rgb = np.random.default_rng(5).random((3, 5, 3))
+    views = list(cnn.views(rgb))
+    # Each view is one of the square's symmetries applied to the image: the
+    # same pixels, the corners in a different place each time.
+    assert len({v.tobytes() for v in views}) == 8
+    assert sorted(v.shape for v in views) == [(3, 5, 3)] * 4 + [(5, 3, 3)] * 4
+    for v in views:
+        np.testing.assert_array_equal(np.sort(v, axis=None), np.sort(rgb, axis=None))
+        assert v.flags.c_contiguous
+    corners = {tuple(v[i, j].tolist()) for v in views for i in (0, -1) for j in (0, -1)}
+    assert len(corners) == 4
+    assert {tuple(v[0, 0].tolist()) for v in views} == corners
