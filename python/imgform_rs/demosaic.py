@@ -157,7 +157,7 @@ for the four Bayer phases, ``"bilinear"`` and ``"markesteijn"`` for X-Trans:
   (33.95 and 31.92 dB; ``"mlri"`` 33.76 and 31.95), with no loss at their own
   colours. Not flip-symmetric. Outputs are clamped to the range of the input mosaic.
   Mean CPSNR 39.96 dB on the scikit-image seven, 39.96 on CBSD68, 36.47 on Urban24:
-  0.9-1.2 dB above every classical peer we run, still 1.3-1.6 dB below the deep
+  0.9-1.2 dB above every classical peer we run, still 1.3-1.7 dB below the deep
   demosaicnet. Where the mosaic aliases, ``"rcd"``'s colours stray, so the filters
   see its differences clamped (to 32/255 of the full scale) and move no missing
   colour's difference from green more than 8/255 from ``"ri_cd"``'s: on the grey zone
