@@ -49,36 +49,89 @@ def test_it_removes_error_from_fusion_refined_and_keeps_the_samples():
     assert errors["fusion_cnn"] < 0.99 * errors["fusion_refined"]
 
 
-def test_the_kernel_runs_the_network_the_training_script_encodes():
-    torch = pytest.importorskip("torch")
+def read_network(blob: bytes) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The shipped file's layers as int8 weights ``(3, 3, in, out)`` and float32
+    factors, read by its documented format."""
     from imgform_rs.training import cnn
 
-    net = cnn.network()
-    blob = WEIGHTS.read_bytes()
-    offset = len(cnn.MAGIC) + 4
-    with torch.no_grad():
-        for layer in (m for m in net if hasattr(m, "weight")):
-            cout, cin = layer.weight.shape[:2]
-            n = 9 * cin * cout
-            w = np.frombuffer(blob, "<f4", n, offset + 8).reshape(3, 3, cin, cout)
-            layer.weight.copy_(torch.from_numpy(w.transpose(3, 2, 0, 1).copy()))
-            offset += 8 + 4 * n
-    assert offset == len(blob) and cnn.encode(net) == blob
-    rgb = np.random.default_rng(3).random((64, 80, 3)).astype(np.float32)
+    assert blob[:8] == cnn.MAGIC
+    (count,) = np.frombuffer(blob, "<u4", 1, 8)
+    layers, offset = [], 12
+    for _ in range(count):
+        cin, cout = (int(v) for v in np.frombuffer(blob, "<u4", 2, offset))
+        factors = np.frombuffer(blob, "<f4", cout, offset + 8)
+        offset += 8 + 4 * cout
+        w = np.frombuffer(blob, "i1", 9 * cin * cout, offset).reshape(3, 3, cin, cout)
+        layers.append((w, factors))
+        offset += w.size
+    assert offset == len(blob)
+    return layers
+
+
+def test_the_kernel_runs_the_shipped_network_in_exact_integers():
+    # The network in numpy, as the file's format and the training script's
+    # quantisation define it: 15-bit codes of the clamped base on the
+    # mosaic's largest sample, 64-bit sums, each hidden sum scaled and
+    # rounded to even into the next codes, the last one scaled back. The
+    # kernel gives the same bits.
+    from imgform_rs.training import cnn
+
+    layers = read_network(WEIGHTS.read_bytes())
+    rgb = np.random.default_rng(3).random((64, 80, 3)).astype(np.float32) * 0.3
     raw = ig.mosaic(rgb, "RGGB")
-    base = ig.demosaic(raw, "RGGB", "fusion_refined")
-    with torch.no_grad():
-        d = net(torch.from_numpy(cnn.quads(base))[None])[0].numpy()
+    lo, hi = raw.min(), raw.max()
+    base = np.clip(ig.demosaic(raw, "RGGB", "fusion_refined"), lo, hi)
+    unit = np.float32(cnn.TOP) / hi
+    act = np.clip(np.round(cnn.quads(base) * unit), 0, cnn.TOP).astype(np.int64)
+    for k, (w, factors) in enumerate(layers):
+        _, h, wd = act.shape
+        sums = sum(
+            np.einsum(
+                "ihw,io->ohw", act[:, dy : h - 2 + dy, dx : wd - 2 + dx], w[dy, dx].astype(np.int64)
+            )
+            for dy in range(3)
+            for dx in range(3)
+        )
+        scaled = sums.astype(np.float32) * factors[:, None, None]
+        if k + 1 < len(layers):
+            act = np.clip(np.round(scaled), 0, cnn.TOP).astype(np.int64)
+    correction = scaled * hi
     want = base.copy()
     edge = 2 * cnn.LAYERS
     for k, (i, j) in enumerate([(0, 0), (0, 1), (1, 0), (1, 1)]):
         cells = want[i + edge : 64 - edge : 2, j + edge : 80 - edge : 2]
-        cells += d[3 * k : 3 * k + 3].transpose(1, 2, 0)
+        cells += correction[3 * k : 3 * k + 3].transpose(1, 2, 0)
     masks = ig.channel_masks(raw.shape, "RGGB")
     want[masks] = raw.ravel()
     got = ig.demosaic(raw, "RGGB", "fusion_cnn")
     inner = (slice(edge, -edge), slice(edge, -edge))
-    np.testing.assert_allclose(got[inner], np.clip(want, raw.min(), raw.max())[inner], atol=2e-6)
+    np.testing.assert_array_equal(got[inner], np.clip(want, lo, hi)[inner])
+
+
+def test_quantisation_keeps_each_weight_within_half_a_step():
+    torch = pytest.importorskip("torch")
+    from imgform_rs.training import cnn
+
+    torch.manual_seed(0)
+    net = cnn.network()
+    with torch.no_grad():
+        net[-1].weight.normal_()
+    steps = [2.0**-13, 2.0**-14, 2.0**-12, 2.0**-13, 2.0**-15]
+    layers = cnn.quantised(net, steps)
+    weights = [m.weight.detach().numpy() for m in net if hasattr(m, "weight")]
+    step_in = [1 / cnn.TOP, *steps]
+    for k, ((q, factor), w) in enumerate(zip(layers, weights, strict=True)):
+        scale = np.abs(w).reshape(len(w), -1).max(1) / cnn.WEIGHT_TOP
+        assert np.abs(q).max() == cnn.WEIGHT_TOP
+        assert np.all(
+            np.abs(q * scale[:, None, None, None] - w) <= scale[:, None, None, None] / 2 + 1e-9
+        )
+        want = step_in[k] * scale / (steps[k] if k < len(steps) else 1.0)
+        np.testing.assert_allclose(factor, want, rtol=1e-7)
+    blob = cnn.encode(net, steps)
+    assert [(q.tolist(), f.tolist()) for q, f in layers] == [
+        (w.transpose(3, 2, 0, 1).tolist(), f.tolist()) for w, f in read_network(blob)
+    ]
 
 
 def test_the_training_views_are_the_eight_flips_and_transpositions():

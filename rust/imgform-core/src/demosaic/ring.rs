@@ -19,9 +19,10 @@ pub(super) fn cache_aligned(buf: &mut [f32]) -> &mut [f32] {
 }
 
 /// The last `depth` rows written of a plane: row `ty` lives in slot
-/// `ty % depth` until row `ty + depth` replaces it.
-pub(super) struct Ring {
-    data: Vec<f32>,
+/// `ty % depth` until row `ty + depth` replaces it. Rows of `f32`, or of
+/// the integers a quantised stage keeps (`i16`).
+pub(super) struct Ring<T = f32> {
+    data: Vec<T>,
     /// Where the first slot starts in `data`: on a cache line.
     first: usize,
     stride: usize,
@@ -31,15 +32,16 @@ pub(super) struct Ring {
     newest: usize,
 }
 
-impl Ring {
+impl<T: Copy + Default> Ring<T> {
     /// A ring whose rows have their column `col` on a cache line (all rows
-    /// when `stride` is a multiple of 16): a stage that reads and writes
-    /// its rows from that column on then never has a vector load straddle
-    /// two lines at an aligned offset.
+    /// when `stride` is a multiple of a line's values): a stage that reads
+    /// and writes its rows from that column on then never has a vector
+    /// load straddle two lines at an aligned offset.
     pub(super) fn new(stride: usize, depth: usize, col: usize) -> Self {
-        let lead = (LINE - col % LINE) % LINE;
-        let mut data = vec![0.0; stride * depth + ALIGN_PAD + lead];
-        let first = data.len() - cache_aligned(&mut data).len() + lead;
+        let line = 64 / std::mem::size_of::<T>();
+        let lead = (line - col % line) % line;
+        let data = vec![T::default(); stride * depth + line - 1 + lead];
+        let first = data.as_ptr().align_offset(64).min(line - 1) + lead;
         Self {
             data,
             first,
@@ -61,7 +63,7 @@ impl Ring {
 
     /// Row `ty` to write, replacing row `ty - depth`.
     #[inline(always)]
-    pub(super) fn row_mut(&mut self, ty: usize) -> &mut [f32] {
+    pub(super) fn row_mut(&mut self, ty: usize) -> &mut [T] {
         self.newest = ty;
         let start = self.first + (ty % self.depth) * self.stride;
         &mut self.data[start..start + self.stride]
@@ -69,7 +71,7 @@ impl Ring {
 
     /// Tile row `ty`, `stride` long.
     #[inline(always)]
-    pub(super) fn row(&self, ty: usize) -> &[f32] {
+    pub(super) fn row(&self, ty: usize) -> &[T] {
         debug_assert!(
             ty <= self.newest && self.newest - ty < self.depth,
             "row {ty} read when the ring holds {} rows up to {}",
@@ -171,7 +173,7 @@ mod tests {
     #[should_panic(expected = "row 3 read")]
     #[cfg(debug_assertions)]
     fn reading_a_replaced_row_is_caught_in_debug_builds() {
-        let mut ring = Ring::new(4, 3, 0);
+        let mut ring: Ring = Ring::new(4, 3, 0);
         for ty in 0..7 {
             ring.row_mut(ty);
         }
@@ -180,9 +182,14 @@ mod tests {
 
     #[test]
     fn rows_of_a_multiple_of_16_floats_start_on_cache_lines() {
-        let mut ring = Ring::new(48, 5, 0);
+        let mut ring: Ring = Ring::new(48, 5, 0);
         for ty in 0..5 {
             assert_eq!(ring.row_mut(ty).as_ptr() as usize % 64, 0, "row {ty}");
+        }
+        // Rows of integers too: 64 of `i16` to a line.
+        let mut codes: Ring<i16> = Ring::new(64, 3, 0);
+        for ty in 0..3 {
+            assert_eq!(codes.row_mut(ty).as_ptr() as usize % 64, 0, "row {ty}");
         }
         let mut buf = vec![0.0f32; 100 + ALIGN_PAD];
         for skip in 0..4 {
@@ -195,7 +202,7 @@ mod tests {
     #[test]
     fn the_chosen_column_of_every_row_starts_a_cache_line() {
         for col in [0, 5, 16, 20, 31] {
-            let mut ring = Ring::new(64, 4, col);
+            let mut ring: Ring = Ring::new(64, 4, col);
             for ty in 0..6 {
                 let at = ring.row_mut(ty)[col..].as_ptr() as usize;
                 assert_eq!(at % 64, 0, "column {col}, row {ty}");
