@@ -221,7 +221,8 @@ fn requantise(sum: i32, factor: f32) -> i16 {
 /// sum is rounded so and its mantissa's low bits hold the integer. Both
 /// `round_ties_even` (a call of `rintf` per value on CPUs without SSE4.1)
 /// and the checked conversion of a float to an integer (`as`) stayed
-/// scalar, two thirds of the network's time; this vectorises on any CPU.
+/// scalar: over half the network's time, a third of the method's. This
+/// vectorises on any CPU.
 #[inline(always)]
 fn to_code(v: f32) -> i16 {
     const SHIFT: f32 = 8_388_608.0;
