@@ -534,7 +534,11 @@ fn conv_row<const CIN: usize, const V: usize, const B: usize>(
         let sums = &mut sums[..count * cout];
         let w = &layer.weights[..];
         #[cfg(target_arch = "x86_64")]
-        if isa != Isa::Baseline {
+        let vectors = isa != Isa::Baseline;
+        #[cfg(not(target_arch = "x86_64"))]
+        let vectors = false;
+        #[cfg(target_arch = "x86_64")]
+        if vectors {
             // SAFETY: `Isa::Avx512` is only made on CPUs with AVX-512 F
             // and BW, `vnni` only where they also have VNNI, `Isa::Avx2`
             // on CPUs with AVX2.
@@ -548,11 +552,10 @@ fn conv_row<const CIN: usize, const V: usize, const B: usize>(
                     (_, _, false) => x86::avx2::<CIN, V, 1>(rows, w, sums, x),
                 }
             }
-            return finish(layer, sums, &mut out, x, cout);
         }
-        if wide {
+        if !vectors && wide {
             block::<CIN, V, B>(rows, w, sums, x);
-        } else {
+        } else if !vectors {
             block::<CIN, V, 1>(rows, w, sums, x);
         }
         finish(layer, sums, &mut out, x, cout);
