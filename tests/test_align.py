@@ -501,6 +501,35 @@ def test_cli_keeps_existing_outputs_unless_overwrite(tmp_path, capsys):
     assert target.read_bytes().startswith(b"\x89PNG")
 
 
+def test_cli_never_writes_an_output_onto_its_input(tmp_path, capsys):
+    plate = tmp_path / "plate.png"
+    write_png(plate, synthetic_plate())
+    before = plate.read_bytes()
+    (tmp_path / "link").symlink_to(tmp_path)
+    for out in (tmp_path, tmp_path / "link"):
+        assert main(["align", str(plate), "-o", str(out), "--overwrite"]) == 2
+        assert "would replace an input" in capsys.readouterr().err
+    assert plate.read_bytes() == before
+
+
+def test_cli_leaves_no_part_of_an_output_it_failed_to_write(tmp_path, capsys, monkeypatch):
+    """A write that fails half-way (a full disk, a kill) leaves no truncated
+    file under the output's name, which a later run would keep as done."""
+    from imgform_rs import _png
+
+    def half(path, image, **_):
+        Path(path).write_bytes(b"\x89PNG half")
+        raise OSError(28, "No space left on device")
+
+    plate = tmp_path / "plate.png"
+    write_png(plate, synthetic_plate())
+    out = tmp_path / "out"
+    monkeypatch.setattr(_png, "write_png", half)
+    assert main(["align", str(plate), "-o", str(out)]) == 1
+    assert "No space left" in capsys.readouterr().err
+    assert list(out.iterdir()) == []
+
+
 @pytest.mark.parametrize("extra", [[], ["--overwrite"]])
 def test_cli_refuses_plates_with_one_output_before_writing_anything(tmp_path, capsys, extra):
     plates = [tmp_path / "a" / "plate.png", tmp_path / "b" / "plate.png"]

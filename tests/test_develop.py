@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -585,3 +588,18 @@ def test_non_square_pixels_repeat_columns_as_libraw_does():
     np.testing.assert_array_equal(wide, img[:, [0, 0, 1, 2, 2]])
     tall = _stretch(img, 0.5)
     np.testing.assert_array_equal(tall, img[[0, 0, 1, 1, 2, 2, 3, 3]])
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="needs a file system of bytes")
+def test_the_cli_names_a_file_whose_name_the_terminal_cannot_print(tmp_path):
+    """A Latin-1 name under a UTF-8 terminal is printed with escapes: the
+    file is developed and reported, run again it is kept, and nothing fails."""
+    name = os.path.join(os.fsencode(tmp_path), b"caf\xe9.dng")
+    cfa = np.random.default_rng(5).integers(0, 4096, (32, 48)).astype(np.uint16)
+    write_dng(os.fsdecode(name), cfa, "RGGB", white_level=4095)
+    command = [sys.executable, "-m", "imgform_rs.cli", "develop", name, "-o", str(tmp_path / "o")]
+    env = {**os.environ, "PYTHONIOENCODING": "utf-8"}
+    for said in ("-> ", "exists, kept"):
+        done = subprocess.run(command, capture_output=True, timeout=120, env=env)
+        assert done.returncode == 0, done.stderr.decode()
+        assert "caf\\udce9.dng" in done.stdout.decode() and said in done.stdout.decode()

@@ -292,6 +292,13 @@ def test_bad_names_json_and_images_are_refused(tmp_path):
         film.simulate(bad)
     with pytest.raises(ValueError, match="must be > 0"):
         film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm=0)
+    with pytest.raises(TypeError, match="frame_width_mm must be a number, got '36'"):
+        film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm="36")
+    # A frame so small that a spread covers more than the image: its taps
+    # would not fit in memory (an abort, before this was checked).
+    for kw in ({}, {"halation": False}):
+        with pytest.raises(ValueError, match=r"frame_width_mm must be at least 0\.0"):
+            film.simulate(np.ones((4, 4, 3), np.float32), frame_width_mm=1e-12, **kw)
     with pytest.raises(ValueError, match="print needs a negative and a paper"):
         film.print(np.ones((2, 2, 3), np.float32), "generic-reversal", "generic-paper")
     # balance_print refuses what print refuses: a negative is no paper.

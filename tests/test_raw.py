@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import io
+import os
 import struct
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -307,3 +310,31 @@ def test_a_crw_names_its_camera():
     raw = ig.load_raw(RAW_DIR / "canon_powershot_s40_CRW_0113.CRW")
     assert (raw.make, raw.model) == ("Canon", "Canon PowerShot S40")
     assert (raw.shot.make, raw.shot.model) == ("Canon", "Canon PowerShot S40")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_a_file_that_is_not_a_regular_file_is_refused_without_blocking(tmp_path):
+    """A FIFO would block the read until a writer came (a batch would hang)
+    and a link to a device could read without end: both are refused."""
+    fifo = tmp_path / "pipe.dng"
+    os.mkfifo(fifo)
+    device = tmp_path / "zero.dng"
+    device.symlink_to("/dev/zero")
+    code = (
+        "import sys, imgform_rs as ig\n"
+        "for p in sys.argv[1:]:\n"
+        "    try: ig.load_raw(p)\n"
+        "    except ig.RawError as e: print(e)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code, str(fifo), str(device), str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
+    assert done.stdout.splitlines() == [
+        f"{fifo}: cannot read the file (a FIFO (named pipe), not a regular file)",
+        f"{device}: cannot read the file (a character device, not a regular file)",
+        f"{tmp_path}: cannot read the file (a folder, not a regular file)",
+    ]

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._files import read_regular
+
 # zlib level 1: level 6 took twice the time for files 0-5 % smaller (no
 # row filters here; 16-bit photographs barely compress either way).
 _LEVEL = 1
@@ -102,7 +104,7 @@ def read_image(path: Path) -> np.ndarray:
     bytes, as imageio leaves a file it fails on open otherwise."""
     import imageio.v3 as iio
 
-    data = path.read_bytes()
+    data = read_regular(path)
     img = read_png16(data)
     return img if img is not None else np.asarray(iio.imread(data, extension=path.suffix or None))
 

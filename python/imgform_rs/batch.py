@@ -36,7 +36,7 @@ import json
 import os
 import time
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -266,18 +266,22 @@ OnResult = Callable[[FileResult, int, int], None]
 def _submit_all(
     client: Any, kind: str, pairs: list, options: dict, tick: Callable[[FileResult], None]
 ) -> list[FileResult]:
-    """Runs the pairs one task each; results in completion order."""
+    """Runs the pairs one task each; results in completion order. The tasks
+    get absolute paths, since a scheduler's workers may run in another
+    directory than the client; the results name the paths as given."""
     distributed = _distributed()
     futures = {
-        client.submit(run_file, kind, str(s), str(t), options, retries=RETRIES): (s, t)
+        client.submit(
+            run_file, kind, str(s.absolute()), str(t.absolute()), options, retries=RETRIES
+        ): (s, t)
         for s, t in pairs
     }
     results = []
     for future in distributed.as_completed(futures):
+        source, target = futures[future]
         try:
-            result = future.result()
+            result = replace(future.result(), source=str(source), output=str(target))
         except Exception as exc:  # a lost worker after all retries, an OOM kill...
-            source, target = futures[future]
             result = FileResult(str(source), str(target), "failed", f"{source}: {exc!r}", 0.0)
         results.append(result)
         tick(result)
@@ -309,7 +313,25 @@ def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple
             f"inputs would overwrite each other's output: {'; '.join(clashes)}; nothing was "
             "written (rename them, or run them into different folders)"
         )
+    inputs = {_identity(source) for source, _ in pairs}
+    onto = [f"{t}" for _, t in pairs if _identity(t) in inputs]
+    if onto:
+        raise ValueError(
+            f"the output {', '.join(onto)} would replace an input; nothing was written "
+            "(choose another output folder)"
+        )
     return pairs
+
+
+def _identity(path: Path) -> tuple:
+    """What makes two paths one file: device and inode where the file
+    exists (through links, other spellings, hard links), else the resolved
+    path, case-folded as :func:`output_paths` compares stems."""
+    try:
+        st = path.stat()
+    except OSError:
+        return ("path", str(path.resolve()).casefold())
+    return ("inode", st.st_dev, st.st_ino)
 
 
 def output_folder(outdir: Any, *, make: bool = True) -> Path:

@@ -129,6 +129,7 @@ def _align(args: argparse.Namespace) -> int:
 
     from ._png import for_png, write_png
     from .align import _colorize, describe_estimate, read_plate
+    from .batch import write_atomically
 
     failed = 0
     for i, (path, target) in enumerate(pairs, start=1):
@@ -147,7 +148,7 @@ def _align(args: argparse.Namespace) -> int:
                     white_balance=args.white_balance,
                     auto_contrast=args.auto_contrast,
                 )
-                write_png(target, for_png(rgb))
+                write_atomically(target, lambda tmp, rgb=rgb: write_png(tmp, for_png(rgb)))
             except (ValueError, TypeError, OSError) as exc:
                 failed += 1
                 print(f"imgform align: {path}: {exc}", file=sys.stderr)
@@ -182,6 +183,7 @@ def _film(args: argparse.Namespace) -> int:
 
     from . import film
     from ._png import for_png, read_image, write_png
+    from .batch import write_atomically
 
     try:
         stock = film.load_stock(args.stock)
@@ -208,7 +210,7 @@ def _film(args: argparse.Namespace) -> int:
                 exposure_ev=args.ev,
                 couplers=not args.no_couplers,
             )
-            write_png(target, for_png(result))
+            write_atomically(target, lambda tmp, result=result: write_png(tmp, for_png(result)))
         except Exception as exc:  # imageio raises many types for bad files
             failed += 1
             reason = (str(exc).splitlines() or [type(exc).__name__])[0]
@@ -295,15 +297,26 @@ def _develop(args: argparse.Namespace) -> int:
     # Threads suffice: decoding and the Rust pipeline release the GIL.
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         futures = [(path, pool.submit(_develop_one, path, target, args)) for path, target in todo]
-        for i, (path, future) in enumerate(futures, start=1):
-            try:
-                print(future.result())
-            except (ValueError, TypeError, OSError) as exc:
-                failed += 1
-                # RawError messages already start with the file name.
-                reason = str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}"
-                print(f"imgform develop: {reason}", file=sys.stderr)
-            _progress(i, len(futures), "raws")
+        try:
+            for i, (path, future) in enumerate(futures, start=1):
+                try:
+                    print(future.result())
+                except (ValueError, TypeError, OSError) as exc:
+                    failed += 1
+                    # RawError messages already start with the file name.
+                    reason = str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}"
+                    print(f"imgform develop: {reason}", file=sys.stderr)
+                _progress(i, len(futures), "raws")
+        except KeyboardInterrupt:
+            # Files not started are dropped; those being developed finish
+            # (threads cannot be stopped), each written whole or not at all.
+            pool.shutdown(wait=False, cancel_futures=True)
+            running = sum(f.running() for _, f in futures)
+            print(
+                f"imgform develop: interrupted; finishing the {running} file(s) in progress",
+                file=sys.stderr,
+            )
+            return 130
     if failed:
         print(f"imgform develop: {failed} of {len(args.raws)} files failed", file=sys.stderr)
     return 1 if failed else 0
@@ -553,6 +566,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # A file name that is not valid in the terminal's encoding (Latin-1
+    # bytes under UTF-8) is printed with escapes rather than failing its file.
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     args = build_parser().parse_args(argv)
     return int(args.run(args))
 

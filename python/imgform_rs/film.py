@@ -54,6 +54,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field, replace
 from importlib import resources
+from numbers import Real
 from pathlib import Path
 from typing import Any, Literal
 
@@ -731,6 +732,31 @@ def _dyes(stock: Stock) -> tuple[Float64Array, Float64Array]:
     return stock.base_density + stock.dye_max @ masks, dyes - masks
 
 
+def _pixel_um(frame_width_mm: Any, shape: tuple[int, ...], *spreads_um: float) -> float:
+    """The pixel pitch in µm of an image ``shape`` spanning ``frame_width_mm``.
+
+    A frame so small that a stock's spread (halation, coupler diffusion) blurs
+    over more pixels than the image has sides is refused: such a blur would
+    only make every pixel the frame's mean, and its taps (three widths each
+    side) would not fit in memory for the tiniest frames.
+    """
+    if isinstance(frame_width_mm, (bool, str)) or not isinstance(frame_width_mm, Real):
+        raise TypeError(f"frame_width_mm must be a number, got {frame_width_mm!r}")
+    if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
+        raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
+    pixel_um = float(frame_width_mm) * 1000.0 / shape[1]
+    side = max(shape[0], shape[1])
+    widest = max(spreads_um, default=0.0)
+    if widest / pixel_um > side:
+        least = widest * shape[1] / side / 1000.0
+        raise ValueError(
+            f"frame_width_mm={frame_width_mm:g} makes a {shape[1]} px wide image's pixels "
+            f"{pixel_um:.3g} µm, and the stock's {widest:g} µm spread wider than the image; "
+            f"frame_width_mm must be at least {least:.3g} for this image"
+        )
+    return pixel_um
+
+
 def _image(image: Any, name: str, channels: int | None = None) -> Float32Array:
     """A float32 (H, W, C) array, contiguous."""
     arr = np.asarray(image)
@@ -868,11 +894,10 @@ def develop(
     """
     st = load_stock(stock)
     arr = _image(exposure, "exposure", len(st.layers))
-    if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
-        raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
+    halo_um = st.halation_um if halation and st.halation.any() else 0.0
+    pixel_um = _pixel_um(frame_width_mm, arr.shape, halo_um, st.coupler_diffusion_um)
     grain_seed = as_seed(seed, "seed")
     matrix = st.coupler_matrix if couplers else np.zeros_like(st.coupler_matrix)
-    pixel_um = frame_width_mm * 1000.0 / arr.shape[1]
     spread = (st.halation.tolist(), st.halation_um / pixel_um)
     dens = _native.film_develop(
         arr,
@@ -1038,11 +1063,9 @@ def print(
         return develop(exposure, pap, couplers=couplers, frame_width_mm=frame_width_mm)
     # One pass per row: the paper's exposures are developed as they are made.
     arr = _image(density, "density", len(neg.layers))
-    if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
-        raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
+    pixel_um = _pixel_um(frame_width_mm, arr.shape, pap.coupler_diffusion_um)
     base, dyes = _dyes(neg)
     matrix = pap.coupler_matrix if couplers else np.zeros_like(pap.coupler_matrix)
-    pixel_um = frame_width_mm * 1000.0 / arr.shape[1]
     return _native.film_print(
         arr,
         base.tolist(),

@@ -32,6 +32,7 @@ import numpy.typing as npt
 
 from ._ciff import make_model
 from ._exif import ShotInfo, shot_info
+from ._files import read_regular
 from ._native import RawError
 from ._tiff import Value, first_tag, tiff_ifds
 from .cfa import pattern_from_rawpy
@@ -160,8 +161,7 @@ def _describe(source: Any) -> str:
 def _read_bytes(source: Any, name: str) -> bytes:
     if isinstance(source, (str, os.PathLike)):
         try:
-            with open(source, "rb") as f:
-                return f.read()
+            return read_regular(source)
         except OSError as exc:
             raise RawError(f"{name}: cannot read the file ({exc.strerror or exc})") from exc
     if isinstance(source, (bytes, bytearray, memoryview)):
