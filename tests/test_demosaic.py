@@ -654,6 +654,7 @@ def test_the_learned_methods_need_the_right_white_level():
         (np.inf, ValueError, "got inf"),
         (1e39, ValueError, "got 1e[+]?39"),
         (1e-50, ValueError, "got 1e-50"),
+        (10**400, ValueError, "within float32's range, got 1000"),
     ],
 )
 def test_a_bad_white_level_names_what_is_accepted(level, exc, match):

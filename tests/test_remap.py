@@ -59,6 +59,28 @@ def test_output_takes_the_map_shape_and_non_contiguous_input_works():
     np.testing.assert_array_equal(out[::2, ::2], img[:75:3, :105:3])
 
 
+@pytest.mark.parametrize("dtype", [">u2", ">f4"])
+def test_big_endian_images_give_what_their_native_copies_give(dtype):
+    """Data read from a big-endian file as it is holds the same values."""
+    rng = np.random.default_rng(4)
+    native = (rng.random((24, 32, 3)) * 1000).astype(np.dtype(dtype).newbyteorder("="))
+    big = native.astype(dtype)
+    assert not big.dtype.isnative
+    my, mx = np.mgrid[0:24, 0:32].astype(np.float32) * 0.9
+    mono = native[..., 0].astype(np.float32)
+    calls = [
+        lambda im: ig.remap(im, (mx, my)),
+        lambda im: ig.add_lateral_ca(im, 1.001, 0.999),
+        lambda im: ig.render_aberrated(im[..., 0], np.full((3, 3), 1 / 9)),
+    ]
+    for call in calls:
+        np.testing.assert_array_equal(call(big), call(native))
+    np.testing.assert_array_equal(
+        ig.similarity(mono.astype(">f4"), mono[::-1].astype(">f4")),
+        ig.similarity(mono, mono[::-1]),
+    )
+
+
 def test_undistort_map_matches_opencv_map():
     cv2 = pytest.importorskip("cv2")
     mx, my = cv2.initUndistortRectifyMap(K, LENS, None, K, (W, H), cv2.CV_32FC1)

@@ -163,6 +163,8 @@ def _translation(dy: float, dx: float) -> np.ndarray:
 def _image(value: Any, name: str) -> np.ndarray:
     """An (H, W) uint8/uint16/float32 array; float64 is narrowed to float32."""
     arr = np.asarray(value)
+    if not arr.dtype.isnative:  # big-endian data read as it is: same values
+        arr = arr.astype(arr.dtype.newbyteorder("="))
     if arr.dtype == np.float64:
         arr = arr.astype(np.float32)
     if arr.dtype not in _DTYPES:

@@ -287,6 +287,7 @@ OpenCV names Bayer codes after the second row's first two pixels: our ``"RGGB"``
 
 from __future__ import annotations
 
+import math
 from typing import Any, TypeVar
 
 import numpy as np
@@ -423,7 +424,10 @@ def _white_level(value: Any) -> float | None:
         return None
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"white_level must be a real number or None, got {value!r}")
-    level = float(value)
+    try:
+        level = float(value)
+    except OverflowError:  # an int beyond float64's range
+        level = math.inf
     if not (np.isfinite(level) and _samples.F32_TINY <= level <= _samples.F32_MAX):
         raise ValueError(
             f"white_level must be a finite number > 0 within float32's range, got {value!r}"

@@ -8,8 +8,8 @@ use std::borrow::Cow;
 
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{
-    Element, IntoPyArray, PyArrayDyn, PyArrayMethods, PyReadonlyArray2, PyReadonlyArrayDyn,
-    PyUntypedArray, PyUntypedArrayMethods,
+    Element, IntoPyArray, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArray2,
+    PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::intern;
@@ -210,8 +210,10 @@ pub enum AnyImage<'py> {
 }
 
 impl<'py> AnyImage<'py> {
-    /// Accepts a uint8, uint16 or float32 array of shape (H, W) or (H, W, C).
+    /// Accepts a uint8, uint16 or float32 array of shape (H, W) or (H, W, C),
+    /// in either byte order.
     pub fn extract(obj: &Bound<'py, PyAny>, name: &str) -> PyResult<Self> {
+        let obj = &native_order(obj)?;
         let img = if let Ok(a) = obj.extract() {
             Self::U8(a)
         } else if let Ok(a) = obj.extract() {
@@ -235,6 +237,21 @@ impl<'py> AnyImage<'py> {
             Self::F32(a) => a.shape(),
         }
     }
+}
+
+/// `obj`, or, for a NumPy array stored in the other byte order (a
+/// big-endian file read as it is), its copy in this machine's: the kernels
+/// take native numbers, and the copy holds the same values.
+pub fn native_order<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let Ok(array) = obj.downcast::<PyUntypedArray>() else {
+        return Ok(obj.clone());
+    };
+    let dtype = array.dtype();
+    if dtype.is_native_byteorder() != Some(false) {
+        return Ok(obj.clone());
+    }
+    let native = dtype.call_method1(intern!(obj.py(), "newbyteorder"), ("=",))?;
+    obj.call_method1(intern!(obj.py(), "astype"), (native,))
 }
 
 /// `(height, width, channels)` of an image shape (H, W) or (H, W, C).

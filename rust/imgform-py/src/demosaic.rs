@@ -63,6 +63,7 @@ fn demosaic<'py>(
 fn demosaic_halo(method: &str, pattern: &Bound<'_, PyAny>) -> PyResult<usize> {
     let pattern = pattern_arg(pattern)?;
     let method = Method::from_name_for(method, &pattern).map_err(to_pyerr)?;
+    method.check_supports(&pattern).map_err(to_pyerr)?;
     Ok(method.halo(&pattern))
 }
 

@@ -35,7 +35,11 @@
 //! the `f32` network this replaced, with one white pixel over an image 8
 //! stops darker the validation subsets lose at most 0.06 dB, 10 stops
 //! darker 0.25-0.77 dB, which puts two of them below the base (a clean
-//! mosaic; a sensor's noise is larger there).
+//! mosaic; a sensor's noise is larger there); 11-13 stops darker the input
+//! spans a few codes and the method falls 1-12 dB below its base (the
+//! guide gives the figures). A reference that follows the bulk of the
+//! mosaic (the brightest level a small share of samples exceeds, from a
+//! count per stop, which chunks can sum exactly) would fix that; not done.
 //! Integer sums cannot depend on their order, so every instruction set
 //! gives the same bits, and the scaled ones are the same operations on
 //! each.

@@ -329,6 +329,16 @@ impl Method {
         self.supports_kind(!pattern.is_bayer())
     }
 
+    /// `Ok` where the method demosaics mosaics of `pattern`, else the error
+    /// that names the methods that do.
+    pub fn check_supports(self, pattern: &CfaPattern) -> Result<()> {
+        if self.supports(pattern) {
+            Ok(())
+        } else {
+            Err(unsupported(self, pattern))
+        }
+    }
+
     /// The names of the methods for Bayer (`xtrans == false`) or X-Trans
     /// mosaics, then the aliases.
     pub fn names_for(xtrans: bool) -> Vec<&'static str> {
@@ -516,9 +526,7 @@ fn checked_phase(
         )));
     }
     check_out_len(out_len, 3 * w * h, "demosaic")?;
-    if !method.supports(pattern) {
-        return Err(unsupported(method, pattern));
-    }
+    method.check_supports(pattern)?;
     match pattern.bayer_red() {
         Some((ry, rx)) => Ok(Some(Phase { ry, rx })),
         None if w < 6 || h < 6 => Err(CoreError::Shape(format!(
