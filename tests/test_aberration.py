@@ -247,6 +247,12 @@ def test_bad_input_is_refused_clearly() -> None:
         ig.render_aberrated(np.zeros((4, 4), np.uint8), [[np.nan]])
     with pytest.raises(TypeError, match="real numbers"):
         ig.render_aberrated(np.zeros((4, 4), np.uint8), [["a"]])
+    # Whatever the PSF's size: the FFT tiles would spread it over a tile.
+    holed = np.ones((64, 64), np.float32)
+    holed[5, 7] = np.inf
+    for side in (3, 9):
+        with pytest.raises(ValueError, match="finite numbers, got inf at row 5, column 7"):
+            ig.render_aberrated(holed, np.full((side, side), 1 / side**2))
     with pytest.raises(ValueError, match="same shape"):
         ig.strehl_ratio(np.ones((3, 3)), np.ones((3, 4)))
     with pytest.raises(ValueError, match="non-negative"):

@@ -473,6 +473,10 @@ def test_a_scheduler_the_cli_cannot_reach_is_one_clear_error(tmp_path, raws, cap
     err = capsys.readouterr().err
     assert err.startswith("imgform develop: Timed out trying to connect to tcp://127.0.0.1:1")
     assert err.count("\n") == 1
+    # An address Dask cannot parse is one line too, not a traceback.
+    assert main(["develop", paths[0], "-o", str(tmp_path), "--scheduler", "bogus"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("imgform develop: ") and err.count("\n") == 1, err
 
 
 @pytest.mark.slow

@@ -49,6 +49,23 @@ def test_it_removes_error_from_fusion_refined_and_keeps_the_samples():
     assert errors["fusion_cnn"] < 0.99 * errors["fusion_refined"]
 
 
+def test_far_below_its_largest_sample_it_stays_at_its_base():
+    # One sample at 1, the rest 12 stops darker: the input spans a few codes
+    # there, and the correction of their rounding once put the method 4.8 dB
+    # below its base (13 stops: 12 dB). Quads that dim take none of it.
+    data = pytest.importorskip("skimage.data")
+    rgb = data.astronaut()[100:356, 100:356].astype(np.float32) / 255
+    raw = ig.mosaic(rgb, "RGGB") * np.float32(2.0**-12)
+    raw[0, 0] = 1.0
+    inner = (slice(10, -10), slice(10, -10))
+
+    def error(method: str) -> float:
+        out = ig.demosaic(raw, "RGGB", method) * np.float32(2.0**12)
+        return float(((out - rgb)[inner] ** 2).mean())
+
+    assert error("fusion_cnn") <= 1.01 * error("fusion_refined")
+
+
 def read_network(blob: bytes) -> list[tuple[np.ndarray, np.ndarray]]:
     """The shipped file's layers as int8 weights ``(3, 3, in, out)`` and float32
     factors, read by its documented format."""
@@ -78,6 +95,7 @@ def test_the_kernel_runs_the_shipped_network_in_exact_integers():
 
     layers = read_network(WEIGHTS.read_bytes())
     rgb = np.random.default_rng(3).random((64, 80, 3)).astype(np.float32) * 0.3
+    rgb[:, 40:] /= 256  # 8 stops darker: quads there take part of the correction
     raw = ig.mosaic(rgb, "RGGB")
     lo, hi = raw.min(), raw.max()
     base = np.clip(ig.demosaic(raw, "RGGB", "fusion_refined"), lo, hi)
@@ -96,8 +114,12 @@ def test_the_kernel_runs_the_shipped_network_in_exact_integers():
         if k + 1 < len(layers):
             act = np.clip(np.round(scaled), 0, cnn.TOP).astype(np.int64)
     correction = scaled * hi
-    want = base.copy()
     edge = 2 * cnn.LAYERS
+    # Each quad takes a share of it by its brightest value in codes (none up
+    # to 16, all from 128: the correction of a few codes is their rounding).
+    level = cnn.quads(base)[:, cnn.LAYERS : -cnn.LAYERS, cnn.LAYERS : -cnn.LAYERS].max(0) * unit
+    correction = correction * np.clip((level - np.float32(16)) / np.float32(112), 0, 1)
+    want = base.copy()
     for k, (i, j) in enumerate([(0, 0), (0, 1), (1, 0), (1, 1)]):
         cells = want[i + edge : 64 - edge : 2, j + edge : 80 - edge : 2]
         cells += correction[3 * k : 3 * k + 3].transpose(1, 2, 0)

@@ -512,7 +512,8 @@ def test_cli_dry_run_lists_and_touches_nothing(tmp_path, capsys, grey_card):
     good, _ = grey_card
     out = tmp_path / "out"
     missing = tmp_path / "missing.dng"
-    assert main(["develop", str(good), str(missing), "-o", str(out), "--dry-run"]) == 0
+    # 1: a file would fail, as the run itself would say.
+    assert main(["develop", str(good), str(missing), "-o", str(out), "--dry-run"]) == 1
     printed = capsys.readouterr().out
     assert "exposure='auto'" in printed and "color='srgb'" in printed
     assert f"{good}: would write {out / 'card.png'}" in printed

@@ -11,7 +11,7 @@ image with it. Lengths are in one unit (millimetres in the examples).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import overload
+from typing import Any, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -300,7 +300,9 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
     larger ones by overlap-save FFT tiles (rustfft), both in parallel over row
     bands, with results identical for any thread count. A delta PSF returns
     integer images bit for bit (float images too through the direct sum, to
-    ~1e-6 through the FFT). The PSF is used as given: one that sums to 1 keeps
+    ~1e-6 through the FFT, whose rounding is relative to the image's largest
+    magnitude: a pixel 1e9 times brighter than the rest shows its float32
+    rounding across its tile). The PSF is used as given: one that sums to 1 keeps
     the brightness. OpenCV's ``filter2D`` computes a correlation: pass it
     ``psf[::-1, ::-1]`` to compare.
 
@@ -321,7 +323,7 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
     TypeError
         ``image`` of an unsupported dtype, a non-numeric ``psf``.
     ValueError
-        Wrong shapes, non-finite taps or a PSF side above 1025.
+        Wrong shapes, non-finite taps or samples, or a PSF side above 1025.
 
     Examples
     --------
@@ -332,4 +334,17 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
            [ 50, 100,   0],
            [  0,   0,   0]], dtype=uint8)
     """
+    _finite_image(image)
     return _native.render_aberrated(image, _psf_array(psf, "psf"))  # type: ignore[no-any-return]
+
+
+def _finite_image(image: Any) -> None:
+    """Refuses a float image holding NaN or an infinity: the FFT tiles of
+    large PSFs would spread it over a whole tile (the direct sum only over
+    the PSF's footprint), so the result would depend on the PSF's size."""
+    arr = np.asarray(image)
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        where = np.unravel_index(int(np.argmin(np.isfinite(arr))), arr.shape)
+        raise ValueError(
+            f"image must hold finite numbers, got {arr[where]} at row {where[0]}, column {where[1]}"
+        )

@@ -79,7 +79,7 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
                 on_result=report,
                 **options,
             )
-    except (ImportError, OSError) as exc:  # no Dask; a scheduler it cannot reach
+    except (ImportError, OSError, ValueError) as exc:  # no Dask; a bad or lost scheduler
         print(f"{command}: {exc}", file=sys.stderr)
         return 2
     failed = len(batch.failed)
@@ -327,14 +327,17 @@ def _develop_dry_run(args: argparse.Namespace, pairs: list[tuple[Path, Path]]) -
     touching nothing (no folder is made, no raw is decoded)."""
     options = ", ".join(f"{k}={v!r}" for k, v in _develop_options(args).items())
     print(f"develop options: {options}; {args.format}, quality {args.quality}")
+    failing = 0
     for path, target in pairs:
         if not path.is_file():
-            print(f"{path}: no such file, would fail")
+            failing += 1
+            why = "not a regular file" if path.exists() else "no such file"
+            print(f"{path}: {why}, would fail")
         elif target.exists() and not args.overwrite:
             print(f"{path}: {target} exists, would keep it")
         else:
             print(f"{path}: would write {target}")
-    return 0
+    return 1 if failing else 0
 
 
 def _white_balance(text: str) -> str | tuple[float, float, float]:
@@ -558,7 +561,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )
     dev.add_argument(
-        "--dry-run", action="store_true", help="list what would be written, and do nothing"
+        "--dry-run",
+        action="store_true",
+        help="list what would be written, and do nothing (exit 1 if an input would fail)",
     )
     _add_cluster_options(dev)
     dev.set_defaults(run=_develop)
