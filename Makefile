@@ -37,7 +37,7 @@ build: $(BUILT) ## build the extension (release) into .venv
 
 .PHONY: demo
 demo: $(BUILT) ## run the main job on the built-in sample; results under out/
-	$(BIN)/imgform demo --out out
+	$(BIN)/imgform demo --out out --overwrite
 
 .PHONY: test
 test: $(BUILT) ## cargo test (core) and pytest

@@ -177,6 +177,9 @@ def test_demosaic_dask_refuses_bad_input():
         # first chunk's one on a later row.
         (np.float32, {(30, 5): np.inf, (25, 50): np.nan}),
         (np.float64, {(60, 85): -np.inf}),
+        # Beyond 2^100, where sums of neighbours would overflow float32.
+        (np.float32, {(30, 5): 3e38, (25, 50): -1e31}),
+        (np.float64, {(40, 41): 1e35}),
     ],
 )
 def test_demosaic_dask_names_a_non_finite_sample_where_the_whole_mosaic_has_it(dtype, bad):

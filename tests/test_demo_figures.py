@@ -59,3 +59,24 @@ def test_figure_4a_draws_each_glass_the_more_dispersive_the_lower_at_400_nm():
     abbe = [v_d for _, v_d in GLASSES.values()]
     assert abbe == sorted(abbe, reverse=True)
     assert rows[0] < rows[1] < rows[2]
+
+
+def test_the_demo_writes_all_its_pictures_or_none_and_keeps_what_is_there(
+    tmp_path, monkeypatch, capsys
+):
+    from imgform_rs import cli, demo
+
+    def pictures(out, log, plate, camera_raw):
+        return [demo.write_png(out / n, np.zeros((2, 2), np.uint8)) for n in ("a.png", "b.png")]
+
+    monkeypatch.setattr(demo, "_render_all", pictures)
+    out = tmp_path / "out"
+    assert cli.main(["demo", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["a.png", "b.png"]
+    (out / "a.png").write_bytes(b"mine")
+    assert cli.main(["demo", "--out", str(out)]) == 2
+    assert "b.png exist (use --overwrite" in capsys.readouterr().err
+    assert (out / "a.png").read_bytes() == b"mine"
+    assert sorted(p.name for p in out.iterdir()) == ["a.png", "b.png"]  # no hidden folder left
+    assert cli.main(["demo", "--out", str(out), "--overwrite"]) == 0
+    assert (out / "a.png").read_bytes().startswith(b"\x89PNG")

@@ -432,6 +432,9 @@ def float_with(value, shape, at):
         (np.zeros((1, 5), np.uint8), "RGGB", "bilinear", ValueError, r"2x2 .*got \(1, 5\)"),
         (float_with(np.nan, (4, 4), (1, 2)), "RGGB", "rcd", ValueError, "NaN at row 1, column 2"),
         (float_with(-np.inf, (6, 6), (5, 5)), "XTRANS", "markesteijn", ValueError, "-inf at row 5"),
+        # Sums of neighbours of 3e38 overflowed: infinities, or clamped samples.
+        (float_with(3e38, (4, 4), (3, 1)), "RGGB", "ahd", ValueError, "2\\^100.*row 3, column 1"),
+        (float_with(-1e31, (6, 6), (0, 4)), "XTRANS", "bilinear", ValueError, "row 0, column 4"),
     ],
 )
 def test_bad_input_names_what_was_given_and_what_is_accepted(raw, pattern, method, exc, match):
@@ -667,3 +670,11 @@ def test_native_layer_checks_the_white_level_too():
 
     with pytest.raises(ValueError, match="white_level must be a finite number > 0, got 0"):
         _native.demosaic(np.zeros((4, 4), np.float32), "RGGB", "mlri", white_level=0.0)
+
+
+def test_float16_results_past_its_largest_number_stay_finite():
+    # Malvar's and Hamilton-Adams's overshoot beyond float16's 65504.
+    g = ig.channel_masks((10, 10), "RGGB")[..., 1]
+    raw = np.where(g, np.float16(60000), np.float16(0)).astype(np.float16)
+    for method in ("malvar2004", "hamilton_adams"):
+        assert np.isfinite(ig.demosaic(raw, "RGGB", method)).all()

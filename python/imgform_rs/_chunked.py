@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from . import _samples
+from . import _native, _samples
 from .cfa import as_pattern, pattern_cells
 from .demosaic import demosaic, demosaic_halo
 from .develop import (
@@ -84,23 +84,30 @@ def phase_extremes(mosaic: Any, period: int) -> tuple[np.ndarray, np.ndarray]:
     reductions = [f(mosaic[i::period, j::period]) for i, j in cells for f in (da.min, da.max)]
     values = np.array(dask.compute(*reductions), mosaic.dtype).reshape(period, period, 2)
     if not np.isfinite(values).all():
-        y, x = _first_non_finite(mosaic)
+        y, x = _first_bad(mosaic, lambda b: ~np.isfinite(b))
         value = float(mosaic[y, x].compute())
         raise ValueError(
             "the mosaic must hold finite numbers, got "
             f"{'NaN' if math.isnan(value) else value} at row {y}, column {x}"
         )
+    # Beyond float32's range is check_range's to refuse, as demosaic does.
+    if _native.DEMOSAIC_SAMPLE_LIMIT < np.abs(values.astype(np.float64)).max() <= _samples.F32_MAX:
+        y, x = _first_bad(mosaic, lambda b: np.abs(b) > _native.DEMOSAIC_SAMPLE_LIMIT)
+        raise ValueError(
+            f"the mosaic's samples must lie within ±2^100, got one beyond at row {y}, column "
+            f"{x} (sums of its neighbours would overflow float32)"
+        )
     return values[..., 0], values[..., 1]
 
 
-def _first_non_finite(mosaic: Any) -> tuple[int, int]:
-    """Row and column of the first non-finite sample in row-major order: the
-    earliest of each chunk's first one (a second pass, made only when the
-    extremes show there is one)."""
+def _first_bad(mosaic: Any, bad_of: Any) -> tuple[int, int]:
+    """Row and column of the first sample ``bad_of`` marks, in row-major
+    order: the earliest of each chunk's first one (a second pass, made only
+    when the extremes show there is one)."""
 
     def first(block: np.ndarray, block_info: Any = None) -> np.ndarray:
         (y0, _), (x0, _) = block_info[0]["array-location"]
-        bad = ~np.isfinite(block)
+        bad = bad_of(block)
         i = int(np.argmax(bad))
         hit = divmod(i, block.shape[1]) if bad.flat[i] else (np.inf, np.inf)
         return np.array([[[y0 + hit[0], x0 + hit[1]]]], np.float64)

@@ -201,6 +201,7 @@ DEMOSAIC_METHODS: tuple[str, ...]
 BAYER_DEMOSAIC_METHODS: tuple[str, ...]
 XTRANS_DEMOSAIC_METHODS: tuple[str, ...]
 SCALED_DEMOSAIC_METHODS: tuple[str, ...]
+DEMOSAIC_SAMPLE_LIMIT: float
 
 def demosaic(
     raw: npt.NDArray[Any],

@@ -98,6 +98,10 @@ def from_kernel(result: np.ndarray, dtype: np.dtype) -> np.ndarray:
     if dtype.kind in "iu":
         top = min(int(np.iinfo(dtype).max), _U16_MAX)
         result = np.minimum(result, np.array(top, result.dtype))
+    elif dtype.kind == "f" and dtype.itemsize < result.dtype.itemsize:
+        # An overshoot past float16's largest number (65504) stays finite.
+        top = np.array(np.finfo(dtype).max, result.dtype)
+        result = np.clip(result, -top, top)
     return result.astype(dtype)
 
 

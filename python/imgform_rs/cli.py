@@ -26,7 +26,12 @@ def _demo(args: argparse.Namespace) -> int:
         print(f"imgform demo: no plate file at {args.plate}", file=sys.stderr)
         return 2
     camera_raw = SAMPLE_RAW if SAMPLE_RAW.is_file() else None
-    for path in run(Path(args.out), plate=plate, camera_raw=camera_raw):
+    try:
+        written = run(Path(args.out), plate=plate, camera_raw=camera_raw, overwrite=args.overwrite)
+    except FileExistsError as exc:
+        print(f"imgform demo: {exc}", file=sys.stderr)
+        return 2
+    for path in written:
         print(f"wrote {path}")
     return 0
 
@@ -429,6 +434,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument(
         "--plate",
         help=f"a Prokudin-Gorskii scan to colourise (default: {SAMPLE_PLATE}, when present)",
+    )
+    demo.add_argument(
+        "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )
     demo.set_defaults(run=_demo)
     align = sub.add_parser(

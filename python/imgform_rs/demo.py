@@ -39,6 +39,9 @@ and writes PNGs under the output folder.
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -386,11 +389,39 @@ def run(
     log: Callable[[str], None] = print,
     plate: Path | None = None,
     camera_raw: Path | None = None,
+    *,
+    overwrite: bool = False,
 ) -> list[Path]:
     """Render every picture of the demo into ``out`` and return their paths;
     colourise ``plate`` (a Prokudin-Gorskii scan) and develop ``camera_raw``
-    too when given."""
+    too when given.
+
+    The pictures are made in a hidden folder inside ``out`` and moved into
+    ``out`` at the end, all or none: a FileExistsError names the files that
+    are there already, unless ``overwrite``."""
+    if not overwrite and (out / "pinhole.png").exists():  # a demo ran here before
+        raise FileExistsError(f"{out / 'pinhole.png'} exists (use --overwrite to replace it)")
     out.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=".demo-", dir=out))
+    try:
+        made = _render_all(work, log, plate, camera_raw)
+        files = sorted(work.iterdir())
+        there = [str(out / f.name) for f in files if (out / f.name).exists()]
+        if there and not overwrite:
+            raise FileExistsError(
+                f"{', '.join(there)} exist (use --overwrite to replace them); nothing was written"
+            )
+        for path in files:
+            os.replace(path, out / path.name)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return [out / path.name for path in made]
+
+
+def _render_all(
+    out: Path, log: Callable[[str], None], plate: Path | None, camera_raw: Path | None
+) -> list[Path]:
+    """The pictures of :func:`run`, written into ``out``."""
     lines: list[str] = []
     s = SUPERSAMPLE
     hi_res = _camera(s)

@@ -1,7 +1,7 @@
 //! Bindings of `imgform_core::demosaic`.
 
 use imgform_core::cfa::CfaPattern;
-use imgform_core::demosaic::{demosaic as demosaic_kernel, Method};
+use imgform_core::demosaic::{demosaic as demosaic_kernel, Method, SAMPLE_LIMIT};
 use imgform_core::image::{ImageView, Sample};
 use numpy::{Element, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -80,5 +80,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
         .filter(|name| Method::from_name(name).is_ok_and(Method::scaled))
         .collect();
     m.add("SCALED_DEMOSAIC_METHODS", PyTuple::new(m.py(), scaled)?)?;
+    m.add("DEMOSAIC_SAMPLE_LIMIT", SAMPLE_LIMIT)?;
     Ok(())
 }

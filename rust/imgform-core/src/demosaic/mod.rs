@@ -494,17 +494,30 @@ where
     }
 }
 
-/// Refuses NaN and infinities: every method mixes neighbouring samples, so
-/// one would spread into (or be clamped into) numbers around it that look
-/// valid. The first bad sample in row-major order is named, whatever the
-/// thread count.
+/// The largest magnitude a mosaic's sample may have: 2^100, far beyond any
+/// light level, and far enough below `f32::MAX` (2^128) that no method's
+/// sums of weighted neighbours overflow (they did from ~1e37: infinities,
+/// and clamped samples in place of measured ones).
+pub const SAMPLE_LIMIT: f32 = (1u128 << 100) as f32;
+
+/// Refuses NaN, infinities and samples beyond [`SAMPLE_LIMIT`]: every
+/// method mixes neighbouring samples, so one would spread into (or be
+/// clamped into) numbers around it that look valid. The first bad sample in
+/// row-major order is named, whatever the thread count.
 fn check_finite<T: Sample>(raw: &ImageView<'_, T>) -> Result<()> {
+    let good = |v: &T| v.is_finite() && v.to_f32().abs() <= SAMPLE_LIMIT;
     let bad_row = (0..raw.height())
         .into_par_iter()
-        .find_first(|&y| !raw.row(y).iter().all(|v| v.is_finite()));
+        .find_first(|&y| !raw.row(y).iter().all(good));
     let Some(y) = bad_row else { return Ok(()) };
     let row = raw.row(y);
-    let x = row.iter().position(|v| !v.is_finite()).unwrap_or_default();
+    let x = row.iter().position(|v| !good(v)).unwrap_or_default();
+    if row[x].is_finite() {
+        return Err(invalid!(
+            "the mosaic's samples must lie within ±2^100, got one beyond at row {y}, column \
+             {x} (sums of its neighbours would overflow float32)"
+        ));
+    }
     Err(invalid!(
         "the mosaic must hold finite numbers, got {:?} at row {y}, column {x}",
         row[x]
