@@ -420,6 +420,15 @@ def test_a_batch_removes_the_partial_files_of_its_own_outputs_only(tmp_path, cli
     assert outputs(out) == sorted(
         [f.name for f in foreign] + ["shot0.png", "shot1.png", report.path.name]
     )
+    # The command line without a cluster, too.
+    for f in dead:
+        f.write_bytes(b"half a file")
+    (out / "shot0.png").unlink()
+    (out / "shot1.png").unlink()
+    assert main(["develop", *paths[:2], "-o", str(out)]) == 0
+    assert outputs(out) == sorted(
+        [f.name for f in foreign] + ["shot0.png", "shot1.png", report.path.name]
+    )
 
 
 def test_inputs_with_one_output_are_refused_before_anything_is_written(
@@ -445,6 +454,23 @@ def test_inputs_with_one_output_are_refused_before_anything_is_written(
         assert err.startswith(f"imgform {command}: inputs would overwrite each other's output")
         assert re.search(clash, err) and err.count("\n") == 1
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "exc", "match"),
+    [
+        ({"bps": 12}, ValueError, 'bps must be 8, 16 or "float", got 12'),
+        ({"format": "jpeg", "bps": 16}, ValueError, "JPEG files take bps 8, got bps=16"),
+        ({"colour": "srgb"}, TypeError, r"unknown options \['colour'\]"),
+        ({"quality": 0}, ValueError, "quality"),
+    ],
+)
+def test_develop_many_refuses_what_every_file_would_fail_for_before_any_runs(
+    tmp_path, options, exc, match
+):
+    with pytest.raises(exc, match=match):
+        batch.develop_many([str(tmp_path / "a.dng")], tmp_path / "out", **options)
+    assert not (tmp_path / "out").exists()
 
 
 def test_names_that_differ_only_in_case_are_one_output(tmp_path):

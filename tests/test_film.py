@@ -508,3 +508,13 @@ def test_rms_granularity_at_density_one_is_the_stock_parameter(name):
     np.testing.assert_array_equal(d, again)
     other = film.develop(h, stock, couplers=False, grain=True, seed=6, frame_width_mm=frame)
     assert not np.array_equal(d, other)
+
+
+def test_the_film_cli_refuses_integer_images_of_no_agreed_white(tmp_path, capsys):
+    tifffile = pytest.importorskip("tifffile")
+    from imgform_rs import cli
+
+    tifffile.imwrite(tmp_path / "deep.tif", np.full((8, 8, 3), 1000, np.int32))
+    assert cli.main(["film", str(tmp_path / "deep.tif"), "-o", str(tmp_path / "o")]) == 1
+    assert "8- or 16-bit or float images, got int32" in capsys.readouterr().err
+    assert list((tmp_path / "o").iterdir()) == []

@@ -81,6 +81,15 @@ def test_big_endian_images_give_what_their_native_copies_give(dtype):
     )
 
 
+@pytest.mark.parametrize("dtype", [bool, np.complex64, object])
+def test_maps_of_anything_but_real_numbers_are_refused(dtype):
+    # A cast to float32 would read True as 1, drop an imaginary part, parse strings.
+    x = np.zeros((2, 2), dtype)
+    y = np.zeros((2, 2), np.float32)
+    with pytest.raises(TypeError, match="map_x must be an array of real numbers"):
+        ig.remap(np.ones((4, 4), np.float32), (x, y))
+
+
 def test_undistort_map_matches_opencv_map():
     cv2 = pytest.importorskip("cv2")
     mx, my = cv2.initUndistortRectifyMap(K, LENS, None, K, (W, H), cv2.CV_32FC1)

@@ -51,6 +51,13 @@ def as_matrix(value: Any, shape: tuple[int, ...], name: str) -> Float64Array:
     return np.ascontiguousarray(arr)
 
 
+def as_real(value: Any, name: str, dtype: Any) -> np.ndarray:
+    """An array of real numbers in ``dtype`` (no copy when it is one); bool,
+    complex and object arrays are a TypeError, where a cast would read True
+    as 1, drop an imaginary part or parse strings."""
+    return _numeric(value, name).astype(dtype, copy=False)
+
+
 def as_float_array(value: Any, name: str) -> Float64Array:
     """Any real scalar or array as float64, for the vectorised optics formulas."""
     return _numeric(value, name).astype(np.float64, copy=False)

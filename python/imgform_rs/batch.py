@@ -389,6 +389,25 @@ def _run_batch(
     return _write_report(out, kind, results)
 
 
+def _check_develop_options(format: str, options: dict) -> None:
+    """What every file would fail for, refused before any runs: an unknown
+    keyword, a format and bit depth that do not go together, a bad quality."""
+    import inspect
+
+    from ._imagefile import check_format, check_quality
+    from .develop import develop
+
+    known = set(inspect.signature(develop).parameters) - {"source"} | {"quality"}
+    unknown = sorted(set(options) - known)
+    if unknown:
+        raise TypeError(f"develop_many got unknown options {unknown}; it takes {sorted(known)}")
+    bps = options.get("bps", 8)
+    if isinstance(bps, bool) or bps not in (8, 16, "float"):
+        raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
+    check_format(format, bps)
+    check_quality(options.get("quality", 92))
+
+
 def develop_many(
     sources: Iterable[str | os.PathLike[str]],
     outdir: str | os.PathLike[str],
@@ -458,6 +477,7 @@ def develop_many(
     """
     if format not in _SUFFIX:
         raise ValueError(f'format must be "png", "tiff", "jpeg" or "exr", got {format!r}')
+    _check_develop_options(format, develop_kwargs)
     return _run_batch(
         "develop",
         sources,

@@ -175,8 +175,11 @@ def _srgb_to_linear(img: np.ndarray) -> np.ndarray:
     """An 8- or 16-bit (or float) sRGB image as linear float32, (H, W, 3)."""
     import numpy as np
 
-    scale = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(img.dtype, 1.0)
-    v = img.astype(np.float32) / np.float32(scale)
+    scales = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}
+    if img.dtype not in scales and img.dtype.kind != "f":
+        # Other integers have no agreed white (an int32 TIFF read as 0..1 printed white).
+        raise ValueError(f"film takes 8- or 16-bit or float images, got {img.dtype}")
+    v = img.astype(np.float32) / np.float32(scales.get(img.dtype, 1.0))
     if v.ndim == 2:
         v = np.repeat(v[..., None], 3, axis=-1)
     v = v[..., :3]
@@ -269,6 +272,7 @@ def _develop(args: argparse.Namespace) -> int:
     from concurrent.futures import ThreadPoolExecutor
 
     from ._imagefile import check_exr, check_format
+    from .batch import _remove_leftovers
     from .develop import _tone_for
 
     try:
@@ -322,6 +326,8 @@ def _develop(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
             return 130
+    # Partial files a killed earlier run left of these outputs (as on Dask).
+    _remove_leftovers(Path(args.out), (target for _, target in todo))
     if failed:
         print(f"imgform develop: {failed} of {len(args.raws)} files failed", file=sys.stderr)
     return 1 if failed else 0

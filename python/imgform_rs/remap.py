@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import as_matrix
+from ._arrays import as_matrix, as_real
 from .distortion import DistortionModel, lens_coefficients
 
 RemapMap = _native.RemapMap
@@ -160,7 +160,8 @@ def _as_map(map: Any) -> RemapMap:
     if isinstance(map, RemapMap):
         return map
     if isinstance(map, tuple) and len(map) == 2:
-        map_x, map_y = (np.asarray(m, dtype=np.float32) for m in map)
+        names = ("map_x", "map_y")
+        map_x, map_y = (as_real(m, n, np.float32) for m, n in zip(map, names, strict=True))
         return RemapMap(map_x, map_y)
     given = type(map).__name__
     raise TypeError(

@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, as_seed
+from ._arrays import Float64Array, as_float_array, as_real, as_seed
 from .cfa import as_pattern, pattern_cells
 
 Float32Array = npt.NDArray[np.float32]
@@ -838,7 +838,7 @@ class SpectralCamera:
     def camera_rates(self, radiance: Any) -> Float32Array:
         """Noise-free mean electron rates (e-/s) of every channel, shape (..., 3),
         of radiance (..., L): what the sensor's photodiodes average to."""
-        arr = np.asarray(radiance, np.float32)
+        arr = as_real(radiance, "radiance", np.float32)
         self._check_samples(arr, "radiance")
         lead = arr.shape[:-1]
         cube = arr.reshape((-1, 1, arr.shape[-1]) if arr.ndim < 3 else arr.shape)

@@ -44,7 +44,7 @@ import numpy.typing as npt
 
 from . import film
 from . import spectral as sp
-from ._arrays import Float64Array
+from ._arrays import Float64Array, as_real
 from .align import apply_warp, colorize_plate
 
 Float32Array = npt.NDArray[np.float32]
@@ -657,7 +657,7 @@ def exposure_from_scan(scan: Any, camera: Camera) -> Float32Array:
     exposures."""
     layer = camera.plate.layers[0]
     base = float(camera.plate.base_density.mean())
-    density = np.asarray(scan, np.float64) * (SCAN_DENSITY_RANGE / 65535.0) - base
+    density = as_real(scan, "scan", np.float64) * (SCAN_DENSITY_RANGE / 65535.0) - base
     return (10.0 ** np.interp(density, layer.density, layer.log_exposure)).astype(np.float32)
 
 
