@@ -514,7 +514,7 @@ def test_the_film_cli_refuses_integer_images_of_no_agreed_white(tmp_path, capsys
     tifffile = pytest.importorskip("tifffile")
     from imgform_rs import cli
 
-    tifffile.imwrite(tmp_path / "deep.tif", np.full((8, 8, 3), 1000, np.int32))
+    tifffile.imwrite(tmp_path / "deep.tif", np.full((8, 8, 3), 1000, np.int32), photometric="rgb")
     assert cli.main(["film", str(tmp_path / "deep.tif"), "-o", str(tmp_path / "o")]) == 1
     assert "8- or 16-bit or float images, got int32" in capsys.readouterr().err
     assert list((tmp_path / "o").iterdir()) == []
