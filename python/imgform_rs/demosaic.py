@@ -367,12 +367,14 @@ def demosaic(
     -------
     ndarray, shape (H, W, 3), same dtype as ``raw`` (``out`` if given)
         R, G, B. Each sampled value comes back unchanged at its own site.
-        Integer outputs are rounded half up and clamped to the dtype's range;
-        float outputs are not clamped (Malvar and Hamilton-Adams can overshoot),
-        except by ``"rcd"``, ``"menon2007"``, ``"rcd_menon"``, ``"ahd"``,
-        ``"leung2011"``, ``"mlri"``, ``"raisr"``, ``"raisr_fast"``, ``"ri_cd"``,
-        ``"raisr_cd"``, ``"fusion"``, ``"fusion_refined"`` and ``"markesteijn"``, which
-        clamp every output to ``[raw.min(), raw.max()]``.
+        Integer outputs are rounded half up and clamped to the dtype's range,
+        not to a white level: Malvar's and Hamilton-Adams's overshoot can pass a
+        12-bit raw's 4095 in uint16 (clip where that matters). Float outputs are
+        not clamped, except by ``"rcd"``, ``"menon2007"``, ``"rcd_menon"``,
+        ``"ahd"``, ``"leung2011"``, ``"mlri"``, ``"raisr"``, ``"raisr_fast"``,
+        ``"ri_cd"``, ``"raisr_cd"``, ``"fusion"``, ``"fusion_refined"``,
+        ``"fusion_cnn"`` and ``"markesteijn"``, which clamp every output to
+        ``[raw.min(), raw.max()]``.
         Borders are reconstructed from a mirrored mosaic (edge not repeated,
         which keeps the CFA phase): no black frame, no wrap-around.
 
