@@ -338,3 +338,12 @@ def test_a_file_that_is_not_a_regular_file_is_refused_without_blocking(tmp_path)
         f"{device}: cannot read the file (a character device, not a regular file)",
         f"{tmp_path}: cannot read the file (a folder, not a regular file)",
     ]
+
+
+@pytest.mark.parametrize("shape", [(21, 40), (40, 21), (2, 2)])
+def test_a_dng_too_small_for_libraw_is_refused_before_it_is_written(tmp_path, shape):
+    from imgform_rs.dng import write_dng
+
+    with pytest.raises(ValueError, match="at least 22 pixels on a side"):
+        write_dng(tmp_path / "a.dng", np.zeros(shape, np.uint16), "RGGB", white_level=4095)
+    assert not (tmp_path / "a.dng").exists()

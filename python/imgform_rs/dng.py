@@ -33,6 +33,10 @@ _D65 = 21  # CalibrationIlluminant code.
 # EXIF tags (CIPA DC-008): the sub-IFD pointer in IFD0 and what goes in it.
 _EXIF_IFD, _F_NUMBER, _FOCAL_LENGTH, _LENS_MODEL = 34665, 33437, 37386, 42036
 
+#: The shortest side a DNG may have: LibRaw refuses images under 22 pixels on
+#: a side (as rawpy reports), so a smaller file would be unreadable.
+MIN_SIDE = 22
+
 # XYZ (D65) to linear sRGB: with it as ColorMatrix1 a developer maps the
 # camera's RGB to sRGB unchanged, which suits synthetic mosaics of sRGB images.
 XYZ_TO_SRGB = (
@@ -153,7 +157,8 @@ def write_dng(
         File to create (overwritten).
     cfa : ndarray, shape (H, W), uint16 (or uint8, widened)
         The mosaic; ``rawpy.imread(path).raw_image_visible`` returns it unchanged.
-        LibRaw refuses images under 22 pixels on a side.
+        At least :data:`MIN_SIDE` (22) pixels on a side: LibRaw refuses smaller
+        images.
     pattern : str or array_like
         Bayer name or tile, or an X-Trans tile, of pixel (0, 0).
     white_level : int
@@ -188,7 +193,7 @@ def write_dng(
     TypeError
         For a non-integer mosaic.
     ValueError
-        For a mosaic that is not 2-D or is empty, levels outside 0..65535 or
+        For a mosaic that is not 2-D or under 22 pixels on a side, levels outside 0..65535 or
         black not below white, a black pattern over 64 x 64, a colour or
         forward matrix that is not a finite (3, 3) one, a neutral that is not
         three finite values > 0, an orientation outside 1..8, a pixel aspect,
@@ -211,6 +216,12 @@ def write_dng(
         raise TypeError(f"cfa must be a uint16 (or uint8) mosaic, got dtype {arr.dtype}")
     if arr.ndim != 2 or arr.size == 0:
         raise ValueError(f"cfa must be a non-empty (H, W) mosaic, got shape {arr.shape}")
+    if min(arr.shape) < MIN_SIDE:
+        # A file no raw reader opens would only fail later, elsewhere.
+        raise ValueError(
+            f"cfa must be at least {MIN_SIDE} pixels on a side (LibRaw refuses smaller "
+            f"images), got shape {arr.shape}"
+        )
     black = _black_pattern(black_level, white_level)
     if orientation not in range(1, 9):
         raise ValueError(f"orientation must be an EXIF orientation 1..8, got {orientation!r}")
