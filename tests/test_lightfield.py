@@ -323,6 +323,11 @@ def test_view_disparity_needs_a_camera():
         ({"camera": "pinhole"}, TypeError, "Camera"),
         ({"camera": ig.Camera.from_intrinsics(10.0, 10.0, 4.0, 4.0)}, ValueError, "image_size"),
         ({"scene": 42}, TypeError, "shade"),
+        # A shade whose colours come as (3, N) once scrambled the views.
+        ({"scene": lambda o, d: (scene.shade(o, d)[0].T, None)}, ValueError, r"\(\d+, 3\)"),
+        ({"scene": lambda o, d: (scene.shade(o, d)[0] * np.nan, None)}, ValueError, "finite"),
+        ({"scene": lambda o, d: (scene.shade(o, d)[0] + 0j, None)}, TypeError, "real numbers"),
+        ({"scene": lambda o, d: scene.shade(o, d)[0]}, TypeError, r"\(colour, distance\)"),
     ],
 )
 def test_render_light_field_refuses_bad_input(kwargs, error, match):

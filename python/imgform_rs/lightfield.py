@@ -212,10 +212,30 @@ def render_light_field(
     views = np.empty((*grid, h, w, 3), dtype=dtype)
     for u, v in np.ndindex(*grid):
         origin = camera.center + baseline * (dv[u, v] * right + du[u, v] * down)
-        colour, _ = shade(origin, rays)
+        colour = _shaded(shade(origin, rays), len(rays))
         colour = np.clip(colour.reshape(h, s, w, s, 3).mean(axis=(1, 3)), 0.0, 1.0)
         views[u, v] = colour * 255 + 0.5 if views.dtype == np.uint8 else colour
     return views
+
+
+def _shaded(result: Any, n: int) -> np.ndarray:
+    """The colours of a ``shade`` callback's ``(colour, distance)``, checked:
+    real, finite and (N, 3), where a (3, N) array would reshape into
+    scrambled views and NaN clip to black."""
+    try:
+        first, _ = result
+    except (TypeError, ValueError):
+        raise TypeError(
+            f"shade must return (colour, distance), got {type(result).__name__}"
+        ) from None
+    colour = np.asarray(first)
+    if colour.dtype.kind not in "iuf":
+        raise TypeError(f"shade's colours must be real numbers, got dtype {colour.dtype}")
+    if colour.shape != (n, 3):
+        raise ValueError(f"shade's colours must have shape ({n}, 3), got {colour.shape}")
+    if not np.isfinite(colour).all():
+        raise ValueError("shade's colours must be finite numbers in [0, 1]")
+    return colour
 
 
 def _aperture_mask(aperture: Any, grid: tuple[int, int]) -> np.ndarray:
