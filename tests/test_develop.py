@@ -341,6 +341,30 @@ def grey_card(tmp_path_factory):
     return path, ig.load_raw(path)
 
 
+@pytest.mark.parametrize(
+    ("field", "value", "exc", "match"),
+    [
+        ("cfa", [[1, 2], [3, 4]], TypeError, "RawImage.cfa must be a NumPy array"),
+        ("cfa", np.zeros((0, 0), np.uint16), ValueError, r"RawImage.cfa .*got \(0, 0\)"),
+        ("cfa", np.zeros((40, 56), np.float32), TypeError, "RawImage.cfa must be a NumPy"),
+        ("black_levels", np.zeros(3), ValueError, r"black_levels .*shape \(4\), got \(3,\)"),
+        ("black_map", np.zeros((0, 0)), ValueError, r"black_map .*got \(0, 0\)"),
+        ("camera_to_srgb", np.eye(3) * np.nan, ValueError, "camera_to_srgb must be finite"),
+        ("white_level", "4095", TypeError, "white_level must be an int"),
+        ("white_level", 10, ValueError, r"black_levels must lie in 0\.\.white_level \(10\)"),
+        ("flip", -1, ValueError, "flip is LibRaw's orientation code 0..7, got -1"),
+        ("pixel_aspect", 0, ValueError, r"pixel_aspect must be in 0\.0625\.\.16, got 0"),
+        ("pixel_aspect", 1e-9, ValueError, "pixel_aspect must be in"),
+    ],
+)
+def test_a_raw_image_with_a_field_develop_cannot_use_is_named(grey_card, field, value, exc, match):
+    # Before: AttributeError, IndexError, ZeroDivisionError, MemoryError (298 GiB),
+    # or a flip of -1 silently read as a transpose.
+    _, raw = grey_card
+    with pytest.raises(exc, match=match):
+        ig.develop(dataclasses.replace(raw, **{field: value}))
+
+
 def test_output_types_and_tone_curves_agree(grey_card):
     _, raw = grey_card
     # Bilinear: Hamilton-Adams' direction choice may flip on a rounded input.

@@ -56,7 +56,7 @@ from ._exif import exif_bytes
 from ._imagefile import check_exr, check_format, check_quality, path_kind, write_image
 from .colorspace import COLOR_SPACES, srgb_to
 from .demosaic import DEMOSAIC_METHODS
-from .raw import RawImage, load_raw
+from .raw import RawImage, check_raw_image, load_raw
 
 DEFAULT_DEMOSAIC = "best" if "best" in DEMOSAIC_METHODS else "hamilton_adams"
 """The demosaicer :func:`develop` uses unless told otherwise."""
@@ -352,6 +352,7 @@ def develop(
     if not isinstance(demosaic, str):
         raise TypeError(f"demosaic must be a str, one of {DEMOSAIC_METHODS}, got {demosaic!r}")
     raw = source if isinstance(source, RawImage) else load_raw(source)
+    check_raw_image(raw)
     mul = _multipliers(raw, white_balance)
     mul = mul / (mul.min() if highlights == "clip" else mul.max())
     scale4 = mul / _white_range(raw) * 2.0 ** (0.0 if auto else exposure)

@@ -149,6 +149,58 @@ class RawImage:
     shot: ShotInfo = field(default_factory=ShotInfo)
 
 
+#: The photosite aspects :func:`~imgform_rs.develop` stretches (LibRaw's
+#: cameras have 1, 2 and 0.5): far beyond, the stretched picture would not
+#: fit in memory.
+PIXEL_ASPECTS = (1 / 16, 16.0)
+
+
+def check_raw_image(raw: RawImage) -> None:
+    """TypeError / ValueError naming the field of a hand-made (or edited)
+    :class:`RawImage` that :func:`~imgform_rs.develop` cannot use, before
+    it fails deeper with an error that names nothing."""
+
+    def array(name: str, shape: tuple[int | None, ...], dtype: str = "iuf") -> np.ndarray:
+        value = getattr(raw, name)
+        arr = np.asarray(value)
+        if not isinstance(value, np.ndarray) or arr.dtype.kind not in dtype:
+            raise TypeError(f"RawImage.{name} must be a NumPy array of numbers, got {value!r}")
+        sides = zip(shape, arr.shape, strict=False)  # lengths compared first
+        fits = arr.ndim == len(shape) and all(n in (None, m) for n, m in sides)
+        if not fits or arr.size == 0 or not np.isfinite(arr).all():
+            want = "(" + ", ".join("n" if n is None else str(n) for n in shape) + ")"
+            raise ValueError(
+                f"RawImage.{name} must be finite numbers of shape {want}, got {arr.shape}"
+            )
+        return arr
+
+    cfa = array("cfa", (None, None), "u")
+    if cfa.dtype != np.uint16:
+        raise TypeError(f"RawImage.cfa must be uint16, got {cfa.dtype}")
+    tile = array("channel_tile", (None, None), "u")
+    if tile.max() > 3:
+        raise ValueError(f"RawImage.channel_tile holds channels 0..3, got {tile.max()}")
+    black = array("black_levels", (4,))
+    array("black_map", (None, None))
+    for name in ("camera_white_balance", "daylight_white_balance"):
+        array(name, (4,))
+    for name in ("camera_to_srgb", "camera_to_xyz"):
+        array(name, (3, 3))
+    white = raw.white_level
+    if isinstance(white, bool) or not isinstance(white, (int, np.integer)):
+        raise TypeError(f"RawImage.white_level must be an int, got {white!r}")
+    if not black.min() >= 0 or black.max() >= white:
+        raise ValueError(
+            f"RawImage.black_levels must lie in 0..white_level ({white}), got {black.tolist()}"
+        )
+    if isinstance(raw.flip, bool) or raw.flip not in range(8):
+        raise ValueError(f"RawImage.flip is LibRaw's orientation code 0..7, got {raw.flip!r}")
+    lo, hi = PIXEL_ASPECTS
+    aspect = raw.pixel_aspect
+    if not (isinstance(aspect, (int, float, np.number)) and lo <= aspect <= hi):
+        raise ValueError(f"RawImage.pixel_aspect must be in {lo:g}..{hi:g}, got {aspect!r}")
+
+
 def _describe(source: Any) -> str:
     if isinstance(source, (str, os.PathLike)):
         return os.fspath(source)
