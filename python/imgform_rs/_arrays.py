@@ -51,6 +51,14 @@ def as_matrix(value: Any, shape: tuple[int, ...], name: str) -> Float64Array:
     return np.ascontiguousarray(arr)
 
 
+def require_finite(arr: np.ndarray, name: str) -> None:
+    """A ValueError naming the first NaN or infinity of a float ``arr`` and
+    its index (integer arrays hold none)."""
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        at = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
+        raise ValueError(f"{name} must hold finite numbers, got {arr[at]} at index {at}")
+
+
 def as_real(value: Any, name: str, dtype: Any) -> np.ndarray:
     """An array of real numbers in ``dtype`` (no copy when it is one); bool,
     complex and object arrays are a TypeError, where a cast would read True

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ._arrays import require_finite
+
 GRID_SIDE = 512
 
 
@@ -63,9 +65,7 @@ def auto_balance(
         raise ValueError(f"rgb must be a non-empty (H, W, 3) image, got shape {img.shape}")
     # One NaN or infinity would make the means and quantiles, so every
     # channel's gain, NaN.
-    if img.dtype.kind == "f" and not np.isfinite(img).all():
-        at = tuple(int(i) for i in np.argwhere(~np.isfinite(img))[0])
-        raise ValueError(f"rgb must hold finite numbers, got {img[at]} at index {at}")
+    require_finite(img, "rgb")
     if not 0 <= clip < 0.5:
         raise ValueError(f"clip must be in [0, 0.5), got {clip}")
     top = float(np.iinfo(img.dtype).max) if img.dtype.kind == "u" else 1.0

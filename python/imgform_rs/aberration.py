@@ -11,12 +11,13 @@ image with it. Lengths are in one unit (millimetres in the examples).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, overload
+from typing import overload
 
 import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._arrays import require_finite
 
 __all__ = [
     "SpotDiagram",
@@ -334,17 +335,7 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
            [ 50, 100,   0],
            [  0,   0,   0]], dtype=uint8)
     """
-    _finite_image(image)
+    # NaN or an infinity would spread over a whole FFT tile for large PSFs
+    # (the direct sum only over the PSF's footprint): refused on both paths.
+    require_finite(np.asarray(image), "image")
     return _native.render_aberrated(image, _psf_array(psf, "psf"))  # type: ignore[no-any-return]
-
-
-def _finite_image(image: Any) -> None:
-    """Refuses a float image holding NaN or an infinity: the FFT tiles of
-    large PSFs would spread it over a whole tile (the direct sum only over
-    the PSF's footprint), so the result would depend on the PSF's size."""
-    arr = np.asarray(image)
-    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
-        where = np.unravel_index(int(np.argmin(np.isfinite(arr))), arr.shape)
-        raise ValueError(
-            f"image must hold finite numbers, got {arr[where]} at row {where[0]}, column {where[1]}"
-        )

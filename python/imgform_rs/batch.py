@@ -395,15 +395,14 @@ def _check_develop_options(format: str, options: dict) -> None:
     import inspect
 
     from ._imagefile import check_format, check_quality
-    from .develop import develop
+    from .develop import check_bps, develop
 
     known = set(inspect.signature(develop).parameters) - {"source"} | {"quality"}
     unknown = sorted(set(options) - known)
     if unknown:
         raise TypeError(f"develop_many got unknown options {unknown}; it takes {sorted(known)}")
     bps = options.get("bps", 8)
-    if isinstance(bps, bool) or bps not in (8, 16, "float"):
-        raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
+    check_bps(bps)
     check_format(format, bps)
     check_quality(options.get("quality", 92))
 

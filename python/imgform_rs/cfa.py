@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native, _samples
-from ._arrays import as_seed, is_int
+from ._arrays import as_seed, is_int, require_finite
 
 Pattern = str | npt.ArrayLike
 """A pattern name or a (2, 2) / (6, 6) array of channel indices."""
@@ -296,9 +296,7 @@ def simulate_sensor(
         )
     as_seed(seed, "seed")
     arr = as_image(rgb, "rgb")
-    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
-        at = tuple(int(i) for i in np.argwhere(~np.isfinite(arr))[0])
-        raise ValueError(f"rgb must hold finite numbers, got {arr[at]} at index {at}")
+    require_finite(arr, "rgb")
     return _native.simulate_sensor(
         arr,
         as_pattern(pattern),

@@ -122,6 +122,12 @@ def _grey_multipliers(sums: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return np.where(total > 0, count / np.where(total > 0, total, 1), 1.0)
 
 
+def check_bps(bps: Any) -> None:
+    """ValueError unless ``bps`` is one :func:`develop` takes."""
+    if isinstance(bps, bool) or bps not in _BPS:
+        raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
+
+
 def _multipliers(raw: RawImage, white_balance: Any) -> npt.NDArray[np.float64]:
     """White-balance multipliers R, G, B, G2 before normalisation."""
     if isinstance(white_balance, str):
@@ -329,8 +335,7 @@ def develop(
     >>> rgb.shape, rgb.dtype, int(rgb[8, 8, 1]), int(rgb[8, 24, 1])
     ((32, 32, 3), dtype('uint16'), 16384, 32768)
     """
-    if bps not in _BPS:
-        raise ValueError(f'bps must be 8, 16 or "float", got {bps!r}')
+    check_bps(bps)
     if color not in COLORS:
         raise ValueError(f"color must be one of {COLORS}, got {color!r}")
     if tone != "auto" and tone not in TONES:

@@ -167,7 +167,9 @@ def check_raw_image(raw: RawImage) -> None:
             raise TypeError(f"RawImage.{name} must be a NumPy array of numbers, got {value!r}")
         sides = zip(shape, arr.shape, strict=False)  # lengths compared first
         fits = arr.ndim == len(shape) and all(n in (None, m) for n, m in sides)
-        if not fits or arr.size == 0 or not np.isfinite(arr).all():
+        # Integers are finite: no pass over a whole mosaic for them.
+        finite = arr.dtype.kind in "iu" or np.isfinite(arr).all()
+        if not fits or arr.size == 0 or not finite:
             want = "(" + ", ".join("n" if n is None else str(n) for n in shape) + ")"
             raise ValueError(
                 f"RawImage.{name} must be finite numbers of shape {want}, got {arr.shape}"

@@ -643,19 +643,27 @@ fn block<const CIN: usize, const V: usize, const B: usize>(
     sums: &mut [i32],
     x: usize,
 ) {
-    let cout = V * LANES;
-    if V == 1 && B.is_multiple_of(4) {
-        for s in (0..B).step_by(4) {
-            run::<CIN, V, 4>(rows, weights, &mut sums[s * cout..], x + s);
+    let (cout, step) = (V * LANES, run_len(V, B));
+    for s in (0..B).step_by(step) {
+        let (sums, x) = (&mut sums[s * cout..], x + s);
+        match step {
+            4 => run::<CIN, V, 4>(rows, weights, sums, x),
+            2 => run::<CIN, V, 2>(rows, weights, sums, x),
+            _ => run::<CIN, V, 1>(rows, weights, sums, x),
         }
-    } else if V == 2 && B.is_multiple_of(2) {
-        for s in (0..B).step_by(2) {
-            run::<CIN, V, 2>(rows, weights, &mut sums[s * cout..], x + s);
-        }
+    }
+}
+
+/// Quads a run of [`block`] (and of AVX2's) takes at once: four of 16
+/// channels (`v` 1) or two of 32, whose sums fill half of 16 or 32
+/// registers with room for one input pair's weights, where `b` splits so.
+const fn run_len(v: usize, b: usize) -> usize {
+    if v == 1 && b.is_multiple_of(4) {
+        4
+    } else if v == 2 && b.is_multiple_of(2) {
+        2
     } else {
-        for s in 0..B {
-            run::<CIN, V, 1>(rows, weights, &mut sums[s * cout..], x + s);
-        }
+        1
     }
 }
 
@@ -897,15 +905,7 @@ mod x86 {
         sums: &mut [i32],
         x: usize,
     ) {
-        let cout = V * super::LANES;
-        let (run4, run2) = (V == 1 && B.is_multiple_of(4), V == 2 && B.is_multiple_of(2));
-        let step = if run4 {
-            4
-        } else if run2 {
-            2
-        } else {
-            1
-        };
+        let (cout, step) = (V * super::LANES, super::run_len(V, B));
         for s in (0..B).step_by(step) {
             let (sums, x) = (&mut sums[s * cout..], x + s);
             // SAFETY: the caller's.
