@@ -11,7 +11,7 @@ import sys
 import imgform_rs as ig
 
 # Runs in a fresh interpreter (the cap is read once): hashes of the outputs
-# of kernels with baseline, AVX2 and AVX-512 builds.
+# of kernels with baseline, AVX2, AVX-512 and AMX builds.
 SCRIPT = r"""
 import hashlib, json
 import numpy as np
@@ -54,7 +54,7 @@ def _run(cap: str | None) -> subprocess.CompletedProcess[str]:
 
 def test_every_instruction_set_gives_the_same_bits() -> None:
     widest = ig.instruction_set()
-    levels = ["baseline", "avx2", "avx512"]
+    levels = ["baseline", "avx2", "avx512", "amx"]
     runs = {cap: json.loads(_run(cap).stdout) for cap in levels[: levels.index(widest) + 1]}
     for cap, hashes in runs.items():
         assert hashes.pop("isa") == cap
@@ -66,7 +66,7 @@ def test_every_instruction_set_gives_the_same_bits() -> None:
 
 
 def test_a_cap_above_the_cpu_gives_its_widest_and_a_bad_one_warns() -> None:
-    ran = _run("avx512")
+    ran = _run("amx")
     assert json.loads(ran.stdout)["isa"] == ig.instruction_set()
     ran = _run("sse9")
     assert "IMGFORM_ISA='sse9' is not one of" in ran.stderr

@@ -1,9 +1,10 @@
 """Which vector instructions the kernels use, and how to cap them.
 
-The kernels pick, at run time, the widest build the CPU has: AVX-512, AVX2
+The kernels pick, at run time, the widest build the CPU has: AVX-512 with
+Intel's AMX tiles (Xeons since Sapphire Rapids, on Linux), AVX-512, AVX2
 with FMA, or the baseline. The ``IMGFORM_ISA`` environment variable, read
-once when the first kernel asks, caps that choice at ``baseline``, ``avx2``
-or ``avx512``. Every build gives the same bits (each kernel's tests compare
+once when the first kernel asks, caps that choice at ``baseline``, ``avx2``,
+``avx512`` or ``amx``. Every build gives the same bits (each kernel's tests compare
 them), so the cap changes only the speed: on a wide machine it times what a
 narrower one runs, e.g. ``IMGFORM_ISA=avx2 python benchmarks/lens.py``.
 """
@@ -24,12 +25,12 @@ def instruction_set() -> str:
     Returns
     -------
     str
-        ``"baseline"``, ``"avx2"`` or ``"avx512"``.
+        ``"baseline"``, ``"avx2"``, ``"avx512"`` or ``"amx"``.
 
     Examples
     --------
     >>> from imgform_rs import instruction_set
-    >>> instruction_set() in ("baseline", "avx2", "avx512")
+    >>> instruction_set() in ("baseline", "avx2", "avx512", "amx")
     True
     """
     return str(_native.instruction_set())

@@ -1,8 +1,8 @@
 //! What the CPU can do, for kernels that pick a wide build at run time.
 //!
 //! The `IMGFORM_ISA` environment variable, read once, caps the widest build
-//! the kernels pick: `baseline`, `avx2` or `avx512` (unset: no cap; the
-//! Python package warns about other values). Every build gives the scalar
+//! the kernels pick: `baseline`, `avx2`, `avx512` or `amx` (unset: no cap;
+//! the Python package warns about other values). Every build gives the scalar
 //! code's bits (each kernel's tests compare them), so the cap changes only
 //! the speed: it lets a wide machine time what a narrower one runs.
 
@@ -18,18 +18,23 @@ pub enum Level {
     /// AVX-512: F, BW, DQ and VL, and more where a kernel needs it (VBMI
     /// for the 8-bit per-channel resampling).
     Avx512,
+    /// AVX-512 and Intel's AMX tiles with their 8-bit products (Xeons
+    /// since Sapphire Rapids), which the OS lets the process use: the
+    /// network of the "quality" demosaicer multiplies its matrices there.
+    Amx,
 }
 
 impl Level {
     /// Every level, narrowest first.
-    pub const ALL: [Level; 3] = [Level::Baseline, Level::Avx2, Level::Avx512];
+    pub const ALL: [Level; 4] = [Level::Baseline, Level::Avx2, Level::Avx512, Level::Amx];
 
-    /// The name `IMGFORM_ISA` takes: `baseline`, `avx2` or `avx512`.
+    /// The name `IMGFORM_ISA` takes: `baseline`, `avx2`, `avx512` or `amx`.
     pub fn name(self) -> &'static str {
         match self {
             Level::Baseline => "baseline",
             Level::Avx2 => "avx2",
             Level::Avx512 => "avx512",
+            Level::Amx => "amx",
         }
     }
 }
@@ -43,7 +48,7 @@ fn cap() -> Level {
         Level::ALL
             .into_iter()
             .find(|l| l.name() == asked)
-            .unwrap_or(Level::Avx512)
+            .unwrap_or(Level::Amx)
     })
 }
 
@@ -60,7 +65,7 @@ pub fn level() -> Level {
         use std::arch::is_x86_feature_detected as has;
         let avx512 = has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl");
         if allows(Level::Avx512) && has_avx2_fma() && avx512 {
-            return Level::Avx512;
+            return if has_amx() { Level::Amx } else { Level::Avx512 };
         }
     }
     if has_avx2_fma() {
@@ -96,15 +101,87 @@ pub(crate) fn has_avx2_fma() -> bool {
     }
 }
 
+/// `true` when the CPU has AMX's tiles and 8-bit products, the cap allows
+/// them and the OS has let this process use them. Linux hands the tiles'
+/// 8 KB of state to a process only on request (since 5.16), and an AMX
+/// instruction without it kills the process; the request is made once, for
+/// the whole process. The tiles' shape is checked too: the kernels use
+/// eight of 16 rows of 64 bytes (palette 1 on every CPU so far).
+pub(crate) fn has_amx() -> bool {
+    static AMX: OnceLock<bool> = OnceLock::new();
+    allows(Level::Amx) && *AMX.get_or_init(amx::enable)
+}
+
+#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+mod amx {
+    use std::arch::x86_64::{__cpuid_count, CpuidResult};
+
+    /// Checks the CPU's AMX and asks Linux for the tiles' state.
+    pub(super) fn enable() -> bool {
+        cpu_has_tiles() && request_tiles()
+    }
+
+    fn cpuid(leaf: u32, sub: u32) -> Option<CpuidResult> {
+        (__cpuid_count(leaf & 0x8000_0000, 0).eax >= leaf).then(|| __cpuid_count(leaf, sub))
+    }
+
+    /// AMX-TILE and AMX-INT8 (leaf 7, EDX bits 24 and 25), and palette 1
+    /// with eight tiles of 16 rows of 64 bytes (leaf 0x1D).
+    fn cpu_has_tiles() -> bool {
+        let Some(features) = cpuid(7, 0) else {
+            return false;
+        };
+        let (tile, int8) = ((features.edx >> 24) & 1, (features.edx >> 25) & 1);
+        let Some(palette) = cpuid(0x1d, 1) else {
+            return false;
+        };
+        let bytes_per_row = palette.ebx & 0xffff;
+        let names = palette.ebx >> 16;
+        let rows = palette.ecx & 0xffff;
+        tile == 1 && int8 == 1 && bytes_per_row == 64 && names >= 8 && rows >= 16
+    }
+
+    /// `arch_prctl(ARCH_REQ_XCOMP_PERM, XFEATURE_XTILEDATA)`: 0 when the
+    /// kernel grants the tiles' state (it refuses where it cannot save it).
+    fn request_tiles() -> bool {
+        const SYS_ARCH_PRCTL: isize = 158;
+        const ARCH_REQ_XCOMP_PERM: usize = 0x1023;
+        const XFEATURE_XTILEDATA: usize = 18;
+        let ret: isize;
+        // SAFETY: the system call only changes which state the kernel
+        // saves for this process; it reads no memory of ours.
+        unsafe {
+            std::arch::asm!(
+                "syscall",
+                inlateout("rax") SYS_ARCH_PRCTL => ret,
+                in("rdi") ARCH_REQ_XCOMP_PERM,
+                in("rsi") XFEATURE_XTILEDATA,
+                lateout("rcx") _,
+                lateout("r11") _,
+                options(nostack),
+            );
+        }
+        ret == 0
+    }
+}
+
+#[cfg(not(all(target_arch = "x86_64", target_os = "linux")))]
+mod amx {
+    /// AMX is used on x86-64 Linux only.
+    pub(super) fn enable() -> bool {
+        false
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn levels_are_ordered_and_named_as_the_cap_reads_them() {
-        assert!(Level::Baseline < Level::Avx2 && Level::Avx2 < Level::Avx512);
+        assert!(Level::ALL.windows(2).all(|w| w[0] < w[1]));
         let names = Level::ALL.map(Level::name);
-        assert_eq!(names, ["baseline", "avx2", "avx512"]);
+        assert_eq!(names, ["baseline", "avx2", "avx512", "amx"]);
         // What runs is allowed, and AVX2 without the cap's leave is not used.
         assert!(allows(level()));
         assert!(!has_avx2() || allows(Level::Avx2));

@@ -40,7 +40,7 @@ pub(crate) fn pixels<T: Copy>(planes: [&[T]; 3], out: &mut [T]) {
 #[inline(always)]
 pub(crate) fn u16s(planes: [&[u16]; 3], out: &mut [u16]) {
     #[cfg(target_arch = "x86_64")]
-    if crate::cpu::level() == crate::cpu::Level::Avx512 {
+    if crate::cpu::level() >= crate::cpu::Level::Avx512 {
         // SAFETY: the level says the CPU has AVX-512 F and BW.
         let done = unsafe { u16s_avx512(planes, out) };
         return each(planes.map(|p| &p[done..]), &mut out[3 * done..]);

@@ -4,7 +4,7 @@ use imgform_core::cpu::{self, Level};
 use pyo3::prelude::*;
 
 /// The widest instruction set the kernels run on this CPU within the cap
-/// `IMGFORM_ISA` sets: "baseline", "avx2" or "avx512".
+/// `IMGFORM_ISA` sets: "baseline", "avx2", "avx512" or "amx".
 #[pyfunction]
 fn instruction_set() -> &'static str {
     cpu::level().name()
