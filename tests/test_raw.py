@@ -96,6 +96,18 @@ def test_a_constant_frame_is_not_taken_for_an_image(tmp_path):
         ig.load_raw(path)
 
 
+def test_a_flat_frame_above_zero_that_the_file_stores_is_read(tmp_path):
+    # A noise-free dark frame at the black level: the file holds its pixels.
+    path = tmp_path / "dark.dng"
+    write_dng(path, np.full((32, 32), 512, np.uint16), "RGGB", white_level=4095)
+    assert (ig.load_raw(path).cfa == 512).all()
+    # The same values in a file too small to hold them are LibRaw's filler.
+    small = tmp_path / "small.dng"
+    small.write_bytes(path.read_bytes()[:-1500])
+    with pytest.raises(ig.RawError, match=r"small\.dng: "):
+        ig.load_raw(small)
+
+
 def test_same_pixels_in_an_uncompressed_copy_are_accepted(tmp_path):
     # LibRaw's stale buffer hands a data-less file the pixels of the file
     # before it; that check must not refuse a genuine uncompressed copy.

@@ -398,14 +398,14 @@ def _check_pixels(
     """Refuse data LibRaw 'decoded' from nothing (see the module docstring)."""
     if cfa.size == 0:
         raise RawError(f"{name}: the file has no visible pixels")
-    lo, hi = int(cfa.min()), int(cfa.max())
-    if lo == hi:
-        raise RawError(
-            f"{name}: every pixel is {lo}: the file has no real image data "
-            "(stripped or unreadable pixel data)"
-        )
     if white <= 0:
         raise RawError(f"{name}: white level {white} is not positive")
+    lo, hi = int(cfa.min()), int(cfa.max())
+    if lo == hi and (lo == 0 or not _holds_pixels(data, pixels, white)):
+        raise RawError(
+            f"{name}: every pixel is {lo}: the file has no real image data "
+            "(stripped, zero-filled or unreadable pixel data)"
+        )
     if data is None:
         return
     if pixels * _MIN_BITS_PER_PIXEL / 8 > len(data):
@@ -433,6 +433,15 @@ def _check_pixels(
             f"{name}: LibRaw returned the pixels of a file decoded earlier: "
             "this file's image data is missing or unreadable"
         )
+
+
+def _holds_pixels(data: bytes | None, pixels: int, white: int) -> bool:
+    """Whether the file is large enough to store every pixel uncompressed at
+    the white level's bit depth. LibRaw hands a stripped file a frame of one
+    value, and a download cut short leaves zeros; a file that holds its
+    pixels and reads as one value above 0 is a genuine flat frame (a
+    noise-free dark frame at the black level, from ``spectral.write_dng``)."""
+    return data is not None and len(data) * 8 >= pixels * white.bit_length()
 
 
 def _rawpy() -> Any:
