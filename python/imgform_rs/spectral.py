@@ -285,8 +285,8 @@ def integrate(spectra: Any, wl: Any, sensitivities: Any, *, rule: Rule = "trapez
     Raises
     ------
     TypeError, ValueError
-        Wrong shapes or dtypes, mismatched grids, negative or NaN samples
-        (the first bad pixel is named).
+        Wrong shapes or dtypes, mismatched grids, negative or NaN samples,
+        or integrals beyond float32's range (the first bad pixel is named).
 
     Examples
     --------
@@ -312,11 +312,36 @@ def integrate(spectra: Any, wl: Any, sensitivities: Any, *, rule: Rule = "trapez
     if arr.dtype.kind not in "iuf":
         raise TypeError(f"spectra must be real numbers, got dtype {arr.dtype}")
     lead = arr.shape[:-1]
-    flat = arr.astype(np.float32, copy=False)
+    flat = _as_float32(arr, "spectra")
     cube = flat.reshape((-1, 1, len(grid))) if arr.ndim < 3 else flat
     response = np.ascontiguousarray((sens * quadrature_weights(grid, rule)[:, None]).T)
-    out = _native.spectral_integrate(cube, response)
-    return out.reshape(*lead, sens.shape[1])
+    out = _native.spectral_integrate(cube, response).reshape(*lead, sens.shape[1])
+    _require_in_float32(out)
+    return out
+
+
+def _as_float32(arr: np.ndarray, name: str) -> np.ndarray:
+    """``arr`` as float32 for a kernel, refusing finite values beyond float32's
+    range, which the cast would make inf (and the kernel call non-finite)."""
+    top = float(np.finfo(np.float32).max)
+    if arr.dtype.kind == "f" and arr.dtype.itemsize > 4:
+        beyond = (np.abs(arr) > top) & np.isfinite(arr)
+        if beyond.any():
+            raise ValueError(
+                f"{name} must lie within float32's range (magnitude up to {top:.4g}), "
+                f"got {float(arr[beyond].flat[0]):.4g}"
+            )
+    return arr.astype(np.float32, copy=False)
+
+
+def _require_in_float32(out: np.ndarray) -> None:
+    """Refuses integrals beyond float32's range, which would come back as inf."""
+    if not np.isfinite(out).all():
+        at = tuple(int(i) for i in np.argwhere(~np.isfinite(out))[0][:-1])
+        raise ValueError(
+            f"the spectrum at index {at} integrates beyond float32's range "
+            f"(largest {float(np.finfo(np.float32).max):.4g}); scale the spectra down"
+        )
 
 
 @dataclass(frozen=True)
@@ -422,7 +447,7 @@ class Sensor:
         if arr.dtype.kind not in "iuf":
             raise TypeError(f"rates must be real numbers, got dtype {arr.dtype}")
         native = self.native(seed=seed, exposure_time=exposure_time)
-        return native.capture_rates(arr.astype(np.float32, copy=False))
+        return native.capture_rates(_as_float32(arr, "rates"))
 
 
 def auto_exposure(
