@@ -350,6 +350,12 @@ def test_rgb_round_trips_through_a_reflectance_in_0_1(rgb, step):
     assert de < 1e-3
 
 
+@pytest.mark.parametrize("wl", [[400.0, 410.0], [380.0, 780.0], sp.wavelengths(380, 780, 25)])
+def test_a_grid_that_cannot_carry_srgb_is_refused_by_name(wl):
+    with pytest.raises(ValueError, match="too coarse or too narrow to carry sRGB"):
+        sp.upsampling_basis(np.asarray(wl))
+
+
 def test_out_of_gamut_rgb_is_clipped_not_blown_up():
     refl = sp.rgb_to_reflectance([[-0.5, 0.2, 1.0], [0.0, 0.2, 1.0]])
     np.testing.assert_array_equal(refl[0], refl[1])

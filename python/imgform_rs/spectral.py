@@ -958,7 +958,17 @@ def upsampling_basis(wl: Any = None, rule: Rule = "trapezoid") -> Float64Array:
     _colour()
     b = _resample(basis.wavelengths, basis.values, grid, "the Mallett-Yuksel basis")
     srgb_of_basis = XYZ_TO_SRGB @ (b.T @ xyz_weights(grid, illuminant("D65", grid), rule)).T
-    return b @ np.linalg.inv(srgb_of_basis)
+    # A grid too coarse or too narrow to see the three primaries apart makes
+    # the correction singular or drives reflectances below 0.
+    singular = np.linalg.cond(srgb_of_basis) > 1e3
+    corrected = b if singular else b @ np.linalg.inv(srgb_of_basis)
+    if singular or corrected.min() < 0:
+        raise ValueError(
+            f"a grid of {len(grid)} wavelengths from {grid[0]:g} to {grid[-1]:g} nm is too "
+            "coarse or too narrow to carry sRGB as non-negative reflectances; use one "
+            "covering 400-700 nm in steps of 20 nm or less"
+        )
+    return corrected
 
 
 def rgb_to_reflectance(rgb: Any, wl: Any = None, rule: Rule = "trapezoid") -> Float64Array:
