@@ -385,6 +385,14 @@ def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_p
     again = batch.develop_many(paths, out, client=client, bps=16, format="tiff")
     assert [f.status for f in again.files] == ["skipped"] * 4
     assert [os.stat(f.output).st_mtime_ns for f in again.files] == stamps
+    # The re-run's report keeps how each output was made, run after run.
+    made = [(f.seconds, f.detail) for f in report.files[:4]]
+    assert [(f.seconds, f.detail) for f in again.files] == made
+    third = batch.develop_many(paths, out, client=client, bps=16, format="tiff")
+    saved = json.loads(third.path.read_text())["files"]
+    assert [(f["status"], f["seconds"], f["detail"]) for f in saved] == [
+        ("skipped", *m) for m in made
+    ]
 
 
 def test_develop_many_writes_what_develop_file_writes(tmp_path, client, raws):

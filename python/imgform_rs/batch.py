@@ -72,6 +72,8 @@ class FileResult:
     """``"ok"``, ``"skipped"`` (the output existed) or ``"failed"``."""
     reason: str
     seconds: float
+    """Time the file took; for a skipped file, what the report of the run
+    that made its output says (so a re-run keeps the record), else 0."""
     detail: str = ""
     """What was made (develop: the picture's size; align: the shifts found)."""
     note: str = ""
@@ -232,8 +234,31 @@ def run_file(kind: str, source: str, target: str, options: dict) -> FileResult:
     return FileResult(source, target, "ok", "", time.perf_counter() - start, detail, note)
 
 
+def _report_path(outdir: Path, kind: str) -> Path:
+    return outdir / f"imgform-{kind}-report.json"
+
+
+def _made_before(outdir: Path, kind: str) -> dict[str, FileResult]:
+    """The entries of the folder's earlier report that record how an output
+    was made, by output path: a re-run that skips the file keeps them rather
+    than replacing them with nothing. An unreadable report records nothing."""
+    try:
+        entries = json.loads(_report_path(outdir, kind).read_text())["files"]
+        made = (FileResult(**entry) for entry in entries)
+        return {r.output: r for r in made if r.status in ("ok", "skipped")}
+    except (OSError, ValueError, TypeError, KeyError):
+        return {}
+
+
+def _skipped(source: Path, target: Path, before: dict[str, FileResult]) -> FileResult:
+    earlier = before.get(str(target))
+    if earlier is None:
+        return FileResult(str(source), str(target), "skipped", "output exists", 0.0)
+    return replace(earlier, source=str(source), status="skipped", reason="output exists")
+
+
 def _write_report(outdir: Path, kind: str, results: list[FileResult]) -> BatchReport:
-    path = outdir / f"imgform-{kind}-report.json"
+    path = _report_path(outdir, kind)
     text = json.dumps({"files": [asdict(r) for r in results]}, indent=1)
     write_atomically(path, lambda tmp: tmp.write_text(text + "\n"))
     return BatchReport(results, path)
@@ -363,11 +388,8 @@ def _run_batch(
         raise TypeError(f"sources must be a list of paths, got the single path {sources!r}")
     pairs = output_paths(sources, outdir, suffix)
     out = output_folder(outdir)
-    skipped = [
-        FileResult(str(s), str(t), "skipped", "output exists", 0.0)
-        for s, t in pairs
-        if t.exists() and not overwrite
-    ]
+    before = {} if overwrite else _made_before(out, kind)
+    skipped = [_skipped(s, t, before) for s, t in pairs if t.exists() and not overwrite]
     todo = [(s, t) for s, t in pairs if overwrite or not t.exists()]
     counter = itertools.count(1)
 
