@@ -504,12 +504,14 @@ def test_a_scheduler_the_cli_cannot_reach_is_one_clear_error(tmp_path, raws, cap
     import dask
 
     paths, _ = raws
+    out = tmp_path / "out"
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
-        code = main(["develop", paths[0], "-o", str(tmp_path), "--scheduler", "tcp://127.0.0.1:1"])
+        code = main(["develop", paths[0], "-o", str(out), "--scheduler", "tcp://127.0.0.1:1"])
     assert code == 2
     err = capsys.readouterr().err
     assert err.startswith("imgform develop: Timed out trying to connect to tcp://127.0.0.1:1")
     assert err.count("\n") == 1
+    assert not out.exists()  # no empty output folder left behind
     # An address Dask cannot parse is one line too, not a traceback.
     assert main(["develop", paths[0], "-o", str(tmp_path), "--scheduler", "bogus"]) == 2
     err = capsys.readouterr().err

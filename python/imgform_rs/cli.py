@@ -98,14 +98,17 @@ def _outputs(
     args: argparse.Namespace, sources: list[str], suffix: str, *, dry_run: bool = False
 ) -> list[tuple[Path, Path]] | None:
     """Each input with its output file, the output folder made (checked
-    only, for a dry run); None, after saying why on stderr, for inputs that would write
-    one output or a folder that cannot be made. Checked before any file is
-    processed, on a cluster too, so that such a run writes nothing."""
+    only, for a dry run, and for a cluster, whose batch makes it once the
+    scheduler answers: one that cannot be reached leaves no empty folder);
+    None, after saying why on stderr, for inputs that would write one output
+    or a folder that cannot be made. Checked before any file is processed, on
+    a cluster too, so that such a run writes nothing."""
     from .batch import output_folder, output_paths
 
+    on_cluster = bool(args.scheduler or args.workers)
     try:
         pairs = output_paths(sources, args.out, suffix)
-        output_folder(args.out, make=not dry_run)
+        output_folder(args.out, make=not (dry_run or on_cluster))
     except (ValueError, OSError) as exc:
         print(f"imgform {args.command}: {exc}", file=sys.stderr)
         return None
