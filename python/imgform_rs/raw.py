@@ -470,7 +470,9 @@ def load_raw(source: Any) -> RawImage:
     RawError
         Naming the file, for a missing, empty, truncated, stripped or
         unsupported file, one without a colour filter array (linear DNG, film
-        scanner) or with no real pixel data: constant data, a file too small
+        scanner) or with no real pixel data: all zeros, one value in a file
+        too small to store it (a flat frame above 0 that the file stores, such
+        as a noise-free dark frame, is read), a file too small
         for its pixel count, or pixels identical to those of a different file
         decoded earlier in this process while the file is too small to store
         them uncompressed (LibRaw's stale buffer; a compressed raw copied with
