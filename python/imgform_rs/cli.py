@@ -95,7 +95,12 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
 
 
 def _outputs(
-    args: argparse.Namespace, sources: list[str], suffix: str, *, dry_run: bool = False
+    args: argparse.Namespace,
+    sources: list[str],
+    suffix: str,
+    *,
+    dry_run: bool = False,
+    on_cluster: bool = False,
 ) -> list[tuple[Path, Path]] | None:
     """Each input with its output file, the output folder made (checked
     only, for a dry run, and for a cluster, whose batch makes it once the
@@ -105,7 +110,6 @@ def _outputs(
     a cluster too, so that such a run writes nothing."""
     from .batch import output_folder, output_paths
 
-    on_cluster = bool(args.scheduler or args.workers)
     try:
         pairs = output_paths(sources, args.out, suffix)
         output_folder(args.out, make=not (dry_run or on_cluster))
@@ -118,7 +122,7 @@ def _outputs(
 def _align(args: argparse.Namespace) -> int:
     import time
 
-    pairs = _outputs(args, args.plates, ".png")
+    pairs = _outputs(args, args.plates, ".png", on_cluster=bool(args.scheduler or args.workers))
     if pairs is None:
         return 2
     if args.scheduler or args.workers:
@@ -289,7 +293,13 @@ def _develop(args: argparse.Namespace) -> int:
     except (ValueError, ImportError) as exc:
         print(f"imgform develop: {exc}", file=sys.stderr)
         return 2
-    pairs = _outputs(args, args.raws, _SUFFIX[args.format], dry_run=args.dry_run)
+    pairs = _outputs(
+        args,
+        args.raws,
+        _SUFFIX[args.format],
+        dry_run=args.dry_run,
+        on_cluster=bool(args.scheduler or args.workers),
+    )
     if pairs is None:
         return 2
     if args.dry_run:
