@@ -351,15 +351,20 @@ def grey_card(tmp_path_factory):
         ("black_map", np.zeros((0, 0)), ValueError, r"black_map .*got \(0, 0\)"),
         ("camera_to_srgb", np.eye(3) * np.nan, ValueError, "camera_to_srgb must be finite"),
         ("white_level", "4095", TypeError, "white_level must be an int"),
+        ("white_level", 4095.5, TypeError, "RawImage.white_level must be an integer"),
         ("white_level", 10, ValueError, r"black_levels must lie in 0\.\.white_level \(10\)"),
         ("flip", -1, ValueError, "flip is LibRaw's orientation code 0..7, got -1"),
+        ("flip", 0.0, TypeError, "RawImage.flip must be an integer, got 0.0"),
         ("pixel_aspect", 0, ValueError, r"pixel_aspect must be in 0\.0625\.\.16, got 0"),
         ("pixel_aspect", 1e-9, ValueError, "pixel_aspect must be in"),
+        ("pixel_aspect", "1", TypeError, "RawImage.pixel_aspect must be a real number, got '1'"),
+        ("pixel_aspect", True, TypeError, "RawImage.pixel_aspect must be a real number"),
     ],
 )
 def test_a_raw_image_with_a_field_develop_cannot_use_is_named(grey_card, field, value, exc, match):
     # Before: AttributeError, IndexError, ZeroDivisionError, MemoryError (298 GiB),
-    # or a flip of -1 silently read as a transpose.
+    # a flip of -1 silently read as a transpose, a flip of 0.0 a TypeError on
+    # "&" and a pixel aspect of True read as 1.
     _, raw = grey_card
     with pytest.raises(exc, match=match):
         ig.develop(dataclasses.replace(raw, **{field: value}))

@@ -290,9 +290,10 @@ def test_bad_names_json_and_images_are_refused(tmp_path):
     bad[1, 2, 0] = np.nan
     with pytest.raises(ValueError, match=r"row 1, column 2"):
         film.simulate(bad)
-    with pytest.raises(ValueError, match="must be > 0"):
-        film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm=0)
-    with pytest.raises(TypeError, match="frame_width_mm must be a number, got '36'"):
+    for width in (0, -1.0, np.inf, np.nan):
+        with pytest.raises(ValueError, match="frame_width_mm must be a finite number > 0, got"):
+            film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm=width)
+    with pytest.raises(TypeError, match="frame_width_mm must be a real number, got '36'"):
         film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm="36")
     # A frame so small that a spread covers more than the image: its taps
     # would not fit in memory (an abort, before this was checked).

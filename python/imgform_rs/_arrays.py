@@ -7,6 +7,7 @@ C-contiguous arrays the kernels take, and says clearly what it refused.
 
 from __future__ import annotations
 
+import numbers
 from typing import Any
 
 import numpy as np
@@ -71,9 +72,42 @@ def as_float_array(value: Any, name: str) -> Float64Array:
     return _numeric(value, name).astype(np.float64, copy=False)
 
 
+def _scalar(value: Any) -> Any:
+    """The number a 0-d real array holds (what ``np.sum`` or an index into an
+    array may give); anything else as it is."""
+    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+        return value[()]
+    return value
+
+
+def real(value: Any, name: str) -> float:
+    """``value`` as a float when it is one real number: a Python or NumPy int
+    or float, a 0-d real array. A TypeError naming ``name`` for anything else,
+    where ``float()`` would parse the str ``"1e4"``, read ``True`` as 1, or
+    fail with a message that names no parameter. An int beyond float64's
+    range is ``inf``, which the callers' range checks then refuse."""
+    number = _scalar(value)
+    if isinstance(number, bool) or not isinstance(number, numbers.Real):
+        raise TypeError(f"{name} must be a real number, got {value!r}")
+    try:
+        return float(number)
+    except OverflowError:
+        return float("-inf") if number < 0 else float("inf")
+
+
 def is_int(value: Any) -> bool:
     """Whether ``value`` is an int (a NumPy one too), and not a bool."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def integer(value: Any, name: str) -> int:
+    """``value`` as an int when it is one (a NumPy int or 0-d integer array
+    too, not a bool); a TypeError naming ``name`` otherwise, where ``int()``
+    would truncate 1.5 and ``operator.index`` name no parameter."""
+    number = _scalar(value)
+    if not is_int(number):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    return int(number)
 
 
 def as_seed(value: Any, name: str) -> int:

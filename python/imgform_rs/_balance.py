@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ._arrays import require_finite
+from ._arrays import real, require_finite
 
 GRID_SIDE = 512
 
@@ -48,7 +48,7 @@ def auto_balance(
         An image that is not (H, W, 3) or is empty, a NaN or infinite
         sample, or ``clip`` outside [0, 0.5).
     TypeError
-        An unsupported dtype.
+        An unsupported dtype, or a ``clip`` that is not a real number.
 
     Examples
     --------
@@ -66,6 +66,7 @@ def auto_balance(
     # One NaN or infinity would make the means and quantiles, so every
     # channel's gain, NaN.
     require_finite(img, "rgb")
+    clip = real(clip, "clip")
     if not 0 <= clip < 0.5:
         raise ValueError(f"clip must be in [0, 0.5), got {clip}")
     top = float(np.iinfo(img.dtype).max) if img.dtype.kind == "u" else 1.0

@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import require_finite
+from ._arrays import integer, real, require_finite
 
 __all__ = [
     "SpotDiagram",
@@ -36,11 +36,16 @@ DEFAULT_RAYS = 4096
 
 
 def _count(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
-    if value < 1:
-        raise ValueError(f"{name} must be >= 1, got {value}")
-    return int(value)
+    count = integer(value, name)
+    if count < 1:
+        raise ValueError(f"{name} must be >= 1, got {count}")
+    return count
+
+
+def _lens(f: object, f_number: object, spherical_lsa: object) -> tuple[float, float, float]:
+    """The lens of :func:`spot_diagram` and :func:`best_focus`, checked to be
+    numbers (the native layer checks their domains)."""
+    return real(f, "f"), real(f_number, "f_number"), real(spherical_lsa, "spherical_lsa")
 
 
 def _psf_array(psf: npt.ArrayLike, name: str) -> Float64Array:
@@ -111,7 +116,8 @@ def pupil_psf(
     Raises
     ------
     TypeError
-        ``n_pixels`` or ``oversample`` not an integer.
+        ``n_pixels`` or ``oversample`` not an integer, another parameter not
+        a real number (a str or a bool included).
     ValueError
         A parameter outside its domain, an undersampling ``oversample``, or a
         PSF too large for the FFT (the message says which).
@@ -126,11 +132,11 @@ def pupil_psf(
     os_ = None if oversample is None else _count(oversample, "oversample")
     return _native.pupil_psf(
         n,
-        float(pixel_pitch),
-        float(f_number),
-        float(wavelength),
-        float(defocus),
-        float(spherical),
+        real(pixel_pitch, "pixel_pitch"),
+        real(f_number, "f_number"),
+        real(wavelength, "wavelength"),
+        real(defocus, "defocus"),
+        real(spherical, "spherical"),
         os_,
     )
 
@@ -189,7 +195,7 @@ def spot_diagram(
     Raises
     ------
     TypeError
-        ``n_rays`` not an integer.
+        ``n_rays`` not an integer, another parameter not a real number.
     ValueError
         A parameter outside its domain.
 
@@ -200,10 +206,10 @@ def spot_diagram(
     ((101, 2), True)
     """
     n = _count(n_rays, "n_rays")
-    hits, pupil, rms = _native.spot_diagram(
-        float(f), float(f_number), float(spherical_lsa), n, float(image_plane)
-    )
-    return SpotDiagram(hits, pupil, rms, float(image_plane))
+    lens = _lens(f, f_number, spherical_lsa)
+    plane = real(image_plane, "image_plane")
+    hits, pupil, rms = _native.spot_diagram(*lens, n, plane)
+    return SpotDiagram(hits, pupil, rms, plane)
 
 
 def best_focus(
@@ -233,7 +239,7 @@ def best_focus(
     Raises
     ------
     TypeError
-        ``n_rays`` not an integer.
+        ``n_rays`` not an integer, another parameter not a real number.
     ValueError
         A parameter outside its domain.
 
@@ -243,7 +249,7 @@ def best_focus(
     49.8
     """
     n = _count(n_rays, "n_rays")
-    return float(_native.best_focus(float(f), float(f_number), float(spherical_lsa), n))
+    return float(_native.best_focus(*_lens(f, f_number, spherical_lsa), n))
 
 
 def strehl_ratio(psf: npt.ArrayLike, reference: npt.ArrayLike) -> float:

@@ -12,7 +12,6 @@ convention: ``colorize_plate(scan, reference="b")`` returns exactly them.
 from __future__ import annotations
 
 import math
-import operator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -21,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._arrays import as_real, integer, real
 from ._balance import auto_balance
 from ._frame import FRAME_SEARCH as FRAME_SEARCH
 from ._frame import channels_frame_box
@@ -215,7 +215,7 @@ def _levels(pyramid: int | str) -> int | None:
         if pyramid != "auto":
             raise ValueError(f'pyramid must be "auto" or a number of levels >= 0, got {pyramid!r}')
         return None
-    levels = operator.index(pyramid)
+    levels = integer(pyramid, "pyramid")
     if not 0 <= levels < 2**64:  # the native usize
         raise ValueError(f'pyramid must be "auto" or a number of levels >= 0, got {levels}')
     return levels
@@ -327,7 +327,9 @@ def align(
         a channel ECC cannot follow (constant, or without texture along
         some parameter) or a warp that leaves the moving image.
     TypeError
-        Unsupported or different dtypes; a non-integer ``max_shift``.
+        Unsupported or different dtypes; a ``max_shift``, ``pyramid`` or
+        ``max_iterations`` that is not an integer, a ``crop`` or
+        ``tolerance`` that is not a real number.
 
     Examples
     --------
@@ -339,7 +341,7 @@ def align(
     """
     features = _resolve_features(features, motion)
     ref = _image(reference, "reference")
-    k = operator.index(max_shift)
+    k = integer(max_shift, "max_shift")
     # Checked here too: a k beyond the native i64 is an OverflowError there.
     if not 0 <= k < min(ref.shape):
         h, w = ref.shape
@@ -349,7 +351,7 @@ def align(
         _image(moving, "moving"),
         k,
         str(metric),
-        float(crop),
+        real(crop, "crop"),
         _levels(pyramid),
         str(features),
         bool(subpixel),
@@ -377,7 +379,7 @@ def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance
     """Each of ``founds`` (translations of ``movings`` onto ``reference``)
     refined under ``motion`` by ECC on ``features``, in one native call that
     builds the reference's pyramid and sums once for all of them."""
-    steps = operator.index(max_iterations)
+    steps = integer(max_iterations, "max_iterations")
     # The native usize would make a negative or huge count an OverflowError.
     if not 1 <= steps < 2**64:
         raise ValueError(f"max_iterations must be an int in [1, 2**64), got {steps}")
@@ -386,10 +388,10 @@ def _refined(reference, movings, founds, motion, crop, max_iterations, tolerance
         [_image(m, "moving") for m in movings],
         motion,
         [f.matrix.tolist() for f in founds],
-        float(crop),
+        real(crop, "crop"),
         None,
         steps,
-        float(tolerance),
+        real(tolerance, "tolerance"),
         str(features),
     )
     h, w = np.shape(reference)
@@ -431,13 +433,12 @@ def _roll_fill(image: np.ndarray, dy: int, dx: int, fill: Any) -> np.ndarray:
 
 
 def _check_fill(fill: Any, dtype: np.dtype) -> None:
-    """ValueError unless ``dtype`` holds ``fill``: an integer within its
-    range for integer images (NumPy would wrap or truncate it, or raise
-    OverflowError, and the interpolation would clip it), a number within
-    its range, NaN or an infinity for float ones."""
-    if not isinstance(fill, (int, float, np.integer, np.floating)):
-        raise TypeError(f"fill must be a real number, got {fill!r}")
-    value = float(fill)
+    """TypeError unless ``fill`` is a real number, ValueError unless
+    ``dtype`` holds it: an integer within its range for integer images
+    (NumPy would wrap or truncate it, or raise OverflowError, and the
+    interpolation would clip it), a number within its range, NaN or an
+    infinity for float ones."""
+    value = real(fill, "fill")
     if dtype.kind in "biu":
         lo, hi = (0, 1) if dtype.kind == "b" else (np.iinfo(dtype).min, np.iinfo(dtype).max)
         if not (value.is_integer() and lo <= fill <= hi):
@@ -532,6 +533,9 @@ def apply_warp(
     ------
     ValueError
         A matrix that is not 2x3 and finite; everything :func:`remap` refuses.
+    TypeError
+        A matrix that is not of real numbers (strings are not parsed), a
+        ``fill`` that is not a real number.
 
     Examples
     --------
@@ -541,7 +545,8 @@ def apply_warp(
     """
     from .remap import remap
 
-    m = np.asarray(matrix, dtype=np.float64)
+    # as_real: a float64 cast would parse a matrix of strings.
+    m = as_real(matrix, "matrix", np.float64)
     if m.shape != (2, 3) or not np.all(np.isfinite(m)):
         raise ValueError(f"matrix must be a finite 2x3 array, got {matrix!r}")
     img = np.asarray(image)

@@ -16,7 +16,7 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, as_matrix, as_points, unbatch
+from ._arrays import Float64Array, as_float_array, as_matrix, as_points, real, unbatch
 from .distortion import DistortionModel, lens_coefficients
 
 FovAxis = Literal["horizontal", "vertical", "diagonal"]
@@ -257,7 +257,7 @@ class Camera:
         >>> round(float(cam.K[0, 0]), 9), round(float(np.rad2deg(cam.fov[0])), 9)
         (320.0, 90.0)
         """
-        fov = float(fov)
+        fov = real(fov, "fov")
         if not 0.0 < fov < math.pi:
             raise ValueError(f"fov must be an angle in radians in (0, pi), got {fov}")
         size = _image_size(image_size)

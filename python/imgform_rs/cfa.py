@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native, _samples
-from ._arrays import as_seed, is_int, require_finite
+from ._arrays import as_seed, is_int, real, require_finite
 
 Pattern = str | npt.ArrayLike
 """A pattern name or a (2, 2) / (6, 6) array of channel indices."""
@@ -274,9 +274,11 @@ def simulate_sensor(
     Raises
     ------
     TypeError, ValueError
-        For bad arrays or patterns; ValueError naming a bad parameter (the
-        ints above must be ints, not floats to truncate), or the first NaN
-        or infinite sample of ``rgb``, which has no number of electrons.
+        For bad arrays or patterns; TypeError naming a ``full_well`` or
+        ``read_noise`` that is not a real number; ValueError naming a bad
+        parameter (the ints above must be ints, not floats to truncate), or
+        the first NaN or infinite sample of ``rgb``, which has no number of
+        electrons.
 
     Examples
     --------
@@ -300,8 +302,8 @@ def simulate_sensor(
     return _native.simulate_sensor(
         arr,
         as_pattern(pattern),
-        float(full_well),
-        float(read_noise),
+        real(full_well, "full_well"),
+        real(read_noise, "read_noise"),
         int(bit_depth),
         int(black_level),
         int(seed),

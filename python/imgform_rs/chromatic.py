@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from . import _native
+from ._arrays import real
 from .remap import ImageT, Interpolation
 
 
@@ -22,7 +23,24 @@ def _center(center: Any) -> tuple[float, float] | None:
         cx, cy = center
     except (TypeError, ValueError):
         raise ValueError(f"center must be a pair (cx, cy) in pixels, got {center!r}") from None
-    return float(cx), float(cy)
+    return real(cx, "center[0]"), real(cy, "center[1]")
+
+
+def _lateral_ca(
+    image: ImageT,
+    scale_r: Any,
+    scale_b: Any,
+    center: Any,
+    inverse: bool,
+    interpolation: Interpolation,
+    fill: Any,
+) -> ImageT:
+    """The native resampling of both directions, with the numbers checked
+    here (a str is named, not parsed; a bool is no scale)."""
+    scales = real(scale_r, "scale_r"), real(scale_b, "scale_b")
+    return _native.lateral_ca(
+        image, *scales, _center(center), inverse, interpolation, real(fill, "fill")
+    )
 
 
 def add_lateral_ca(
@@ -62,7 +80,8 @@ def add_lateral_ca(
     Raises
     ------
     TypeError
-        Unsupported dtype.
+        Unsupported dtype; a scale, centre coordinate or ``fill`` that is not
+        a real number.
     ValueError
         Not (H, W, 3); a scale that is NaN, infinite or <= 0; a bad centre.
 
@@ -75,9 +94,7 @@ def add_lateral_ca(
     >>> float(out[2, 4, 0]), float(out[2, 3, 1])
     (1.0, 1.0)
     """
-    return _native.lateral_ca(
-        image, scale_r, scale_b, _center(center), False, interpolation, float(fill)
-    )
+    return _lateral_ca(image, scale_r, scale_b, center, False, interpolation, fill)
 
 
 def correct_lateral_ca(
@@ -101,6 +118,4 @@ def correct_lateral_ca(
     >>> float(correct_lateral_ca(img, 2.0, 1.0)[2, 3, 0])
     1.0
     """
-    return _native.lateral_ca(
-        image, scale_r, scale_b, _center(center), True, interpolation, float(fill)
-    )
+    return _lateral_ca(image, scale_r, scale_b, center, True, interpolation, fill)

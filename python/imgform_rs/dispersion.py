@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ._arrays import Float64Array, as_float_array
+from ._arrays import Float64Array, as_float_array, real
 from .optics import image_distance, render_defocus
 from .remap import remap
 
@@ -31,7 +31,7 @@ LINE_D, LINE_F, LINE_C = 587.5618, 486.1327, 656.2725
 
 
 def _positive(value: float, name: str) -> float:
-    v = float(value)
+    v = real(value, name)
     if not (np.isfinite(v) and v > 0):
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     return v
@@ -71,7 +71,7 @@ class Glass:
     def from_abbe(cls, n_d: float, abbe_number: float) -> Glass:
         """The Cauchy glass through ``n_d`` at the d line whose F - C index
         difference is ``(n_d - 1) / V_d``: two numbers pin the two terms."""
-        n_d = float(n_d)
+        n_d = real(n_d, "n_d")
         if not (np.isfinite(n_d) and n_d > 1):
             raise ValueError(f"n_d must be a refractive index > 1, got {n_d!r}")
         v_d = _positive(abbe_number, "abbe_number")
@@ -250,12 +250,13 @@ def render_dispersion(
         )
     depth_map = np.broadcast_to(depth_arr, (h, w))
     f_d, N = _positive(f_d, "f_d"), _positive(N, "N")
-    if not (np.isfinite(focus_distance) and focus_distance > f_d):
+    pitch, distance = real(pixel_pitch, "pixel_pitch"), real(focus_distance, "focus_distance")
+    if not (np.isfinite(distance) and distance > f_d):
         raise ValueError(
             f"focus_distance must be finite and beyond the focal length f_d = {f_d:g} mm, "
             f"got {focus_distance!r}"
         )
-    sensor = float(image_distance(f_d, focus_distance))
+    sensor = float(image_distance(f_d, distance))
     aperture = f_d / N
     fs = focal_lengths(glass, wl, f_d)
     if (fs >= sensor).any():
@@ -275,7 +276,7 @@ def render_dispersion(
             f=float(f),
             N=float(f) / aperture,
             focus_distance=1.0 / (1.0 / f - 1.0 / sensor),
-            pixel_pitch=float(pixel_pitch),
+            pixel_pitch=pitch,
         )
         if lateral:
             scale = np.float32(f / f_d)

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ._arrays import integer, real
 from .cfa import Pattern, pattern_cells
 
 # TIFF field types.
@@ -191,7 +192,9 @@ def write_dng(
     Raises
     ------
     TypeError
-        For a non-integer mosaic.
+        For a non-integer mosaic, a ``white_level`` or ``orientation`` that
+        is not an integer, a ``pixel_aspect``, ``focal_length`` or
+        ``f_number`` that is not a real number.
     ValueError
         For a mosaic that is not 2-D or under 22 pixels on a side, levels outside 0..65535 or
         black not below white, a black pattern over 64 x 64, a colour or
@@ -222,11 +225,14 @@ def write_dng(
             f"cfa must be at least {MIN_SIDE} pixels on a side (LibRaw refuses smaller "
             f"images), got shape {arr.shape}"
         )
+    white_level = integer(white_level, "white_level")
     black = _black_pattern(black_level, white_level)
-    if orientation not in range(1, 9):
+    if integer(orientation, "orientation") not in range(1, 9):
         raise ValueError(f"orientation must be an EXIF orientation 1..8, got {orientation!r}")
+    pixel_aspect = real(pixel_aspect, "pixel_aspect")
     if not (np.isfinite(pixel_aspect) and pixel_aspect > 0):
         raise ValueError(f"pixel_aspect must be a positive number, got {pixel_aspect!r}")
+    focal_length, f_number = real(focal_length, "focal_length"), real(f_number, "f_number")
     for name, value in (("focal_length", focal_length), ("f_number", f_number)):
         if not (np.isfinite(value) and value >= 0):
             raise ValueError(f"{name} must be a positive number or 0 (unknown), got {value!r}")

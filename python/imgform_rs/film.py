@@ -54,7 +54,6 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field, replace
 from importlib import resources
-from numbers import Real
 from pathlib import Path
 from typing import Any, Literal
 
@@ -63,7 +62,7 @@ import numpy.typing as npt
 
 from . import _native
 from . import spectral as sp
-from ._arrays import Float64Array, as_seed
+from ._arrays import Float64Array, as_seed, real
 
 Float32Array = npt.NDArray[np.float32]
 Kind = Literal["negative", "reversal", "paper"]
@@ -451,6 +450,7 @@ def save_stock(stock: Stock, path: str | Path) -> None:
 
 def gaussian(wl: Any, peak: float, width: float) -> Float64Array:
     """``exp(-(λ - peak)² / (2 width²))``: the band shape of the generic stocks."""
+    peak, width = real(peak, "peak"), real(width, "width")
     return np.exp(-0.5 * ((np.asarray(wl, np.float64) - peak) / width) ** 2)
 
 
@@ -465,6 +465,8 @@ def logistic_curve(
     ``(D_max - D_min) · 4γ / (D_max - D_min) / 4 = γ``.
     """
     x = np.asarray(log_exposure, np.float64)
+    d_min, d_max = real(d_min, "d_min"), real(d_max, "d_max")
+    gamma, x0 = real(gamma, "gamma"), real(x0, "x0")
     span = d_max - d_min
     return d_min + span / (1.0 + np.exp(-4.0 * gamma * (x - x0) / span))
 
@@ -697,7 +699,7 @@ def _sensitivity(stock: Stock) -> Float64Array:
 
 def _gain(exposure_ev: float) -> float:
     """``2^EV`` of an exposure change of at most ``MAX_EV`` stops either way."""
-    ev = float(exposure_ev)
+    ev = real(exposure_ev, "exposure_ev")
     if not (np.isfinite(ev) and abs(ev) <= MAX_EV):
         raise ValueError(
             f"exposure_ev must be a finite number of stops in [-{MAX_EV:g}, {MAX_EV:g}], "
@@ -740,17 +742,16 @@ def _pixel_um(frame_width_mm: Any, shape: tuple[int, ...], *spreads_um: float) -
     only make every pixel the frame's mean, and its taps (three widths each
     side) would not fit in memory for the tiniest frames.
     """
-    if isinstance(frame_width_mm, (bool, str)) or not isinstance(frame_width_mm, Real):
-        raise TypeError(f"frame_width_mm must be a number, got {frame_width_mm!r}")
-    if not (np.isfinite(frame_width_mm) and frame_width_mm > 0):
-        raise ValueError(f"frame_width_mm must be > 0, got {frame_width_mm}")
-    pixel_um = float(frame_width_mm) * 1000.0 / shape[1]
+    width_mm = real(frame_width_mm, "frame_width_mm")
+    if not (np.isfinite(width_mm) and width_mm > 0):
+        raise ValueError(f"frame_width_mm must be a finite number > 0, got {frame_width_mm!r}")
+    pixel_um = width_mm * 1000.0 / shape[1]
     side = max(shape[0], shape[1])
     widest = max(spreads_um, default=0.0)
     if widest / pixel_um > side:
         least = widest * shape[1] / side / 1000.0
         raise ValueError(
-            f"frame_width_mm={frame_width_mm:g} makes a {shape[1]} px wide image's pixels "
+            f"frame_width_mm={width_mm:g} makes a {shape[1]} px wide image's pixels "
             f"{pixel_um:.3g} µm, and the stock's {widest:g} µm spread wider than the image; "
             f"frame_width_mm must be at least {least:.3g} for this image"
         )
@@ -808,7 +809,8 @@ def expose(image: Any, stock: str | Path | Stock, *, exposure_ev: float = 0.0) -
     Raises
     ------
     TypeError
-        An image that is not of floats.
+        An image that is not of floats, an ``exposure_ev`` that is not a
+        real number.
     ValueError
         A shape other than (H, W, 3) or (H, W, L), or an ``exposure_ev``
         outside ±100 or not finite.
@@ -847,9 +849,10 @@ def pixel_granularity(stock: str | Path | Stock, pixel_um: float) -> Float64Arra
     ``pixel_um``: Selwyn's law (``σ² A`` is constant) from the stock's 48 µm
     circular aperture, ``σ_pixel = σ_48 sqrt(π 24²) / pixel_um``."""
     st = load_stock(stock)
-    if not (np.isfinite(pixel_um) and pixel_um > 0):
-        raise ValueError(f"pixel_um must be > 0, got {pixel_um}")
-    return st.rms_granularity * np.sqrt(np.pi * 24.0**2) / pixel_um
+    pitch = real(pixel_um, "pixel_um")
+    if not (np.isfinite(pitch) and pitch > 0):
+        raise ValueError(f"pixel_um must be a finite number > 0, got {pixel_um!r}")
+    return st.rms_granularity * np.sqrt(np.pi * 24.0**2) / pitch
 
 
 def develop(
@@ -1007,7 +1010,7 @@ def balance_print(
     """
     neg, pap = _print_pair(negative, paper, "balance_print")
     filters = dichroic_filters(neg.wavelengths)
-    light = _print_light(neg, pap) * _grey_transmittance(neg, grey)
+    light = _print_light(neg, pap) * _grey_transmittance(neg, real(grey, "grey"))
     target = np.array(
         [np.interp(PRINT_GREY_DENSITY, layer.density, layer.log_exposure) for layer in pap.layers]
     )
@@ -1092,12 +1095,20 @@ def scan(density: Any, stock: str | Path | Stock, *, illuminant: str = "D65") ->
     return _transmit(density, st, response)
 
 
+def _encode(value: Any) -> bool:
+    """``encode`` checked to be a bool: a str such as ``"no"`` is truthy and
+    would silently encode."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"encode must be a bool, got {value!r}")
+    return bool(value)
+
+
 def to_srgb(xyz: Any, *, encode: bool = True) -> Float32Array:
     """sRGB (H, W, 3) in [0, 1] of D65-relative XYZ: the IEC 61966-2-1 matrix,
     clipped, and its transfer curve when ``encode``."""
     arr = _image(xyz, "xyz", 3)
     rgb = np.clip(arr @ sp.XYZ_TO_SRGB.T.astype(np.float32), 0.0, 1.0)
-    if encode:
+    if _encode(encode):
         rgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
     return rgb.astype(np.float32)
 
@@ -1137,6 +1148,7 @@ def simulate(
     st = load_stock(stock)
     if st.kind == "paper":
         raise ValueError(f"{st.name!r} is a paper: simulate takes a negative or reversal film")
+    _encode(encode)  # before the whole simulation, not after it
     dens = develop(
         expose(image, st, exposure_ev=exposure_ev),
         st,

@@ -51,6 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native, _samples
+from ._arrays import real
 from .remap import ImageT, Interpolation
 
 __all__ = ["LensMatch", "LensProfile", "find_profile", "lens_database", "match_lens"]
@@ -254,10 +255,11 @@ class LensProfile:
         h, w = np.shape(image)[:2]
         native = self.native(w, h)
         devignette = vignetting and self.vignetting is not None
+        fill_value = real(fill, "fill")
         if geometry and self.corrects_geometry:
             # One pass: each sample is read at its position and multiplied
             # by the vignetting gain there.
-            return native.correct_geometry(image, interpolation, float(fill), devignette, out=out)
+            return native.correct_geometry(image, interpolation, fill_value, devignette, out=out)
         result = native.devignette(image, np.zeros((1, 1))) if devignette else image
         return result if out is None else _samples.fill_out(out, result, np.asarray(image))
 
@@ -381,11 +383,13 @@ def _fixed_lens(db: Any, camera: Any) -> tuple[list[Any], str]:
     return [], "the file names no lens"
 
 
-def _positive(value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
+def _positive(value: Any, name: str) -> float:
+    """A setting given to :func:`find_profile`, or 0 when unknown: None, or
+    a number that is not finite and > 0 (a file's 0 for what it did not
+    record). A str or another non-number is a TypeError naming it."""
+    if value is None:
         return 0.0
+    v = real(value, name)
     return v if math.isfinite(v) and v > 0 else 0.0
 
 
@@ -421,7 +425,12 @@ def find_profile(
     ------
     ImportError
         lensfunpy is not installed.
+    TypeError
+        A setting that is not a real number (or None for the optional ones).
     """
+    focal = _positive(focal_length, "focal_length")
+    ap = _positive(aperture, "aperture")
+    dist = _positive(distance, "distance") or _FAR
     maker, model = camera if isinstance(camera, tuple) else ("", str(camera))
     db = lens_database()
     cam, note = _find_camera(db, maker, model)
@@ -433,7 +442,6 @@ def find_profile(
     if not found:
         return LensMatch(None, searched, lens, names, lens_note)
     chosen = found[0]
-    focal = _positive(focal_length)
     lo, hi = chosen.min_focal or 0.0, chosen.max_focal or 0.0
     if not focal:
         return LensMatch(None, searched, lens, names, "focal length unknown")
@@ -445,8 +453,6 @@ def find_profile(
             names,
             f"focal length {focal:g} mm is outside {_name(chosen)}'s {lo:g}-{hi:g} mm",
         )
-    ap = _positive(aperture)
-    dist = _positive(distance) or _FAR
     vig = chosen.interpolate_vignetting(focal, ap, dist) if ap else None
     notes = [n for n in (note, lens_note) if n]
     if not ap and chosen.calib_vignetting:

@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, as_matrix, as_points
+from ._arrays import Float64Array, as_float_array, as_matrix, as_points, as_seed, real
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -131,7 +131,7 @@ def fit_vanishing_point(
     Raises
     ------
     TypeError
-        Non-numeric segments.
+        Non-numeric segments, a ``threshold`` that is not a real number.
     ValueError
         Not (N, 4), fewer than 2 segments, non-finite or zero-length segments,
         all segments on one image line, fewer than 2 inliers, a non-positive
@@ -145,11 +145,9 @@ def fit_vanishing_point(
     (array([200., 100.]), 0.0, array([ True,  True,  True]))
     """
     arr, _ = as_points(segments, 4, "segments")
-    seed_int = int(seed)
-    if seed_int != seed or not 0 <= seed_int < 2**64:
-        raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
+    seed_int = as_seed(seed, "seed")
     homogeneous, at_infinity, residual, inliers = _native.fit_vanishing_point(
-        arr, float(threshold), seed_int, bool(allow_infinite)
+        arr, real(threshold, "threshold"), seed_int, bool(allow_infinite)
     )
     h = np.array(homogeneous)
     point = np.full(2, np.nan) if at_infinity else h[:2].copy()
@@ -202,7 +200,7 @@ def _ground(
         _homogeneous(vertical_vp, "vertical_vp"),
         _pixel(ref_base, "ref_base"),
         _pixel(ref_top, "ref_top"),
-        float(ref_height),
+        real(ref_height, "ref_height"),
     )
 
 

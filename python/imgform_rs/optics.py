@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array
+from ._arrays import Float64Array, as_float_array, real
 
 # What the vectorised formulas return: an array of the broadcast shape, or a
 # NumPy float64 scalar when every argument was a scalar.
@@ -265,7 +265,8 @@ def render_defocus(
     Raises
     ------
     TypeError
-        ``image`` or ``depth`` of an unsupported dtype.
+        ``image`` or ``depth`` of an unsupported dtype, a parameter that is
+        not a real number.
     ValueError
         Wrong shapes, a parameter outside its domain, a depth that is not finite
         or not beyond ``f`` (the pixel is named), or a circle of confusion wider
@@ -284,6 +285,7 @@ def render_defocus(
     depth_arr = np.asarray(depth)
     if depth_arr.dtype not in (np.float32, np.float64):
         raise TypeError(f"depth must be a float32 or float64 array, got dtype {depth_arr.dtype}")
+    lens = (real(f, "f"), real(N, "N"), real(focus_distance, "focus_distance"))
     return _native.render_defocus(  # type: ignore[no-any-return]
-        image, depth_arr, float(f), float(N), float(focus_distance), float(pixel_pitch)
+        image, depth_arr, *lens, real(pixel_pitch, "pixel_pitch")
     )

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ._arrays import integer, real
 from ._ciff import make_model
 from ._exif import ShotInfo, shot_info
 from ._files import read_regular
@@ -188,19 +189,18 @@ def check_raw_image(raw: RawImage) -> None:
         array(name, (4,))
     for name in ("camera_to_srgb", "camera_to_xyz"):
         array(name, (3, 3))
-    white = raw.white_level
-    if isinstance(white, bool) or not isinstance(white, (int, np.integer)):
-        raise TypeError(f"RawImage.white_level must be an int, got {white!r}")
+    white = integer(raw.white_level, "RawImage.white_level")
     if not black.min() >= 0 or black.max() >= white:
         raise ValueError(
             f"RawImage.black_levels must lie in 0..white_level ({white}), got {black.tolist()}"
         )
-    if isinstance(raw.flip, bool) or raw.flip not in range(8):
+    if integer(raw.flip, "RawImage.flip") not in range(8):
         raise ValueError(f"RawImage.flip is LibRaw's orientation code 0..7, got {raw.flip!r}")
     lo, hi = PIXEL_ASPECTS
-    aspect = raw.pixel_aspect
-    if not (isinstance(aspect, (int, float, np.number)) and lo <= aspect <= hi):
-        raise ValueError(f"RawImage.pixel_aspect must be in {lo:g}..{hi:g}, got {aspect!r}")
+    if not lo <= real(raw.pixel_aspect, "RawImage.pixel_aspect") <= hi:
+        raise ValueError(
+            f"RawImage.pixel_aspect must be in {lo:g}..{hi:g}, got {raw.pixel_aspect!r}"
+        )
 
 
 def _describe(source: Any) -> str:

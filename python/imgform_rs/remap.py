@@ -28,7 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import as_matrix, as_real
+from ._arrays import as_matrix, as_real, real
 from .distortion import DistortionModel, lens_coefficients
 
 RemapMap = _native.RemapMap
@@ -198,9 +198,11 @@ def remap(
     Raises
     ------
     TypeError
-        Unsupported dtype (e.g. int64, bool, float64) or map type.
+        Unsupported dtype (e.g. int64, bool, float64) or map type, a ``fill``
+        that is not a real number.
     ValueError
-        Wrong number of dimensions, unknown interpolation, bad ``fill``.
+        Wrong number of dimensions, unknown interpolation, a ``fill`` the
+        dtype cannot hold.
 
     Examples
     --------
@@ -210,7 +212,7 @@ def remap(
     >>> remap(img, (map_x, map_y))
     array([[5, 4]], dtype=uint8)
     """
-    return _native.remap_image(image, _as_map(map), interpolation, float(fill))
+    return _native.remap_image(image, _as_map(map), interpolation, real(fill, "fill"))
 
 
 def _image_remap(image, camera_or_K, dist, model, new_K, interpolation, fill, map, undistort):

@@ -44,7 +44,7 @@ import numpy.typing as npt
 
 from . import film
 from . import spectral as sp
-from ._arrays import Float64Array, as_real
+from ._arrays import Float64Array, as_real, integer, real
 from .align import apply_warp, colorize_plate
 
 Float32Array = npt.NDArray[np.float32]
@@ -261,7 +261,7 @@ def mondrian(
     ((40, 50, 41), dtype('float32'), True)
     """
     grid = sp.wavelengths() if wl is None else sp.check_wavelengths(wl)
-    h, w = (operator.index(v) for v in shape)
+    h, w = (integer(v, "shape") for v in shape)
     if min(h, w) < 1 or rectangles < 0:
         raise ValueError(f"shape must be positive and rectangles >= 0, got {shape}, {rectangles}")
     _, refl = sp.colorchecker(grid)
@@ -420,6 +420,7 @@ def _exposure_errors(exposure_ev: Any, spread: float, rng: np.random.Generator) 
     """Each exposure's error in stops: given, or uniform in [-spread, spread]."""
     if exposure_ev is not None:
         return _checked_errors(exposure_ev)
+    spread = real(spread, "ev_spread")
     if not (np.isfinite(spread) and 0 <= spread <= film.MAX_EV):
         raise ValueError(
             f"ev_spread must be a finite number of stops from 0 to {film.MAX_EV:g}, got {spread!r}"
@@ -432,7 +433,7 @@ def _checked_errors(exposure_ev: Any) -> dict[str, float]:
     ``MAX_EV`` stops either way (beyond it, ``2**ev`` overflows a float)."""
     if not isinstance(exposure_ev, dict) or set(exposure_ev) != set(CHANNELS):
         raise ValueError(f'exposure_ev must be a dict with keys "r", "g", "b", got {exposure_ev!r}')
-    out = {c: float(exposure_ev[c]) for c in CHANNELS}
+    out = {c: real(exposure_ev[c], f'exposure_ev["{c}"]') for c in CHANNELS}
     if not all(np.isfinite(v) and abs(v) <= film.MAX_EV for v in out.values()):
         raise ValueError(
             f"exposure_ev must be finite numbers of stops in [-{film.MAX_EV:g}, "
@@ -525,7 +526,7 @@ def photograph(
     cam = Camera() if camera is None else camera
     exposures = cam.exposures(scene)
     height, width = exposures.shape[:2]
-    m = max(1, round(0.02 * min(height, width))) if margin is None else operator.index(margin)
+    m = max(1, round(0.02 * min(height, width))) if margin is None else integer(margin, "margin")
     h, w = height - 2 * m, width - 2 * m
     if m < 0 or min(h, w) < 16:
         raise ValueError(
@@ -537,7 +538,7 @@ def photograph(
     rng = np.random.default_rng(int(seed))
     offsets = _offsets(shifts, m, rng)
     errors = _exposure_errors(exposure_ev, ev_spread, rng)
-    b = max(1, round(0.02 * min(h, w))) if border is None else operator.index(border)
+    b = max(1, round(0.02 * min(h, w))) if border is None else integer(border, "border")
     if b < 0:
         raise ValueError(f"border must be >= 0, got {b}")
     turns = _rotations(rotation, offsets, (h, w), m)
@@ -555,7 +556,7 @@ def _rotations(
         return dict.fromkeys(CHANNELS, 0.0)
     if not isinstance(rotation, dict) or set(rotation) != set(CHANNELS):
         raise ValueError(f'rotation must be a dict with keys "r", "g", "b", got {rotation!r}')
-    out = {c: float(rotation[c]) for c in CHANNELS}
+    out = {c: real(rotation[c], f'rotation["{c}"]') for c in CHANNELS}
     h, w = frame
     for c, angle in out.items():
         # A corner of the frame moves by at most |angle| x the half-diagonal.
