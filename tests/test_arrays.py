@@ -220,13 +220,22 @@ def test_a_matrix_of_strings_is_not_parsed():
         ig.apply_warp(REF, [["1", "0", "0"], ["0", "1", "0"]])
 
 
-def test_film_encode_is_a_bool_not_any_truthy_value():
-    """``"no"`` is truthy: it encoded."""
+def test_film_switches_are_bools_not_any_truthy_value():
+    """``"no"`` is truthy: it switched the effect on."""
     xyz = np.full((1, 1, 3), 0.5, np.float32)
     with pytest.raises(TypeError, match=r"^encode must be a bool, got 'no'$"):
         film.to_srgb(xyz, encode="no")
-    with pytest.raises(TypeError, match=r"^encode must be a bool, got 'no'$"):
-        film.simulate(RGB, encode="no")
+    for switch in ("encode", "couplers", "halation", "grain"):
+        with pytest.raises(TypeError, match=rf"^{switch} must be a bool, got 'no'$"):
+            film.simulate(RGB, **{switch: "no"})
+    exposure = film.expose(RGB, "generic-negative")
+    with pytest.raises(TypeError, match=r"^couplers must be a bool, got 0$"):
+        film.print(
+            film.develop(exposure, "generic-negative"),
+            "generic-negative",
+            "generic-paper",
+            couplers=0,
+        )
     np.testing.assert_array_equal(
         film.to_srgb(xyz, encode=np.False_), film.to_srgb(xyz, encode=False)
     )

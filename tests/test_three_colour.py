@@ -321,3 +321,11 @@ def test_the_figure_captions_quote_what_the_demo_measures(monkeypatch):
     assert f"({tinted_mean} and {tinted_top} without the exposure record)" in guide
     readme = " ".join((root / "README.md").read_text().split())
     assert f"mean CIEDE2000 {float(mean):.1f} (max {float(top):.1f})" in readme
+
+
+@pytest.mark.parametrize("seed", [True, -1, 1.5, "1"])
+def test_a_seed_that_is_no_natural_int_is_refused(seed):
+    with pytest.raises(ValueError, match=r"seed must be an int in \[0, 2\*\*64\)"):
+        tc.photograph(np.full((40, 48, 3), 0.5), seed=seed)
+    with pytest.raises(ValueError, match=r"seed must be an int in \[0, 2\*\*64\)"):
+        tc.mondrian((40, 50), seed=seed)

@@ -897,6 +897,8 @@ def develop(
     """
     st = load_stock(stock)
     arr = _image(exposure, "exposure", len(st.layers))
+    couplers, halation = _flag(couplers, "couplers"), _flag(halation, "halation")
+    grain = _flag(grain, "grain")
     halo_um = st.halation_um if halation and st.halation.any() else 0.0
     pixel_um = _pixel_um(frame_width_mm, arr.shape, halo_um, st.coupler_diffusion_um)
     grain_seed = as_seed(seed, "seed")
@@ -1057,6 +1059,7 @@ def print(
         As for :func:`develop`, applied to the paper.
     """
     neg, pap = _print_pair(negative, paper, "print")
+    couplers = _flag(couplers, "couplers")
     fil = balance_print(neg, pap) if filtration is None else filtration
     f = np.array([fil.yellow, fil.magenta, fil.cyan])
     light = _print_light(neg, pap) * 10.0 ** -(f @ dichroic_filters(neg.wavelengths))
@@ -1095,11 +1098,11 @@ def scan(density: Any, stock: str | Path | Stock, *, illuminant: str = "D65") ->
     return _transmit(density, st, response)
 
 
-def _encode(value: Any) -> bool:
-    """``encode`` checked to be a bool: a str such as ``"no"`` is truthy and
-    would silently encode."""
+def _flag(value: Any, name: str) -> bool:
+    """A switch checked to be a bool: a str such as ``"no"`` is truthy and
+    would silently switch it on."""
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"encode must be a bool, got {value!r}")
+        raise TypeError(f"{name} must be a bool, got {value!r}")
     return bool(value)
 
 
@@ -1108,7 +1111,7 @@ def to_srgb(xyz: Any, *, encode: bool = True) -> Float32Array:
     clipped, and its transfer curve when ``encode``."""
     arr = _image(xyz, "xyz", 3)
     rgb = np.clip(arr @ sp.XYZ_TO_SRGB.T.astype(np.float32), 0.0, 1.0)
-    if _encode(encode):
+    if _flag(encode, "encode"):
         rgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
     return rgb.astype(np.float32)
 
@@ -1148,7 +1151,7 @@ def simulate(
     st = load_stock(stock)
     if st.kind == "paper":
         raise ValueError(f"{st.name!r} is a paper: simulate takes a negative or reversal film")
-    _encode(encode)  # before the whole simulation, not after it
+    _flag(encode, "encode")  # before the whole simulation, not after it
     dens = develop(
         expose(image, st, exposure_ev=exposure_ev),
         st,

@@ -44,7 +44,7 @@ import numpy.typing as npt
 
 from . import film
 from . import spectral as sp
-from ._arrays import Float64Array, as_real, integer, real
+from ._arrays import Float64Array, as_real, as_seed, integer, real
 from .align import apply_warp, colorize_plate
 
 Float32Array = npt.NDArray[np.float32]
@@ -265,7 +265,7 @@ def mondrian(
     if min(h, w) < 1 or rectangles < 0:
         raise ValueError(f"shape must be positive and rectangles >= 0, got {shape}, {rectangles}")
     _, refl = sp.colorchecker(grid)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(as_seed(seed, "seed"))
     out = np.empty((h, w, len(grid)), np.float32)
     out[:] = refl[20]
     for _ in range(rectangles):
@@ -533,9 +533,8 @@ def photograph(
             f"margin {m} must be >= 0 and leave a frame of at least 16 x 16 pixels in the "
             f"{height} x {width} scene"
         )
-    if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an int >= 0, got {seed!r}")
-    rng = np.random.default_rng(int(seed))
+    seed = as_seed(seed, "seed")
+    rng = np.random.default_rng(seed)
     offsets = _offsets(shifts, m, rng)
     errors = _exposure_errors(exposure_ev, ev_spread, rng)
     b = max(1, round(0.02 * min(h, w))) if border is None else integer(border, "border")
@@ -543,7 +542,7 @@ def photograph(
         raise ValueError(f"border must be >= 0, got {b}")
     turns = _rotations(rotation, offsets, (h, w), m)
     plate = _exposed_plate(exposures, offsets, errors, turns, (h, w), m, b)
-    scan = _developed_scan(plate, cam.plate, grain, int(seed))
+    scan = _developed_scan(plate, cam.plate, grain, seed)
     return Plate(scan, offsets, errors, m, b, turns)
 
 
