@@ -65,7 +65,11 @@ pub fn level() -> Level {
         use std::arch::is_x86_feature_detected as has;
         let avx512 = has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl");
         if allows(Level::Avx512) && has_avx2_fma() && avx512 {
-            return if has_amx() { Level::Amx } else { Level::Avx512 };
+            return if amx_capable() {
+                Level::Amx
+            } else {
+                Level::Avx512
+            };
         }
     }
     if has_avx2_fma() {
@@ -101,28 +105,55 @@ pub(crate) fn has_avx2_fma() -> bool {
     }
 }
 
-/// `true` when the CPU has AMX's tiles and 8-bit products, the cap allows
-/// them and the OS has let this process use them. Linux hands the tiles'
-/// 8 KB of state to a process only on request (since 5.16), and an AMX
-/// instruction without it kills the process; the request is made once, for
-/// the whole process. The tiles' shape is checked too: the kernels use
-/// eight of 16 rows of 64 bytes (palette 1 on every CPU so far).
+/// `true` when the CPU has AMX's tiles and 8-bit products, the OS saves
+/// their state (XCR0) and the cap allows them: what [`level`] reports. It
+/// asks the OS for nothing (see `has_amx`). The tiles' shape is checked
+/// too: the kernels use eight of 16 rows of 64 bytes (palette 1 on every
+/// CPU so far).
+#[cfg(target_arch = "x86_64")]
+fn amx_capable() -> bool {
+    #[cfg(target_os = "linux")]
+    {
+        static CAPABLE: OnceLock<bool> = OnceLock::new();
+        allows(Level::Amx) && *CAPABLE.get_or_init(amx::capable)
+    }
+    // Only Linux's way of granting the tiles' state is implemented.
+    #[cfg(not(target_os = "linux"))]
+    {
+        false
+    }
+}
+
+/// `true` when kernels may run AMX instructions: [`amx_capable`], and Linux
+/// has granted this process the tiles' 8 KB of state, which it hands out
+/// only on request (since 5.16; an AMX instruction without it kills the
+/// process). The request is made once, the first time a kernel asks, not
+/// when the level is read: once granted, Linux refuses alternate signal
+/// stacks too small for the tiles' frame in the whole process, which a
+/// program that never runs such a kernel should not have imposed on it.
+/// Where the request fails (a seccomp filter, a thread's small alternate
+/// stack) the kernels run their AVX-512 build, with the same bits.
+#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
 pub(crate) fn has_amx() -> bool {
-    static AMX: OnceLock<bool> = OnceLock::new();
-    allows(Level::Amx) && *AMX.get_or_init(amx::enable)
+    static GRANTED: OnceLock<bool> = OnceLock::new();
+    amx_capable() && *GRANTED.get_or_init(amx::request)
 }
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
 mod amx {
     use std::arch::x86_64::{__cpuid_count, CpuidResult};
 
-    /// Checks the CPU's AMX and asks Linux for the tiles' state.
-    pub(super) fn enable() -> bool {
-        cpu_has_tiles() && request_tiles()
+    /// The CPU's tiles, and the OS's saving of their state.
+    pub(super) fn capable() -> bool {
+        cpu_has_tiles() && os_saves_tiles()
     }
 
     fn cpuid(leaf: u32, sub: u32) -> Option<CpuidResult> {
-        (__cpuid_count(leaf & 0x8000_0000, 0).eax >= leaf).then(|| __cpuid_count(leaf, sub))
+        // SAFETY: CPUID exists on every x86-64 CPU (recent compilers made
+        // the function safe; the crate's oldest supported one has it unsafe).
+        #[allow(unused_unsafe)]
+        let read = |leaf, sub| unsafe { __cpuid_count(leaf, sub) };
+        (read(leaf & 0x8000_0000, 0).eax >= leaf).then(|| read(leaf, sub))
     }
 
     /// AMX-TILE and AMX-INT8 (leaf 7, EDX bits 24 and 25), and palette 1
@@ -141,9 +172,31 @@ mod amx {
         tile == 1 && int8 == 1 && bytes_per_row == 64 && names >= 8 && rows >= 16
     }
 
+    /// XCR0's bits 17 and 18 (the tiles' configuration and data), which a
+    /// kernel that can save them sets; readable where CPUID's OSXSAVE says
+    /// so (leaf 1, ECX bit 27).
+    fn os_saves_tiles() -> bool {
+        let osxsave = cpuid(1, 0).is_some_and(|r| (r.ecx >> 27) & 1 == 1);
+        if !osxsave {
+            return false;
+        }
+        let (low, _high): (u32, u32);
+        // SAFETY: XGETBV with ECX 0 reads XCR0, allowed where OSXSAVE is set.
+        unsafe {
+            std::arch::asm!(
+                "xgetbv",
+                in("ecx") 0,
+                out("eax") low,
+                out("edx") _high,
+                options(nomem, nostack, preserves_flags),
+            );
+        }
+        (low >> 17) & 0b11 == 0b11
+    }
+
     /// `arch_prctl(ARCH_REQ_XCOMP_PERM, XFEATURE_XTILEDATA)`: 0 when the
-    /// kernel grants the tiles' state (it refuses where it cannot save it).
-    fn request_tiles() -> bool {
+    /// kernel grants the tiles' state.
+    pub(super) fn request() -> bool {
         const SYS_ARCH_PRCTL: isize = 158;
         const ARCH_REQ_XCOMP_PERM: usize = 0x1023;
         const XFEATURE_XTILEDATA: usize = 18;
@@ -162,14 +215,6 @@ mod amx {
             );
         }
         ret == 0
-    }
-}
-
-#[cfg(not(all(target_arch = "x86_64", target_os = "linux")))]
-mod amx {
-    /// AMX is used on x86-64 Linux only.
-    pub(super) fn enable() -> bool {
-        false
     }
 }
 

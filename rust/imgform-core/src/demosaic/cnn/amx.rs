@@ -88,8 +88,8 @@ impl Planes {
     /// Splits `rows` (codes of 15 bits) into their bytes.
     #[inline(always)]
     fn split(&mut self, rows: [&[i16]; 3], cin: usize) {
-        // A block's rows read up to 16 quads and 64 bytes on from its
-        // first quad.
+        // A block's last tile row reads from 15 quads on, up to 128 bytes
+        // (two chunks) past it.
         let len = rows[0].len() + (BLOCK + 1) * cin + 2 * ROW;
         for ((high, low), row) in self.high.iter_mut().zip(&mut self.low).zip(rows) {
             high.resize(len, 0);
@@ -130,7 +130,15 @@ impl Session {
     /// ([`crate::cpu::has_amx`]).
     unsafe fn start() -> Self {
         // SAFETY: by the caller; the configuration is 64 aligned bytes.
-        unsafe { std::arch::asm!("ldtilecfg [{}]", in(reg) CONFIG.0.as_ptr(), options(nostack)) };
+        unsafe {
+            std::arch::asm!(
+                "ldtilecfg [{}]",
+                in(reg) CONFIG.0.as_ptr(),
+                out("tmm0") _, out("tmm1") _, out("tmm2") _, out("tmm3") _,
+                out("tmm4") _, out("tmm5") _, out("tmm6") _, out("tmm7") _,
+                options(nostack, readonly),
+            )
+        };
         Session
     }
 }
@@ -138,7 +146,14 @@ impl Session {
 impl Drop for Session {
     fn drop(&mut self) {
         // SAFETY: a session exists only where tiles were configured.
-        unsafe { std::arch::asm!("tilerelease", options(nostack, nomem)) };
+        unsafe {
+            std::arch::asm!(
+                "tilerelease",
+                out("tmm0") _, out("tmm1") _, out("tmm2") _, out("tmm3") _,
+                out("tmm4") _, out("tmm5") _, out("tmm6") _, out("tmm7") _,
+                options(nostack, nomem),
+            )
+        };
     }
 }
 
@@ -173,10 +188,7 @@ pub(super) unsafe fn conv_row<const CIN: usize>(
         // SAFETY: tiles are configured; the planes hold the block's reads.
         // (Requantising a block while the next one multiplies took 1.1
         // times as long as the two in turn.)
-        unsafe {
-            multiply::<CIN>(planes, tiles, x);
-            store(&mut parts);
-        }
+        unsafe { multiply::<CIN>(planes, tiles, x, &mut parts) };
         assemble(&parts, &mut sums, cout);
         finish(layer, &sums[..count * cout], &mut out, x, cout);
         x += count;
@@ -187,88 +199,115 @@ pub(super) unsafe fn conv_row<const CIN: usize>(
 /// two halves of the outputs, then the low bytes', 16 quads by 16 outputs.
 type Parts = [[[i32; LANES]; ROWS]; 4];
 
-/// Multiplies the windows of output quads `x .. x + 16` by the weights,
-/// leaving the sums in the tiles: 0 and 1 the high bytes' products for the
-/// two halves of the outputs, 2 and 3 the low bytes'. Tiles 4 and 5 hold
-/// the two bytes' windows, 6 and 7 the weights.
+/// One row of taps' chunk in a block: its windows' high and low bytes and
+/// its weights for the outputs' two halves (the second unused for one).
+#[repr(C)]
+#[derive(Clone, Copy)]
+struct Group {
+    high: *const u8,
+    low: *const u8,
+    first: *const i8,
+    second: *const i8,
+}
+
+/// The windows of output quads `x .. x + 16` times the weights, into
+/// `parts`: tiles 0 and 1 sum the high bytes' products for the two halves
+/// of the outputs, 2 and 3 the low bytes'; 4 and 5 hold the two bytes'
+/// windows, 6 and 7 the weights. One `asm!` block from the first
+/// `tilezero` to the last `tilestored`, which loops over the block's
+/// [`Group`]s: Rust keeps no promise about registers between blocks.
 ///
 /// # Safety
 /// Tiles configured ([`Session`]); the planes split for this layer.
 #[inline(always)]
-unsafe fn multiply<const CIN: usize>(planes: &Planes, tiles: &Tiles, x: usize) {
-    let two = tiles.halves == 2;
-    // SAFETY (all blocks): by the caller; every tile read lies within the
-    // planes ([`Planes::split`]) and the packed weights.
-    unsafe {
-        std::arch::asm!(
-            "tilezero tmm0",
-            "tilezero tmm1",
-            "tilezero tmm2",
-            "tilezero tmm3",
-            options(nostack, nomem)
-        )
+unsafe fn multiply<const CIN: usize>(planes: &Planes, tiles: &Tiles, x: usize, parts: &mut Parts) {
+    let none = Group {
+        high: std::ptr::null(),
+        low: std::ptr::null(),
+        first: std::ptr::null(),
+        second: std::ptr::null(),
     };
-    for dy in 0..3 {
-        for chunk in 0..tiles.chunks {
-            let at = (x - 1) * CIN + chunk * ROW;
-            let (high, low) = (
-                planes.high[dy][at..].as_ptr(),
-                planes.low[dy][at..].as_ptr(),
+    let mut groups = [none; 6];
+    for (i, group) in groups.iter_mut().take(3 * tiles.chunks).enumerate() {
+        let (dy, chunk) = (i / tiles.chunks, i % tiles.chunks);
+        let at = (x - 1) * CIN + chunk * ROW;
+        *group = Group {
+            high: planes.high[dy][at..].as_ptr(),
+            low: planes.low[dy][at..].as_ptr(),
+            first: tiles.tile(dy, chunk, 0),
+            second: tiles.tile(dy, chunk, tiles.halves - 1),
+        };
+    }
+    let (g, count, p) = (groups.as_ptr(), 3 * tiles.chunks, parts.as_mut_ptr());
+    // SAFETY: by the caller; every tile read lies within the planes
+    // ([`Planes::split`]) and the packed weights, and `parts` holds the four
+    // tiles stored.
+    unsafe {
+        if tiles.halves == 2 {
+            std::arch::asm!(
+                "tilezero tmm0",
+                "tilezero tmm1",
+                "tilezero tmm2",
+                "tilezero tmm3",
+                "2:",
+                "mov {a}, [{g}]",
+                "tileloadd tmm4, [{a} + {cin}*1]",
+                "mov {a}, [{g} + 8]",
+                "tileloadd tmm5, [{a} + {cin}*1]",
+                "mov {a}, [{g} + 16]",
+                "tileloadd tmm6, [{a} + {row}*1]",
+                "tdpbusd tmm0, tmm4, tmm6",
+                "tdpbusd tmm2, tmm5, tmm6",
+                "mov {a}, [{g} + 24]",
+                "tileloadd tmm7, [{a} + {row}*1]",
+                "tdpbusd tmm1, tmm4, tmm7",
+                "tdpbusd tmm3, tmm5, tmm7",
+                "add {g}, 32",
+                "dec {n}",
+                "jnz 2b",
+                "tilestored [{p} + {row}*1], tmm0",
+                "tilestored [{p} + {row}*1 + 1024], tmm1",
+                "tilestored [{p} + {row}*1 + 2048], tmm2",
+                "tilestored [{p} + {row}*1 + 3072], tmm3",
+                g = inout(reg) g => _,
+                n = inout(reg) count => _,
+                a = out(reg) _,
+                p = in(reg) p,
+                cin = in(reg) CIN,
+                row = in(reg) ROW,
+                out("tmm0") _, out("tmm1") _, out("tmm2") _, out("tmm3") _,
+                out("tmm4") _, out("tmm5") _, out("tmm6") _, out("tmm7") _,
+                options(nostack),
             );
-            unsafe {
-                std::arch::asm!(
-                    "tileloadd tmm6, [{w} + {row}*1]",
-                    "tileloadd tmm4, [{high} + {cin}*1]",
-                    "tileloadd tmm5, [{low} + {cin}*1]",
-                    "tdpbusd tmm0, tmm4, tmm6",
-                    "tdpbusd tmm2, tmm5, tmm6",
-                    w = in(reg) tiles.tile(dy, chunk, 0),
-                    high = in(reg) high,
-                    low = in(reg) low,
-                    row = in(reg) ROW,
-                    cin = in(reg) CIN,
-                    options(nostack, readonly),
-                )
-            };
-            if two {
-                unsafe {
-                    std::arch::asm!(
-                        "tileloadd tmm7, [{w} + {row}*1]",
-                        "tdpbusd tmm1, tmm4, tmm7",
-                        "tdpbusd tmm3, tmm5, tmm7",
-                        w = in(reg) tiles.tile(dy, chunk, 1),
-                        row = in(reg) ROW,
-                        options(nostack, readonly),
-                    )
-                };
-            }
+        } else {
+            std::arch::asm!(
+                "tilezero tmm0",
+                "tilezero tmm2",
+                "2:",
+                "mov {a}, [{g}]",
+                "tileloadd tmm4, [{a} + {cin}*1]",
+                "mov {a}, [{g} + 8]",
+                "tileloadd tmm5, [{a} + {cin}*1]",
+                "mov {a}, [{g} + 16]",
+                "tileloadd tmm6, [{a} + {row}*1]",
+                "tdpbusd tmm0, tmm4, tmm6",
+                "tdpbusd tmm2, tmm5, tmm6",
+                "add {g}, 32",
+                "dec {n}",
+                "jnz 2b",
+                "tilestored [{p} + {row}*1], tmm0",
+                "tilestored [{p} + {row}*1 + 2048], tmm2",
+                g = inout(reg) g => _,
+                n = inout(reg) count => _,
+                a = out(reg) _,
+                p = in(reg) p,
+                cin = in(reg) CIN,
+                row = in(reg) ROW,
+                out("tmm0") _, out("tmm2") _, out("tmm4") _, out("tmm5") _, out("tmm6") _,
+                options(nostack),
+            );
         }
     }
-}
-
-/// Stores the sums [`multiply`] left in the tiles.
-///
-/// # Safety
-/// Tiles configured ([`Session`]).
-#[inline(always)]
-unsafe fn store(parts: &mut Parts) {
-    let p = parts.as_mut_ptr().cast::<i32>();
-    // SAFETY: by the caller; each tile is 16 rows of 64 bytes, `parts`
-    // four of them.
-    unsafe {
-        std::arch::asm!(
-            "tilestored [{p0} + {row}*1], tmm0",
-            "tilestored [{p1} + {row}*1], tmm1",
-            "tilestored [{p2} + {row}*1], tmm2",
-            "tilestored [{p3} + {row}*1], tmm3",
-            p0 = in(reg) p,
-            p1 = in(reg) p.add(ROWS * LANES),
-            p2 = in(reg) p.add(2 * ROWS * LANES),
-            p3 = in(reg) p.add(3 * ROWS * LANES),
-            row = in(reg) ROW,
-            options(nostack),
-        )
-    };
 }
 
 /// Each quad's sums, `cout` of them, from the high and low bytes' parts.
@@ -285,7 +324,67 @@ fn assemble(parts: &Parts, sums: &mut [i32], cout: usize) {
 
 #[cfg(test)]
 mod tests {
+    use super::super::{conv_row as portable, Isa, Network, BLOCK_LAST, BLOCK_WIDE, PADDED};
+    use super::super::{LAYERS, QUAD, WIDTH};
     use super::*;
+
+    /// Whole rows of each of the shipped network's layers, on the tiles and
+    /// in portable code, for widths that end on a whole block, a partial
+    /// one or none: the same codes, the same correction.
+    #[test]
+    fn tile_rows_are_the_portable_rows() {
+        if !crate::cpu::has_amx() {
+            return;
+        }
+        let net = Network::fusion_cnn();
+        let mut seed = 0x1234_5678_u32;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        let mut planes = Planes::default();
+        for n in [1, 2, 3, 17, 18, 19, 33, 50] {
+            for (k, layer) in net.layers.iter().enumerate() {
+                let cin = if k == 0 { QUAD } else { WIDTH };
+                let rows: Vec<Vec<i16>> = (0..3)
+                    .map(|_| (0..n * cin).map(|_| (next() % 32768) as i16).collect())
+                    .collect();
+                let rows = [&rows[0][..], &rows[1][..], &rows[2][..]];
+                if k + 1 == LAYERS {
+                    let (mut want, mut got) = (vec![0.0f32; n * PADDED], vec![0.0f32; n * PADDED]);
+                    let out = |c| Out::Correction(c, 0.5);
+                    portable::<WIDTH, 1, BLOCK_LAST>(Isa::Baseline, rows, layer, out(&mut want), n);
+                    // SAFETY: `has_amx` above; every AMX CPU has AVX-512.
+                    unsafe { conv_row::<WIDTH>(rows, layer, &mut planes, out(&mut got), n) };
+                    assert_eq!(got, want, "last layer, {n} quads");
+                    continue;
+                }
+                let (mut want, mut got) = (vec![0i16; n * WIDTH], vec![0i16; n * WIDTH]);
+                if k == 0 {
+                    portable::<QUAD, 2, BLOCK_WIDE>(
+                        Isa::Baseline,
+                        rows,
+                        layer,
+                        Out::Codes(&mut want),
+                        n,
+                    );
+                    unsafe { conv_row::<QUAD>(rows, layer, &mut planes, Out::Codes(&mut got), n) };
+                } else {
+                    portable::<WIDTH, 2, BLOCK_WIDE>(
+                        Isa::Baseline,
+                        rows,
+                        layer,
+                        Out::Codes(&mut want),
+                        n,
+                    );
+                    unsafe { conv_row::<WIDTH>(rows, layer, &mut planes, Out::Codes(&mut got), n) };
+                }
+                assert_eq!(got, want, "layer {k}, {n} quads");
+            }
+        }
+    }
 
     /// A block's sums on the tiles against plain 64-bit sums, for each
     /// layer shape the network has, with the widest codes and weights:
@@ -338,10 +437,9 @@ mod tests {
                 let mut parts = [[[0; LANES]; ROWS]; 4];
                 unsafe {
                     match cin {
-                        12 => multiply::<12>(&planes, &tiles, x),
-                        _ => multiply::<32>(&planes, &tiles, x),
+                        12 => multiply::<12>(&planes, &tiles, x, &mut parts),
+                        _ => multiply::<32>(&planes, &tiles, x, &mut parts),
                     }
-                    store(&mut parts);
                 }
                 assemble(&parts, &mut sums, padded);
                 for m in 0..BLOCK {
