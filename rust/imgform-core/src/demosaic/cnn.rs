@@ -202,23 +202,29 @@ impl Layer {
             ));
         }
         let mut weights = vec![0; 9 * cin * padded];
-        for tap in weights.chunks_exact_mut(cin * padded) {
+        for t in 0..9 {
             for i in 0..cin {
                 for o in 0..cout {
                     let [w] = r.take::<1>()?;
-                    tap[((i / 2) * padded + o) * 2 + i % 2] = i16::from(w as i8);
+                    weights[paired(cin, padded, t, i, o)] = i16::from(w as i8);
                 }
             }
         }
         Ok(Layer {
             #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
             tiles: amx::Tiles::pack(cin, cout, |t, i, o| {
-                weights[t * cin * padded + ((i / 2) * padded + o) * 2 + i % 2] as i8
+                weights[paired(cin, padded, t, i, o)] as i8
             }),
             weights,
             factors,
         })
     }
+}
+
+/// Where [`Layer::weights`] holds tap `t`'s weight from input `i` to
+/// output `o` of a layer of `cin` inputs and `padded` outputs.
+const fn paired(cin: usize, padded: usize, t: usize, i: usize, o: usize) -> usize {
+    t * cin * padded + ((i / 2) * padded + o) * 2 + i % 2
 }
 
 /// A sample (clamped, so at least 0 where the mosaic is) as the
@@ -1078,6 +1084,7 @@ mod tests {
             let padded = cout.next_multiple_of(LANES);
             for (t, i, o) in [(0, 0, 0), (4, 3, 5), (8, cin - 1, cout - 1)] {
                 let want = (k * 7 + ((t * cin + i) * cout + o) % 100) as i16;
+                // The layout spelled out, as the vector code reads it.
                 let got = layer.weights[(t * cin * padded) + ((i / 2) * padded + o) * 2 + i % 2];
                 assert_eq!(got, want, "layer {k} tap {t} in {i} out {o}");
             }
@@ -1174,7 +1181,7 @@ mod tests {
             let (cin, cout) = shape(k);
             let padded = cout.next_multiple_of(LANES);
             let weight = |t: usize, i: usize, o: usize| {
-                i64::from(layer.weights[t * cin * padded + ((i / 2) * padded + o) * 2 + i % 2])
+                i64::from(layer.weights[paired(cin, padded, t, i, o)])
             };
             let mut next = vec![vec![0; cout]; qw * qh];
             for qy in 1..qh - 1 {
