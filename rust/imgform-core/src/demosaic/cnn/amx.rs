@@ -244,71 +244,68 @@ unsafe fn multiply<const CIN: usize>(planes: &Planes, tiles: &Tiles, x: usize, p
     // tiles stored.
     unsafe {
         if tiles.halves == 2 {
-            std::arch::asm!(
-                "tilezero tmm0",
-                "tilezero tmm1",
-                "tilezero tmm2",
-                "tilezero tmm3",
-                "2:",
-                "mov {a}, [{g}]",
-                "tileloadd tmm4, [{a} + {cin}*1]",
-                "mov {a}, [{g} + 8]",
-                "tileloadd tmm5, [{a} + {cin}*1]",
-                "mov {a}, [{g} + 16]",
-                "tileloadd tmm6, [{a} + {row}*1]",
-                "tdpbusd tmm0, tmm4, tmm6",
-                "tdpbusd tmm2, tmm5, tmm6",
-                "mov {a}, [{g} + 24]",
-                "tileloadd tmm7, [{a} + {row}*1]",
-                "tdpbusd tmm1, tmm4, tmm7",
-                "tdpbusd tmm3, tmm5, tmm7",
-                "add {g}, 32",
-                "dec {n}",
-                "jnz 2b",
-                "tilestored [{p} + {row}*1], tmm0",
-                "tilestored [{p} + {row}*1 + 1024], tmm1",
-                "tilestored [{p} + {row}*1 + 2048], tmm2",
-                "tilestored [{p} + {row}*1 + 3072], tmm3",
-                g = inout(reg) g => _,
-                n = inout(reg) count => _,
-                a = out(reg) _,
-                p = in(reg) p,
-                cin = in(reg) CIN,
-                row = in(reg) ROW,
-                out("tmm0") _, out("tmm1") _, out("tmm2") _, out("tmm3") _,
-                out("tmm4") _, out("tmm5") _, out("tmm6") _, out("tmm7") _,
-                options(nostack),
+            tile_block!(
+                g,
+                count,
+                p,
+                CIN,
+                [
+                    "mov {a}, [{g} + 24]",
+                    "tileloadd tmm7, [{a} + {row}*1]",
+                    "tdpbusd tmm1, tmm4, tmm7",
+                    "tdpbusd tmm3, tmm5, tmm7",
+                ],
+                [
+                    "tilestored [{p} + {row}*1 + 1024], tmm1",
+                    "tilestored [{p} + {row}*1 + 3072], tmm3",
+                ]
             );
         } else {
-            std::arch::asm!(
-                "tilezero tmm0",
-                "tilezero tmm2",
-                "2:",
-                "mov {a}, [{g}]",
-                "tileloadd tmm4, [{a} + {cin}*1]",
-                "mov {a}, [{g} + 8]",
-                "tileloadd tmm5, [{a} + {cin}*1]",
-                "mov {a}, [{g} + 16]",
-                "tileloadd tmm6, [{a} + {row}*1]",
-                "tdpbusd tmm0, tmm4, tmm6",
-                "tdpbusd tmm2, tmm5, tmm6",
-                "add {g}, 32",
-                "dec {n}",
-                "jnz 2b",
-                "tilestored [{p} + {row}*1], tmm0",
-                "tilestored [{p} + {row}*1 + 2048], tmm2",
-                g = inout(reg) g => _,
-                n = inout(reg) count => _,
-                a = out(reg) _,
-                p = in(reg) p,
-                cin = in(reg) CIN,
-                row = in(reg) ROW,
-                out("tmm0") _, out("tmm2") _, out("tmm4") _, out("tmm5") _, out("tmm6") _,
-                options(nostack),
-            );
+            tile_block!(g, count, p, CIN, [], []);
         }
     }
 }
+
+/// The `asm!` block of [`multiply`]: for each of `count` groups at `g`,
+/// the windows' two bytes times the first half's weights, then what
+/// `second` adds for the second half; the sums stored at `p`, the second
+/// half's by `store`.
+macro_rules! tile_block {
+    ($g:expr, $count:expr, $p:expr, $cin:expr, [$($second:literal),* $(,)?], [$($store:literal),* $(,)?]) => {
+        std::arch::asm!(
+            "tilezero tmm0",
+            "tilezero tmm1",
+            "tilezero tmm2",
+            "tilezero tmm3",
+            "2:",
+            "mov {a}, [{g}]",
+            "tileloadd tmm4, [{a} + {cin}*1]",
+            "mov {a}, [{g} + 8]",
+            "tileloadd tmm5, [{a} + {cin}*1]",
+            "mov {a}, [{g} + 16]",
+            "tileloadd tmm6, [{a} + {row}*1]",
+            "tdpbusd tmm0, tmm4, tmm6",
+            "tdpbusd tmm2, tmm5, tmm6",
+            $($second,)*
+            "add {g}, 32",
+            "dec {n}",
+            "jnz 2b",
+            "tilestored [{p} + {row}*1], tmm0",
+            "tilestored [{p} + {row}*1 + 2048], tmm2",
+            $($store,)*
+            g = inout(reg) $g => _,
+            n = inout(reg) $count => _,
+            a = out(reg) _,
+            p = in(reg) $p,
+            cin = in(reg) $cin,
+            row = in(reg) ROW,
+            out("tmm0") _, out("tmm1") _, out("tmm2") _, out("tmm3") _,
+            out("tmm4") _, out("tmm5") _, out("tmm6") _, out("tmm7") _,
+            options(nostack),
+        )
+    };
+}
+use tile_block;
 
 /// Each quad's sums, `cout` of them, from the high and low bytes' parts.
 #[inline(always)]
@@ -328,6 +325,16 @@ mod tests {
     use super::super::{LAYERS, QUAD, WIDTH};
     use super::*;
 
+    /// A seeded stream of pseudo-random `u32` (Marsaglia's xorshift).
+    fn xorshift(mut seed: u32) -> impl FnMut() -> u32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        }
+    }
+
     /// Whole rows of each of the shipped network's layers, on the tiles and
     /// in portable code, for widths that end on a whole block, a partial
     /// one or none: the same codes, the same correction.
@@ -337,13 +344,7 @@ mod tests {
             return;
         }
         let net = Network::fusion_cnn();
-        let mut seed = 0x1234_5678_u32;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed
-        };
+        let mut next = xorshift(0x1234_5678);
         let mut planes = Planes::default();
         for n in [1, 2, 3, 17, 18, 19, 33, 50] {
             for (k, layer) in net.layers.iter().enumerate() {
@@ -394,13 +395,7 @@ mod tests {
         if !crate::cpu::has_amx() {
             return;
         }
-        let mut seed = 0x2545_f491_u32;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed
-        };
+        let mut next = xorshift(0x2545_f491);
         for (cin, cout) in [(12, 32), (32, 32), (32, 12)] {
             let n = BLOCK + 5;
             let rows: Vec<Vec<i16>> = (0..3)
