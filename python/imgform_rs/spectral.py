@@ -30,6 +30,7 @@ import numpy.typing as npt
 
 from . import _native
 from ._arrays import Float64Array, as_float_array, as_real, as_seed
+from ._samples import F32_MAX, to_kernel
 from .cfa import as_pattern, pattern_cells
 
 Float32Array = npt.NDArray[np.float32]
@@ -321,17 +322,10 @@ def integrate(spectra: Any, wl: Any, sensitivities: Any, *, rule: Rule = "trapez
 
 
 def _as_float32(arr: np.ndarray, name: str) -> np.ndarray:
-    """``arr`` as float32 for a kernel, refusing finite values beyond float32's
-    range, which the cast would make inf (and the kernel call non-finite)."""
-    top = float(np.finfo(np.float32).max)
-    if arr.dtype.kind == "f" and arr.dtype.itemsize > 4:
-        beyond = (np.abs(arr) > top) & np.isfinite(arr)
-        if beyond.any():
-            raise ValueError(
-                f"{name} must lie within float32's range (magnitude up to {top:.4g}), "
-                f"got {float(arr[beyond].flat[0]):.4g}"
-            )
-    return arr.astype(np.float32, copy=False)
+    """``arr`` as float32 for a kernel: floats through :func:`_samples.to_kernel`,
+    which refuses finite values beyond float32's range (the cast would make them
+    inf, and the kernel call them non-finite); integers as they are."""
+    return to_kernel(arr, name) if arr.dtype.kind == "f" else arr.astype(np.float32)
 
 
 def _require_in_float32(out: np.ndarray) -> None:
@@ -340,7 +334,7 @@ def _require_in_float32(out: np.ndarray) -> None:
         at = tuple(int(i) for i in np.argwhere(~np.isfinite(out))[0][:-1])
         raise ValueError(
             f"the spectrum at index {at} integrates beyond float32's range "
-            f"(largest {float(np.finfo(np.float32).max):.4g}); scale the spectra down"
+            f"(largest {F32_MAX:.4g}); scale the spectra down"
         )
 
 
