@@ -47,6 +47,11 @@ def _progress(done: int, total: int, unit: str = "plates") -> None:
     sys.stderr.flush()
 
 
+def _clustered(args: argparse.Namespace) -> bool:
+    """Whether ``--scheduler`` or ``--workers`` sends the files to Dask."""
+    return bool(args.scheduler or args.workers)
+
+
 def _cluster(args: argparse.Namespace):
     """A Dask client for ``--scheduler`` or ``--workers`` (closed on exit)."""
     from .batch import local_client
@@ -122,10 +127,10 @@ def _outputs(
 def _align(args: argparse.Namespace) -> int:
     import time
 
-    pairs = _outputs(args, args.plates, ".png", on_cluster=bool(args.scheduler or args.workers))
+    pairs = _outputs(args, args.plates, ".png", on_cluster=_clustered(args))
     if pairs is None:
         return 2
-    if args.scheduler or args.workers:
+    if _clustered(args):
         from .batch import align_many
 
         options = {
@@ -298,13 +303,13 @@ def _develop(args: argparse.Namespace) -> int:
         args.raws,
         _SUFFIX[args.format],
         dry_run=args.dry_run,
-        on_cluster=bool(args.scheduler or args.workers),
+        on_cluster=_clustered(args),
     )
     if pairs is None:
         return 2
     if args.dry_run:
         return _develop_dry_run(args, pairs)
-    if args.scheduler or args.workers:
+    if _clustered(args):
         from .batch import develop_many
 
         options = {**_develop_options(args), "format": args.format, "quality": args.quality}
