@@ -60,17 +60,12 @@ pub(crate) fn allows(level: Level) -> bool {
 
 /// The widest level this CPU has and the cap allows: what the kernels run.
 pub fn level() -> Level {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::is_x86_feature_detected as has;
-        let avx512 = has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl");
-        if allows(Level::Avx512) && has_avx2_fma() && avx512 {
-            return if amx_capable() {
-                Level::Amx
-            } else {
-                Level::Avx512
-            };
-        }
+    if has_avx512() {
+        return if amx_capable() {
+            Level::Amx
+        } else {
+            Level::Avx512
+        };
     }
     if has_avx2_fma() {
         Level::Avx2
@@ -105,20 +100,40 @@ pub(crate) fn has_avx2_fma() -> bool {
     }
 }
 
+/// `true` when the CPU has AVX-512 F, BW, DQ and VL besides AVX2 and FMA,
+/// the features the `avx512` builds are compiled for, and the cap allows
+/// them.
+pub(crate) fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::is_x86_feature_detected as has;
+        allows(Level::Avx512)
+            && has_avx2_fma()
+            && has!("avx512f")
+            && has!("avx512bw")
+            && has!("avx512dq")
+            && has!("avx512vl")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// `true` when the CPU has AMX's tiles and 8-bit products, the OS saves
 /// their state (XCR0) and the cap allows them: what [`level`] reports. It
 /// asks the OS for nothing (see `has_amx`). The tiles' shape is checked
 /// too: the kernels use eight of 16 rows of 64 bytes (palette 1 on every
 /// CPU so far).
-#[cfg(target_arch = "x86_64")]
 fn amx_capable() -> bool {
-    #[cfg(target_os = "linux")]
+    #[cfg(amx)]
     {
         static CAPABLE: OnceLock<bool> = OnceLock::new();
         allows(Level::Amx) && *CAPABLE.get_or_init(amx::capable)
     }
-    // Only Linux's way of granting the tiles' state is implemented.
-    #[cfg(not(target_os = "linux"))]
+    // Only x86-64 Linux's way of granting the tiles' state is implemented
+    // (see the build script).
+    #[cfg(not(amx))]
     {
         false
     }
@@ -133,13 +148,13 @@ fn amx_capable() -> bool {
 /// program that never runs such a kernel should not have imposed on it.
 /// Where the request fails (a seccomp filter, a thread's small alternate
 /// stack) the kernels run their AVX-512 build, with the same bits.
-#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+#[cfg(amx)]
 pub(crate) fn has_amx() -> bool {
     static GRANTED: OnceLock<bool> = OnceLock::new();
     amx_capable() && *GRANTED.get_or_init(amx::request)
 }
 
-#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+#[cfg(amx)]
 mod amx {
     use std::arch::x86_64::{__cpuid_count, CpuidResult};
 

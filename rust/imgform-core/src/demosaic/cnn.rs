@@ -59,7 +59,7 @@ use super::tiled::{Emit, Load, StreamKernel, Tile};
 use super::{Isa, Phase};
 use std::sync::OnceLock;
 
-#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+#[cfg(amx)]
 mod amx;
 
 /// Convolutions of the shipped network.
@@ -106,7 +106,7 @@ struct Layer {
     /// fraction of the quantisation's white.
     factors: Vec<f32>,
     /// The weights as AMX's tiles take them.
-    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+    #[cfg(amx)]
     tiles: amx::Tiles,
 }
 
@@ -211,7 +211,7 @@ impl Layer {
             }
         }
         Ok(Layer {
-            #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+            #[cfg(amx)]
             tiles: amx::Tiles::pack(cin, cout, |t, i, o| {
                 weights[paired(cin, padded, t, i, o)] as i8
             }),
@@ -313,7 +313,7 @@ struct Rings {
     /// The network's output row (the correction of one quad row).
     correction: Vec<f32>,
     /// A layer's input rows split into bytes, for AMX.
-    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+    #[cfg(amx)]
     planes: amx::Planes,
     /// The red row waiting for the blue row below it, and the tile row it
     /// came as.
@@ -338,7 +338,7 @@ impl Rings {
                 .map(|_| Ring::new(quads * WIDTH, 3, 0))
                 .collect(),
             correction: vec![0.0; quads * PADDED],
-            #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+            #[cfg(amx)]
             planes: amx::Planes::default(),
             red: [row(), row(), row()],
             red_row: None,
@@ -392,7 +392,7 @@ impl<K: StreamKernel> StreamKernel for Convolved<K> {
             network: self.network,
             phase: self.phase,
             isa: self.isa,
-            #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+            #[cfg(amx)]
             amx: self.isa == Isa::Avx512 && crate::cpu::has_amx(),
             bounds: self.bounds,
             // An all-black mosaic: every code 0, so no correction.
@@ -420,7 +420,7 @@ struct Quads<'a, E> {
     phase: Phase,
     isa: Isa,
     /// Whether the layers run on AMX's tiles ([`crate::cpu::has_amx`]).
-    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+    #[cfg(amx)]
     amx: bool,
     bounds: (f32, f32),
     /// Input codes per unit of the mosaic.
@@ -486,7 +486,7 @@ impl<E: Emit> Quads<'_, E> {
             } else {
                 Out::Codes(after[0].row_mut(row))
             };
-            #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+            #[cfg(amx)]
             if self.amx {
                 // SAFETY: `amx` is set only with `Isa::Avx512` and where
                 // `has_amx` says the CPU has the tiles and the OS granted

@@ -718,32 +718,20 @@ impl Isa {
     /// The widest instruction set of this CPU that the kernels have and
     /// the cap ([`crate::cpu`]) allows.
     fn detect() -> Self {
-        let allowed = |isa: &Isa| match isa {
-            Isa::Baseline => true,
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => crate::cpu::allows(crate::cpu::Level::Avx2),
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => crate::cpu::allows(crate::cpu::Level::Avx512),
-        };
-        Self::available()
-            .into_iter()
-            .rev()
-            .find(allowed)
-            .unwrap_or(Isa::Baseline)
+        Self::available().pop().unwrap_or(Isa::Baseline)
     }
 
-    /// Every instruction set of this CPU that the kernels have, narrowest
-    /// first.
+    /// Every instruction set of this CPU that the kernels have and the cap
+    /// allows, narrowest first.
     fn available() -> Vec<Self> {
         let mut isas = vec![Isa::Baseline];
         #[cfg(target_arch = "x86_64")]
         {
-            use std::arch::is_x86_feature_detected as has;
-            if has!("avx2") && has!("fma") {
+            if crate::cpu::has_avx2_fma() {
                 isas.push(Isa::Avx2);
-                if has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl") {
-                    isas.push(Isa::Avx512);
-                }
+            }
+            if crate::cpu::has_avx512() {
+                isas.push(Isa::Avx512);
             }
         }
         isas
