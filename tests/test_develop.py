@@ -359,6 +359,9 @@ def grey_card(tmp_path_factory):
         ("pixel_aspect", 1e-9, ValueError, "pixel_aspect must be in"),
         ("pixel_aspect", "1", TypeError, "RawImage.pixel_aspect must be a real number, got '1'"),
         ("pixel_aspect", True, TypeError, "RawImage.pixel_aspect must be a real number"),
+        ("pattern", "GBRG", ValueError, r"channel_tile \[\[0, 1\], \[3, 2\]\] .* 'GBRG'"),
+        ("pattern", "RGB", ValueError, "RawImage.pattern: "),
+        ("channel_tile", np.array([[0, 1]], np.uint8), ValueError, "not the tile of"),
     ],
 )
 def test_a_raw_image_with_a_field_develop_cannot_use_is_named(grey_card, field, value, exc, match):
@@ -368,6 +371,21 @@ def test_a_raw_image_with_a_field_develop_cannot_use_is_named(grey_card, field, 
     _, raw = grey_card
     with pytest.raises(exc, match=match):
         ig.develop(dataclasses.replace(raw, **{field: value}))
+
+
+def test_a_crop_that_shifts_the_pattern_and_the_tile_develops_as_the_whole(grey_card):
+    # Before, a crop that shifted only the pattern developed in false colour:
+    # the white balance and black levels follow the tile.
+    _, raw = grey_card
+    crop = dataclasses.replace(
+        raw,
+        cfa=raw.cfa[1:, 1:],
+        pattern=ig.shift_pattern(raw.pattern, 1, 1),
+        channel_tile=np.roll(raw.channel_tile, (-1, -1), (0, 1)),
+    )
+    # Bilinear: its interior does not depend on the phase (learned filters do).
+    whole, part = (ig.develop(r, bps=16, exposure=0, demosaic="bilinear") for r in (raw, crop))
+    np.testing.assert_array_equal(part[2:-2, 2:-2], whole[1:, 1:][2:-2, 2:-2])
 
 
 def test_output_types_and_tone_curves_agree(grey_card):

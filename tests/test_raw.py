@@ -89,6 +89,35 @@ def test_bad_sources_are_named_in_the_error(tmp_path):
     assert issubclass(ig.RawError, ValueError)
 
 
+def test_a_file_opened_in_text_mode_is_refused_before_it_is_read(tmp_path):
+    path, _ = synthetic(tmp_path)
+    # Before: UnicodeDecodeError from reading the file.
+    with open(path) as f, pytest.raises(TypeError, match="binary mode"):
+        ig.load_raw(f)
+
+
+@pytest.mark.parametrize("cut", [1, 100])
+def test_a_dng_cut_short_after_its_pixels_is_refused_quietly(tmp_path, capfd, cut):
+    # write_dng puts the tags after the pixels: a copy cut short kept the
+    # pixels, lost the colour matrix and developed pure red, while tifffile
+    # logged three lines to stderr.
+    path, _ = synthetic(tmp_path)
+    data = path.read_bytes()[:-cut]
+    with pytest.raises(ig.RawError, match=r"truncated or corrupt: a TIFF tag.s .*past its end"):
+        ig.load_raw(data)
+    assert "tifffile" not in capfd.readouterr().err
+
+
+def test_a_tiff_that_is_no_camera_raw_is_refused(tmp_path):
+    import tifffile
+
+    # LibRaw read a grey 16-bit scan as an RGGB mosaic.
+    path = tmp_path / "scan.tif"
+    tifffile.imwrite(path, np.full((300, 400), 30000, np.uint16))
+    with pytest.raises(ig.RawError, match=r"scan\.tif: a TIFF image with neither DNG tags"):
+        ig.load_raw(path)
+
+
 def test_a_constant_frame_is_not_taken_for_an_image(tmp_path):
     path = tmp_path / "flat.dng"
     write_dng(path, np.zeros((32, 32), np.uint16), "RGGB", white_level=4095)

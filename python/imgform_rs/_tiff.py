@@ -6,12 +6,15 @@ black-level pattern larger than the 2x2 tile are two such values. tifffile
 parses the file; this module walks the IFDs LibRaw's TIFF parser walks (IFD0
 and its successors, each followed by the SubIFDs it points to) and returns
 each IFD's tags as plain numbers or text. It never raises on malformed data:
-whatever tifffile cannot read is left out.
+whatever tifffile cannot read is left out, and what tifffile says about it
+goes to the caller rather than to the log (stderr).
 """
 
 from __future__ import annotations
 
 import io
+import logging
+import threading
 from typing import Any
 
 import numpy as np
@@ -21,6 +24,26 @@ Value = str | tuple[float, ...]
 # A corrupt file can chain IFDs in a loop or claim millions of them.
 _MAX_IFDS = 64
 _RATIONALS = (5, 10)  # RATIONAL, SRATIONAL: tifffile keeps numerator, denominator pairs
+
+
+class _Complaints(logging.Filter):
+    """Holds back tifffile's log records while this module parses a file, for
+    :func:`tiff_ifds`'s caller. Per thread: batches parse files on many."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.local = threading.local()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        caught = getattr(self.local, "caught", None)
+        if caught is None:
+            return True  # someone else's parse: theirs to log
+        caught.append(record.getMessage())
+        return False
+
+
+_COMPLAINTS = _Complaints()
+logging.getLogger("tifffile").addFilter(_COMPLAINTS)
 
 
 def _value(tag: Any) -> Value | None:
@@ -66,13 +89,16 @@ def _walk(pages: Any, found: list[dict[int, Value]]) -> None:
             _walk(subs, found)
 
 
-def tiff_ifds(data: bytes) -> list[dict[int, Value]]:
+def tiff_ifds(data: bytes, complaints: list[str] | None = None) -> list[dict[int, Value]]:
     """Every IFD of a TIFF file, in the order LibRaw parses them.
 
     Parameters
     ----------
     data : bytes
         The whole file.
+    complaints : list of str, optional
+        Receives what tifffile logged about the file (such as a tag whose
+        value lies past the end of a truncated file); dropped if not given.
 
     Returns
     -------
@@ -84,11 +110,14 @@ def tiff_ifds(data: bytes) -> list[dict[int, Value]]:
     import tifffile
 
     found: list[dict[int, Value]] = []
+    _COMPLAINTS.local.caught = [] if complaints is None else complaints
     try:
         with tifffile.TiffFile(io.BytesIO(data)) as tif:
             _walk(tif.pages, found)
     except Exception:  # tifffile's errors on corrupt files are of many classes
         pass
+    finally:
+        _COMPLAINTS.local.caught = None
     return found
 
 

@@ -36,7 +36,7 @@ from ._exif import ShotInfo, shot_info
 from ._files import read_regular
 from ._native import RawError
 from ._tiff import Value, first_tag, tiff_ifds
-from .cfa import pattern_from_rawpy
+from .cfa import pattern_cells, pattern_from_rawpy
 
 # Linear sRGB (D65) to XYZ, IEC 61966-2-1.
 SRGB_TO_XYZ = np.array(
@@ -183,6 +183,7 @@ def check_raw_image(raw: RawImage) -> None:
     tile = array("channel_tile", (None, None), "u")
     if tile.max() > 3:
         raise ValueError(f"RawImage.channel_tile holds channels 0..3, got {tile.max()}")
+    _check_tile(tile, raw.pattern)
     black = array("black_levels", (4,))
     array("black_map", (None, None))
     for name in ("camera_white_balance", "daylight_white_balance"):
@@ -203,6 +204,22 @@ def check_raw_image(raw: RawImage) -> None:
         )
 
 
+def _check_tile(tile: np.ndarray, pattern: Any) -> None:
+    """The white balance and black levels go by ``channel_tile``, the
+    demosaicing by ``pattern``: a crop that shifts only one of them would
+    develop in false colour."""
+    try:
+        cells = pattern_cells(pattern)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"RawImage.pattern: {exc}") from exc
+    if tile.shape != cells.shape or not np.array_equal(np.where(tile == 3, 1, tile), cells):
+        raise ValueError(
+            f"RawImage.channel_tile {tile.tolist()} (3: the second green) is not the tile "
+            f"of RawImage.pattern {pattern!r}: a crop by (dy, dx) shifts both, the pattern "
+            "with cfa.shift_pattern and the tile with np.roll(tile, (-dy, -dx), (0, 1))"
+        )
+
+
 def _describe(source: Any) -> str:
     if isinstance(source, (str, os.PathLike)):
         return os.fspath(source)
@@ -220,6 +237,10 @@ def _read_bytes(source: Any, name: str) -> bytes:
             raise RawError(f"{name}: cannot read the file ({exc.strerror or exc})") from exc
     if isinstance(source, (bytes, bytearray, memoryview)):
         return bytes(source)
+    if isinstance(source, io.TextIOBase):
+        raise TypeError(
+            f"a file object given to load_raw must be opened in binary mode, got {name}"
+        )
     if hasattr(source, "read"):
         data = source.read()
         if not isinstance(data, (bytes, bytearray)):
@@ -345,7 +366,9 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
         sizes = raw.sizes
         black = np.asarray(raw.black_level_per_channel, np.float64)
         tile = np.asarray(raw.raw_pattern, np.uint8)
-        ifds = None if data is None else tiff_ifds(data)
+        complaints: list[str] = []
+        ifds = None if data is None else tiff_ifds(data, complaints)
+        _check_tags(complaints, name, data)
         meta = dict(
             channel_tile=tile,
             black_levels=black,
@@ -362,6 +385,12 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
         make, model = (v if isinstance(v, str) else "" for v in (make, model))
         if not (make or model) and data is not None:
             make, model = make_model(data)
+        if ifds and first_tag(ifds, _DNG_VERSION) is None and not (make or model):
+            # LibRaw reads such a file's pixels as a Bayer mosaic all the same.
+            raise RawError(
+                f"{name}: a TIFF image with neither DNG tags nor a camera make or "
+                "model: not a camera raw"
+            )
         shot = shot_info(raw, make, model)
     except RawError:
         raise
@@ -379,6 +408,20 @@ def _from_rawpy(raw: Any, name: str, data: bytes | None) -> RawImage:
         shot=shot,
         **meta,
     )
+
+
+def _check_tags(complaints: list[str], name: str, data: bytes | None) -> None:
+    """Refuse a file whose TIFF tags point past its end: a file cut short
+    after its pixels (a DNG whose tags follow them, as ``write_dng``'s do)
+    loses its colour matrix and white balance, which LibRaw skips without a
+    word, and would develop in false colour."""
+    past = [c for c in complaints if "invalid value offset" in c]
+    if past and data is not None:
+        values = "value lies" if len(past) == 1 else f"{len(past)} values lie"
+        raise RawError(
+            f"{name}: the file is truncated or corrupt: a TIFF tag's {values} past "
+            f"its end ({len(data)} bytes)"
+        )
 
 
 def _reason(exc: BaseException) -> str:
