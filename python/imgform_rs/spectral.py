@@ -1183,16 +1183,25 @@ def idt_matrix(
     its rows summing to 1 so that the balanced white stays white, minimises
     the Euclidean norm of the CIE L*a*b* errors of ``ACES → XYZ (M rgb)``
     over the patches (BFGS from the identity). This is the procedure of
-    colour-science's ``matrix_idt`` with its defaults, which a test
-    reproduces to 1e-3.
+    colour-science's ``matrix_idt`` with its defaults, but for one choice.
+
+    The fit is not scale-free (L*a*b* is not linear), so the light's scale
+    matters: it is set so that the balanced perfect white reads 1, by the
+    channel that responds most to the light. colour-science takes the
+    channel whose sensitivity peaks highest instead, which for a camera whose
+    tabulated peaks tie (the default Nikon 5100, each channel normalised to
+    1) turns on the sampling: its first row was (0.56, 0.34, 0.09) on a
+    5 nm grid and (0.76, 0.21, 0.03) on a 10 nm one. Where both rules pick
+    the same channel, a test reproduces ``matrix_idt`` to 1e-3.
 
     Parameters
     ----------
     wl : array_like, shape (L,)
-        The grid, nm; sums over it are plain sums, as colour-science's (on a
-        uniform grid the step cancels in every normalisation).
+        The grid, nm; the sums over it are trapezoidal, so an uneven grid
+        gives what a uniform one does.
     sensitivities : array_like, shape (L, 3)
-        The camera's R, G, B sensitivities.
+        The camera's R, G, B sensitivities, finite and >= 0, each channel
+        with some response to the light.
     illuminant_spd : array_like, shape (L,)
         The scene illuminant.
 
@@ -1212,18 +1221,25 @@ def idt_matrix(
     sens = as_float_array(sensitivities, "sensitivities")
     if sens.shape != (len(grid), 3):
         raise ValueError(f"sensitivities must have shape ({len(grid)}, 3), got {sens.shape}")
-    spd = _spectra(illuminant_spd, grid, "illuminant_spd")
+    _spectra(sens.T, grid, "sensitivities")
+    # Trapezoid weights fold into the light: every sum below is over it.
+    spd = _spectra(illuminant_spd, grid, "illuminant_spd") * quadrature_weights(grid)
+    responses = spd @ sens
+    if not (responses > 0).all():
+        raise ValueError(
+            f"sensitivities times illuminant_spd must give each channel a response > 0, "
+            f"got {responses.tolist()}"
+        )
     aces = colour.RGB_COLOURSPACES["ACES2065-1"]
     path = os.path.join(colour.characterisation.aces_it.ROOT_RESOURCES_RAWTOACES, "190_Patches.csv")
     sds = colour.io.read_sds_from_csv_file(path).values()
     refl = np.stack([_resample(sd.wavelengths, sd.values, grid, "the training set") for sd in sds])
-    # The light is scaled so that the most sensitive channel reads 1 from
-    # the perfect white: the scale M's rows (summing to 1) refer to.
-    spd = spd / (spd @ sens[:, np.argmax(sens.max(axis=0))])
-    white_balance = 1.0 / (spd @ sens)
-    white_balance /= white_balance.min()
-    # Plain sums, not the checked kernel: a few training samples are slightly
-    # negative (measurement noise), and colour-science keeps them.
+    # The balanced perfect white reads 1: the scale M's rows (summing to 1)
+    # refer to.
+    spd = spd / responses.max()
+    white_balance = responses.max() / responses
+    # Plain products, not the checked kernel: a few training samples are
+    # slightly negative (measurement noise), and colour-science keeps them.
     rgb = (refl * spd) @ sens * white_balance
     cmfs = cie_cmfs(grid)
     white = spd @ cmfs
