@@ -290,6 +290,11 @@ def test_bad_names_json_and_images_are_refused(tmp_path):
     bad[1, 2, 0] = np.nan
     with pytest.raises(ValueError, match=r"row 1, column 2"):
         film.simulate(bad)
+    # Before: NaN out of to_srgb, inf out of expose.
+    with pytest.raises(ValueError, match=r"xyz must be finite .* at row 1, column 2"):
+        film.to_srgb(bad)
+    with pytest.raises(ValueError, match="beyond float32's range"):
+        film.expose(np.full((1, 1, 3), 1e10, np.float32), "generic-negative", exposure_ev=100)
     for width in (0, -1.0, np.inf, np.nan):
         with pytest.raises(ValueError, match="frame_width_mm must be a finite number > 0, got"):
             film.develop(np.ones((2, 2, 3), np.float32), "generic-negative", frame_width_mm=width)

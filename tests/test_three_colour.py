@@ -263,8 +263,11 @@ def test_bad_scenes_and_scans_are_refused():
         tc.photograph(np.zeros((40, 40, 5)))
     with pytest.raises(ValueError, match="scene must be finite"):
         tc.photograph(np.full((40, 40, 3), np.inf))
-    with pytest.raises(TypeError, match="real-valued"):
+    with pytest.raises(TypeError, match="scene must be float"):
         tc.photograph(np.zeros((40, 40, 3), complex))
+    # Before, an 8-bit picture was taken as reflectances up to 255.
+    with pytest.raises(TypeError, match="got dtype uint8: divide an 8-bit picture by 255"):
+        tc.photograph(np.full((40, 40, 3), 128, np.uint8))
     with pytest.raises(TypeError, match="uint16 scan"):
         tc.colourise(np.zeros((90, 30), np.float32))
     with pytest.raises(ValueError, match='reference must be "r", "g" or "b"'):

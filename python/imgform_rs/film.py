@@ -766,7 +766,15 @@ def _image(image: Any, name: str, channels: int | None = None) -> Float32Array:
     if arr.ndim != 3 or (channels is not None and arr.shape[2] != channels):
         want = f"(H, W, {channels})" if channels else "(H, W, C)"
         raise ValueError(f"{name} must have shape {want}, got {arr.shape}")
-    return np.ascontiguousarray(arr, dtype=np.float32)
+    out = np.ascontiguousarray(arr, dtype=np.float32)
+    bad = ~np.isfinite(out)
+    if bad.any():
+        row, col = (int(i) for i in np.argwhere(bad)[0][:2])
+        raise ValueError(
+            f"{name} must be finite numbers within float32's range, got "
+            f"{arr[row, col].tolist()} at row {row}, column {col}"
+        )
+    return out
 
 
 def _transmit(density: Any, stock: Stock, response: Float64Array) -> Float32Array:
@@ -841,7 +849,9 @@ def expose(image: Any, stock: str | Path | Stock, *, exposure_ev: float = 0.0) -
             f"image must have 3 channels (linear sRGB) or {n_wl}, one per wavelength of the "
             f"stock {st.name!r}, got shape {arr.shape}"
         )
-    return _native.spectral_integrate(arr, np.ascontiguousarray(response))
+    exposure = _native.spectral_integrate(arr, np.ascontiguousarray(response))
+    sp._require_in_float32(exposure)
+    return exposure
 
 
 def pixel_granularity(stock: str | Path | Stock, pixel_um: float) -> Float64Array:

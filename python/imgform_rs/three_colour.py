@@ -217,8 +217,14 @@ def _scene(scene: Any, wl: Float64Array) -> Float32Array:
     """A scene as a float32 (H, W, C) array, C = 3 (linear sRGB, clipped at
     0: the upsampling has no negative reflectance) or one per wavelength."""
     arr = np.asarray(scene)
-    if arr.dtype.kind not in "fiu":
-        raise TypeError(f"scene must be a real-valued array, got dtype {arr.dtype}")
+    if arr.dtype.kind != "f":
+        # An 8-bit picture read as reflectances up to 255 overexposed the
+        # plates 128 times over.
+        raise TypeError(
+            f"scene must be float (linear sRGB or reflectances, white 1), got dtype "
+            f"{arr.dtype}: divide an 8-bit picture by 255 (16-bit: 65535) and undo the "
+            "sRGB transfer curve first"
+        )
     if arr.ndim != 3 or arr.shape[2] not in (3, len(wl)):
         raise ValueError(
             f"scene must be linear sRGB (H, W, 3) or reflectance (H, W, {len(wl)}) on the "
@@ -514,7 +520,7 @@ def photograph(
         large for the plate (beyond ``margin``); a margin that leaves a
         frame smaller than 16 x 16 pixels; bad exposure errors.
     TypeError
-        A scene that is not real-valued.
+        A scene that is not of floats (an 8-bit picture is not reflectances).
 
     Examples
     --------
