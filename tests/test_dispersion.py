@@ -67,6 +67,15 @@ def test_bad_glasses_and_wavelengths_are_refused():
         BK7.index([10_170.0])  # sqrt(C3) = 10.18 µm
     with pytest.raises(ValueError, match="f_d must be"):
         focal_lengths(BK7, [500.0], 0.0)
+    # Built directly: before, an index of 1 gave NaN focal lengths, one of
+    # 0.53 came back as it was, and a negative C only warned.
+    for coefficients in [(1.0, 0.0), (0.5, 0.01)]:
+        with pytest.raises(ValueError, match=r"no index > 1 at 587\.562 nm"):
+            Glass("cauchy", coefficients)
+    with pytest.raises(ValueError, match="no index > 1 at 300 nm"):
+        Glass("cauchy", (1.6, -0.1)).index([300.0])
+    with pytest.raises(ValueError, match="finite and >= 0"):
+        Glass("sellmeier", (1, 0, 0, -0.01, 0, 0))
 
 
 def test_sellmeier_indices_exist_only_between_the_poles_around_the_d_line():

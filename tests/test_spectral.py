@@ -677,6 +677,18 @@ BAD_INPUT = {
         lambda: sp.delta_e2000([0.2, 0.2, 0.2], [0.2, 0.2, 0.2], [1.0, 0.0, 1.0]),
         "luminance Y > 0",
     ),
+    "a white without Z": (  # before: b* = -inf and a difference of NaN
+        lambda: sp.xyz_to_lab([0.2, 0.2, 0.2], [1.0, 1.0, 0.0]),
+        r"X, Y, Z > 0 .*got \[1\.0, 1\.0, 0\.0\]",
+    ),
+    "a stack of frames for one": (
+        lambda: sp.flat_pair_stats(np.ones((1, 3, 4), np.uint16), np.ones((1, 3, 4), np.uint16)),
+        r"frame a must be one frame \(H, W\), got shape \(1, 3, 4\)",
+    ),
+    "a bracket beyond any time": (  # before: [inf] and [0.0]
+        lambda: sp.exposure_bracket(0.01, [0.0, 1100.0]),
+        "beyond a finite time > 0",
+    ),
     "colours of different shapes": (
         lambda: sp.delta_e2000(np.ones((3, 3)), np.ones((4, 3)), [1, 1, 1]),
         "one shape",

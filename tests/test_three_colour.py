@@ -258,6 +258,24 @@ def test_shifts_too_large_for_the_plate_are_refused():
         tc.photograph(scene, shifts={"r": (0, 0)})
 
 
+def test_separation_filters_of_bad_parameters_are_refused():
+    # Before: transmittances of 5 and NaN came back.
+    bright = dict(tc.WRATTEN_LIKE, r=dict(tc.WRATTEN_LIKE["r"], peak_transmittance=5.0))
+    with pytest.raises(ValueError, match=r"red filter's transmittance must lie in \[0, 1\]"):
+        tc.separation_filters(params=bright)
+    flat = dict(tc.WRATTEN_LIKE, g=dict(tc.WRATTEN_LIKE["g"], width=0))
+    with pytest.raises(ValueError, match=r"green filter's .* is nan"):
+        tc.separation_filters(params=flat)
+
+
+def test_mondrian_names_a_bad_shape_or_count():
+    # Before: "too many values to unpack" and "'<' not supported".
+    with pytest.raises(ValueError, match=r"shape must be \(height, width\)"):
+        tc.mondrian((20, 20, 3))
+    with pytest.raises(TypeError, match="rectangles must be an integer"):
+        tc.mondrian((20, 20), rectangles="3")
+
+
 def test_bad_scenes_and_scans_are_refused():
     with pytest.raises(ValueError, match=r"\(H, W, 3\) or reflectance \(H, W, 41\)"):
         tc.photograph(np.zeros((40, 40, 5)))

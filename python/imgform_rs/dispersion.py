@@ -66,6 +66,14 @@ class Glass:
                 f"a {self.law} glass needs {counts[self.law]} finite coefficients, "
                 f"got {self.coefficients!r}"
             )
+        if self.law == "sellmeier" and not (coeffs >= 0).all():
+            # C_i are squared resonance wavelengths (µm²): never negative.
+            raise ValueError(
+                f"Sellmeier coefficients must be finite and >= 0, got {coeffs.tolist()}"
+            )
+        # A glass bends light at the d line, where catalogues measure it:
+        # an index of 1 there made focal lengths NaN.
+        self.index(LINE_D)
 
     @classmethod
     def from_abbe(cls, n_d: float, abbe_number: float) -> Glass:
@@ -86,13 +94,6 @@ class Glass:
         bs, cs = as_float_array(b, "b"), as_float_array(c, "c")
         if bs.shape != (3,) or cs.shape != (3,):
             raise ValueError(f"b and c must hold 3 values each, got {bs.shape} and {cs.shape}")
-        finite = np.isfinite(bs).all() and np.isfinite(cs).all()
-        if not (finite and (bs >= 0).all() and (cs >= 0).all()):
-            # C_i are squared resonance wavelengths (µm²): never negative.
-            raise ValueError(
-                f"Sellmeier coefficients must be finite and >= 0, got b={bs.tolist()}, "
-                f"c={cs.tolist()}"
-            )
         return cls("sellmeier", (*bs.tolist(), *cs.tolist()))
 
     def index(self, wavelength: Any) -> Float64Array:
@@ -116,7 +117,13 @@ class Glass:
         um2 = (wl * 1e-3) ** 2
         if self.law == "cauchy":
             a, b = self.coefficients
-            return a + b / um2
+            n = a + b / um2
+            if not (n > 1).all():
+                raise ValueError(
+                    f"the Cauchy glass {self.coefficients!r} has no index > 1 at "
+                    f"{float(wl.flat[np.argmax(n <= 1)]):g} nm: it describes no glass there"
+                )
+            return n
         bs, cs = np.array(self.coefficients[:3]), np.array(self.coefficients[3:])
         poles = np.sqrt(cs[bs > 0]) * 1e3
         below = poles[poles <= LINE_D].max(initial=0.0)

@@ -508,7 +508,14 @@ def exposure_bracket(exposure_time: float, stops: Any = (-2.0, 0.0, 2.0)) -> lis
     steps = as_float_array(stops, "stops")
     if steps.ndim != 1 or not np.isfinite(steps).all():
         raise ValueError(f"stops must be a 1-D sequence of finite EV steps, got {stops!r}")
-    return [float(exposure_time * 2.0**s) for s in steps]
+    with np.errstate(over="ignore", under="ignore"):
+        times = [float(exposure_time * 2.0**s) for s in steps]
+    if not all(np.isfinite(t) and t > 0 for t in times):
+        # 2**1100 overflows and 2**-1100 underflows: no time a Sensor takes.
+        raise ValueError(
+            f"stops {steps.tolist()} take exposure_time {exposure_time!r} beyond a finite time > 0"
+        )
+    return times
 
 
 def flat_pair_stats(a: Any, b: Any) -> tuple[float, float, float]:
@@ -530,6 +537,8 @@ def flat_pair_stats(a: Any, b: Any) -> tuple[float, float, float]:
         arr = np.asarray(f)
         if arr.dtype != np.uint16:
             raise TypeError(f"frame {name} must be a uint16 raw, got dtype {arr.dtype}")
+        if arr.ndim != 2:
+            raise ValueError(f"frame {name} must be one frame (H, W), got shape {arr.shape}")
         frames.append(arr)
     return _native.flat_pair_stats(frames[0], frames[1])
 
@@ -1011,14 +1020,18 @@ def luminance_scale(spd: Any, wl: Any, luminance: float) -> Float64Array:
 
 
 def _white(white_xyz: Any) -> Float64Array:
-    """A reference white: three finite XYZ values >= 0 with Y > 0."""
+    """A reference white: three finite XYZ values > 0 (L*a*b* divides by
+    each: a white with X or Z of 0 gave infinite b*)."""
     white = as_float_array(white_xyz, "white_xyz")
-    if white.shape != (3,) or not (np.isfinite(white).all() and (white >= 0).all()):
+    if white.shape != (3,) or not np.isfinite(white).all():
         raise ValueError(
-            f"white_xyz must be 3 finite values X, Y, Z >= 0, got {np.asarray(white_xyz)!r}"
+            f"white_xyz must be 3 finite values X, Y, Z > 0, got {np.asarray(white_xyz)!r}"
         )
-    if not white[1] > 0:
-        raise ValueError(f"white_xyz must have a luminance Y > 0, got {white.tolist()}")
+    if not (white > 0).all():
+        raise ValueError(
+            f"white_xyz must have X, Y, Z > 0 (a white holds some of each, and a "
+            f"luminance Y > 0), got {white.tolist()}"
+        )
     return white
 
 

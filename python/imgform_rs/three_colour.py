@@ -94,6 +94,12 @@ def separation_filters(
         ``width``, ``"g"`` and ``"b"`` ``peak`` and ``width`` (nm), each a
         ``peak_transmittance``.
 
+    Raises
+    ------
+    ValueError
+        For parameters whose filters are no transmittances: above 1, below
+        0 or not finite (a width of 0) anywhere on the grid.
+
     Examples
     --------
     >>> T = separation_filters([450.0, 530.0, 650.0])
@@ -102,13 +108,15 @@ def separation_filters(
     """
     grid = sp.wavelengths() if wl is None else sp.check_wavelengths(wl)
     p = WRATTEN_LIKE if params is None else params
-    red = p["r"]["peak_transmittance"] / (
-        1.0 + np.exp(-(grid - p["r"]["cut_on"]) / p["r"]["width"])
-    )
-    bands = [
-        p[c]["peak_transmittance"] * film.gaussian(grid, p[c]["peak"], p[c]["width"]) for c in "gb"
-    ]
-    return np.stack([red, *bands])
+    with np.errstate(all="ignore"):  # a width of 0 is reported below, not warned
+        red = p["r"]["peak_transmittance"] / (
+            1.0 + np.exp(-(grid - p["r"]["cut_on"]) / p["r"]["width"])
+        )
+        bands = [
+            p[c]["peak_transmittance"] * film.gaussian(grid, p[c]["peak"], p[c]["width"])
+            for c in "gb"
+        ]
+    return _check_filters(np.stack([red, *bands]), grid)
 
 
 def _check_filters(filters: Any, wl: Float64Array) -> Float64Array:
@@ -267,14 +275,17 @@ def mondrian(
     ((40, 50, 41), dtype('float32'), True)
     """
     grid = sp.wavelengths() if wl is None else sp.check_wavelengths(wl)
+    if not (isinstance(shape, (tuple, list)) and len(shape) == 2):
+        raise ValueError(f"shape must be (height, width), got {shape!r}")
     h, w = (integer(v, "shape") for v in shape)
-    if min(h, w) < 1 or rectangles < 0:
+    count = integer(rectangles, "rectangles")
+    if min(h, w) < 1 or count < 0:
         raise ValueError(f"shape must be positive and rectangles >= 0, got {shape}, {rectangles}")
     _, refl = sp.colorchecker(grid)
     rng = np.random.default_rng(as_seed(seed, "seed"))
     out = np.empty((h, w, len(grid)), np.float32)
     out[:] = refl[20]
-    for _ in range(rectangles):
+    for _ in range(count):
         rh, rw = (int(rng.integers(max(2, n // 25), max(3, n // 3))) for n in (h, w))
         y, x = int(rng.integers(-rh // 2, h)), int(rng.integers(-rw // 2, w))
         out[max(y, 0) : y + rh, max(x, 0) : x + rw] = refl[rng.integers(len(refl))]
