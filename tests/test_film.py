@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -524,3 +525,27 @@ def test_the_film_cli_refuses_integer_images_of_no_agreed_white(tmp_path, capsys
     assert cli.main(["film", str(tmp_path / "deep.tif"), "-o", str(tmp_path / "o")]) == 1
     assert "8- or 16-bit or float images, got int32" in capsys.readouterr().err
     assert list((tmp_path / "o").iterdir()) == []
+
+
+def test_the_film_cli_reads_a_cmyk_jpeg_and_an_exif_turn_as_they_are_seen(tmp_path, capsys):
+    from PIL import Image
+
+    from imgform_rs import cli
+
+    rng = np.random.default_rng(3)
+    rgb = np.repeat(np.repeat(rng.integers(0, 256, (6, 8, 3), np.uint8), 8, 0), 8, 1)
+    Image.fromarray(rgb).save(tmp_path / "rgb.png")
+    Image.fromarray(rgb).convert("CMYK").save(tmp_path / "cmyk.jpg", quality=95)
+    turned = Image.fromarray(rgb)
+    exif = turned.getexif()
+    exif[0x0112] = 6  # shown turned 90 degrees clockwise
+    turned.save(tmp_path / "turned.jpg", exif=exif, quality=95)
+    out = tmp_path / "o"
+    names = ["rgb.png", "cmyk.jpg", "turned.jpg"]
+    assert cli.main(["film", *(str(tmp_path / n) for n in names), "-o", str(out)]) == 0
+    base, cmyk, turned_out = (np.asarray(Image.open(out / f"{Path(n).stem}.png")) for n in names)
+    # Before: C, M, Y read as R, G, B (the red channel's correlation was -0.94),
+    # and the turned photograph came out lying on its side.
+    assert np.corrcoef(base[..., 0].ravel(), cmyk[..., 0].ravel())[0, 1] > 0.9
+    assert turned_out.shape[:2] == base.shape[1::-1]
+    assert np.corrcoef(np.rot90(base, -1)[..., 1].ravel(), turned_out[..., 1].ravel())[0, 1] > 0.9

@@ -98,15 +98,30 @@ def read_png16(data: bytes) -> np.ndarray | None:
     return high.astype(np.uint16) << 8 | low
 
 
+#: Pillow's modes whose channels are not R, G, B: read as RGB.
+_NOT_RGB = ("CMYK", "YCbCr", "LAB", "HSV")
+
+
 def read_image(path: Path) -> np.ndarray:
     """The pixels of an image file: a 16-bit colour PNG at its full depth
     (:func:`read_png16`), any other file by imageio. Decoded from the file's
-    bytes, as imageio leaves a file it fails on open otherwise."""
+    bytes, as imageio leaves a file it fails on open otherwise.
+
+    What Pillow decodes comes upright, turned by its EXIF orientation as
+    viewers show it, and in RGB where its file holds other channels (a CMYK
+    JPEG's C, M, Y were read as R, G, B)."""
     import imageio.v3 as iio
 
     data = read_regular(path)
     img = read_png16(data)
-    return img if img is not None else np.asarray(iio.imread(data, extension=path.suffix or None))
+    if img is not None:
+        return img
+    ext = path.suffix or None
+    mode = iio.immeta(data, extension=ext).get("mode")
+    if mode is None:  # not Pillow's: tifffile's TIFF, ...
+        return np.asarray(iio.imread(data, extension=ext))
+    rgb = "RGB" if mode in _NOT_RGB else None
+    return np.asarray(iio.imread(data, extension=ext, rotate=True, mode=rgb))
 
 
 def for_png(rgb: np.ndarray) -> np.ndarray:

@@ -193,8 +193,11 @@ def _srgb_to_linear(img: np.ndarray) -> np.ndarray:
         raise ValueError(f"film takes 8- or 16-bit or float images, got {img.dtype}")
     v = img.astype(np.float32) / np.float32(scales.get(img.dtype, 1.0))
     if v.ndim == 2:
-        v = np.repeat(v[..., None], 3, axis=-1)
-    v = v[..., :3]
+        v = v[..., None]
+    if v.ndim != 3 or v.shape[2] not in (1, 2, 3, 4):
+        raise ValueError(f"film takes grey, RGB or RGBA images, got shape {img.shape}")
+    # Grey (and alpha) repeated to three channels; RGB(A) without its alpha.
+    v = np.repeat(v[..., :1], 3, axis=-1) if v.shape[2] < 3 else v[..., :3]
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
