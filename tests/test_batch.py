@@ -11,6 +11,7 @@ import shutil
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -390,9 +391,19 @@ def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_p
     assert [(f.seconds, f.detail) for f in again.files] == made
     third = batch.develop_many(paths, out, client=client, bps=16, format="tiff")
     saved = json.loads(third.path.read_text())["files"]
-    assert [(f["status"], f["seconds"], f["detail"]) for f in saved] == [
+    # The file also keeps the first run's failure, which these runs left out.
+    assert [(f["status"], f["seconds"], f["detail"]) for f in saved[:4]] == [
         ("skipped", *m) for m in made
     ]
+    assert [(f["status"], f["source"]) for f in saved[4:]] == [("failed", corrupt)]
+    # A run in another format keeps the TIFFs' entries in the file, and the
+    # next TIFF run still knows how they were made (before, each run's
+    # report replaced the last).
+    png = batch.develop_many(paths[:1], out, client=client, format="png")
+    saved = json.loads(png.path.read_text())["files"]
+    assert [Path(f["output"]).suffix for f in saved] == [".png"] + [".tif"] * 5
+    fourth = batch.develop_many(paths, out, client=client, bps=16, format="tiff")
+    assert [(f.seconds, f.detail) for f in fourth.files] == made
 
 
 def test_develop_many_writes_what_develop_file_writes(tmp_path, client, raws):

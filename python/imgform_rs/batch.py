@@ -20,7 +20,9 @@ given). The promises that make a large batch safe to run and to re-run:
 The report (one entry per file: status ``"ok"``, ``"skipped"`` or
 ``"failed"``, reason, seconds, output path, what was made and, for raws
 developed with lens corrections, what lensfun matched and was applied) is
-returned and written as JSON next to the outputs, atomically too.
+returned and written as JSON next to the outputs, atomically too. The file
+keeps, after this run's entries, the earlier runs' entries for the folder's
+other outputs (another format, other sources) and failures.
 
 :func:`demosaic_dask` and :func:`develop_dask` process one mosaic too large
 for one machine's memory as a ``dask.array``, with results identical to the
@@ -238,28 +240,39 @@ def _report_path(outdir: Path, kind: str) -> Path:
     return outdir / f"imgform-{kind}-report.json"
 
 
-def _made_before(outdir: Path, kind: str) -> dict[str, FileResult]:
-    """The entries of the folder's earlier report that record how an output
-    was made, by output path: a re-run that skips the file keeps them rather
-    than replacing them with nothing. An unreadable report records nothing."""
+def _earlier(outdir: Path, kind: str) -> list[FileResult]:
+    """The entries of the folder's earlier report, by output path. An
+    unreadable report records nothing."""
     try:
         entries = json.loads(_report_path(outdir, kind).read_text())["files"]
-        made = (FileResult(**entry) for entry in entries)
-        return {r.output: r for r in made if r.status in ("ok", "skipped")}
+        return [FileResult(**entry) for entry in entries]
     except (OSError, ValueError, TypeError, KeyError):
-        return {}
+        return []
 
 
 def _skipped(source: Path, target: Path, before: dict[str, FileResult]) -> FileResult:
+    """A re-run's entry for an output it kept: how the earlier run made it,
+    rather than nothing."""
     earlier = before.get(str(target))
-    if earlier is None:
+    if earlier is None or earlier.status == "failed":
         return FileResult(str(source), str(target), "skipped", "output exists", 0.0)
     return replace(earlier, source=str(source), status="skipped", reason="output exists")
 
 
-def _write_report(outdir: Path, kind: str, results: list[FileResult]) -> BatchReport:
+def _write_report(
+    outdir: Path, kind: str, results: list[FileResult], earlier: list[FileResult]
+) -> BatchReport:
+    """The report of this run's files, written after the earlier runs'
+    entries for other outputs (another format, other sources) that are
+    still there or failed: a run replaced them all before."""
     path = _report_path(outdir, kind)
-    text = json.dumps({"files": [asdict(r) for r in results]}, indent=1)
+    ours = {r.output for r in results}
+    kept = [
+        r
+        for r in earlier
+        if r.output not in ours and (r.status == "failed" or Path(r.output).exists())
+    ]
+    text = json.dumps({"files": [asdict(r) for r in [*results, *kept]]}, indent=1)
     write_atomically(path, lambda tmp: tmp.write_text(text + "\n"))
     return BatchReport(results, path)
 
@@ -388,7 +401,8 @@ def _run_batch(
         raise TypeError(f"sources must be a list of paths, got the single path {sources!r}")
     pairs = output_paths(sources, outdir, suffix)
     out = output_folder(outdir)
-    before = {} if overwrite else _made_before(out, kind)
+    earlier = _earlier(out, kind)
+    before = {r.output: r for r in earlier}
     skipped = [_skipped(s, t, before) for s, t in pairs if t.exists() and not overwrite]
     todo = [(s, t) for s, t in pairs if overwrite or not t.exists()]
     counter = itertools.count(1)
@@ -408,7 +422,7 @@ def _run_batch(
         _remove_leftovers(out, (t for _, t in todo))
     order = {str(t): i for i, (_, t) in enumerate(pairs)}
     results = sorted(skipped + done, key=lambda r: order[r.output])
-    return _write_report(out, kind, results)
+    return _write_report(out, kind, results, earlier)
 
 
 def _check_develop_options(format: str, options: dict) -> None:
