@@ -271,8 +271,14 @@ def test_write_dng_refuses_bad_black_patterns_orientations_and_aspects(tmp_path)
             write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, black_level=black)
     with pytest.raises(ValueError, match="orientation must be"):
         write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, orientation=9)
-    with pytest.raises(ValueError, match="pixel_aspect must be"):
-        write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, pixel_aspect=0.0)
+    # LibRaw opens no DNG beyond 0.1..10: before, 12 and 0.05 were written.
+    for aspect in (0.0, 0.05, 12.0, np.nan):
+        with pytest.raises(ValueError, match=r"pixel_aspect must be in 0\.1\.\.10"):
+            write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, pixel_aspect=aspect)
+    # Before, written as 0 / 1: read back as a white balance of [0, 1, 0, 1].
+    with pytest.raises(ValueError, match="1e-07 cannot be written as a TIFF RATIONAL"):
+        write_dng(tmp_path / "x.dng", cfa, "RGGB", white_level=4095, as_shot_neutral=(1e-7, 1, 1))
+    assert not (tmp_path / "x.dng").exists()
 
 
 @needs_raws

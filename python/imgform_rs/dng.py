@@ -47,11 +47,22 @@ XYZ_TO_SRGB = (
 )
 
 
+#: The photosite aspects of a DNG LibRaw opens (``DefaultScale``'s ratio).
+PIXEL_ASPECTS = (0.1, 10.0)
+
+
 def _rationals(values: Any, signed: bool) -> list[int]:
     flat = np.asarray(values, np.float64).ravel()
     out = []
     for v in flat:
         f = Fraction(float(v)).limit_denominator(1_000_000)
+        if not signed and abs(f - float(v)) > 1e-6 * abs(v):
+            # The unsigned ones are measures > 0 (a neutral, an aspect, a
+            # focal length): 1e-7 was written as 0 / 1.
+            raise ValueError(
+                f"{float(v)!r} cannot be written as a TIFF RATIONAL to 1e-6 of itself "
+                "(denominators up to 1000000)"
+            )
         out += [f.numerator, f.denominator]
     fmt = "i" if signed else "I"
     try:
@@ -184,6 +195,7 @@ def write_dng(
     pixel_aspect : float
         Width / height of a photosite, written as ``DefaultScale``
         (``pixel_aspect``, 1): developers stretch the image to square pixels.
+        0.1 to 10 (:data:`PIXEL_ASPECTS`): LibRaw opens no file beyond.
     lens : str
         EXIF ``LensModel``, e.g. ``"EF-S 18-55mm f/3.5-5.6 IS"``.
     focal_length, f_number : float
@@ -199,10 +211,10 @@ def write_dng(
         For a mosaic that is not 2-D or under 22 pixels on a side, levels outside 0..65535 or
         black not below white, a black pattern over 64 x 64, a colour or
         forward matrix that is not a finite (3, 3) one, a neutral that is not
-        three finite values > 0, an orientation outside 1..8, a pixel aspect,
-        focal length or f-number that is not a positive finite number (0 for
-        the last two: unknown), numbers beyond a TIFF rational's range, or
-        text that is not ASCII.
+        three finite values > 0, an orientation outside 1..8, a pixel aspect
+        outside 0.1..10, a focal length or f-number that is not a positive
+        finite number (0: unknown), numbers beyond a TIFF rational's range or
+        too small for its precision, or text that is not ASCII.
 
     Examples
     --------
@@ -230,8 +242,10 @@ def write_dng(
     if integer(orientation, "orientation") not in range(1, 9):
         raise ValueError(f"orientation must be an EXIF orientation 1..8, got {orientation!r}")
     pixel_aspect = real(pixel_aspect, "pixel_aspect")
-    if not (np.isfinite(pixel_aspect) and pixel_aspect > 0):
-        raise ValueError(f"pixel_aspect must be a positive number, got {pixel_aspect!r}")
+    lo, hi = PIXEL_ASPECTS
+    if not lo <= pixel_aspect <= hi:
+        # LibRaw opens no file beyond these.
+        raise ValueError(f"pixel_aspect must be in {lo:g}..{hi:g}, got {pixel_aspect!r}")
     focal_length, f_number = real(focal_length, "focal_length"), real(f_number, "f_number")
     for name, value in (("focal_length", focal_length), ("f_number", f_number)):
         if not (np.isfinite(value) and value >= 0):
