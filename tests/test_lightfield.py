@@ -198,6 +198,12 @@ def test_noncontiguous_input_is_accepted(planes):
     )
 
 
+def test_big_endian_input_is_its_values():
+    # Before: "must be a uint8, uint16 or float32 array, got dtype >u2".
+    views = np.random.default_rng(4).integers(0, 60000, (3, 3, 8, 8)).astype(">u2")
+    np.testing.assert_array_equal(ig.refocus(views, 0.5), ig.refocus(views.astype("<u2"), 0.5))
+
+
 def test_same_bits_for_any_thread_count():
     code = """
         import sys

@@ -308,6 +308,8 @@ def test_depth_may_be_float32_and_inputs_non_contiguous():
     want = _defocus(img, depth.astype(np.float32).astype(np.float64))
     got = _defocus(np.asfortranarray(img), np.asfortranarray(depth, np.float32))
     np.testing.assert_array_equal(got, want)
+    # Big-endian depths were refused as "not float64".
+    np.testing.assert_array_equal(_defocus(img, depth.astype(">f8")), _defocus(img, depth))
 
 
 def test_thread_count_does_not_change_the_result():

@@ -52,6 +52,14 @@ def as_matrix(value: Any, shape: tuple[int, ...], name: str) -> Float64Array:
     return np.ascontiguousarray(arr)
 
 
+def native(value: Any) -> np.ndarray:
+    """``value`` as an array in this machine's byte order: big-endian data
+    (a FITS or TIFF read as it is) keeps its values, and a check of its
+    dtype against ``np.uint16`` no longer refuses the uint16 it is."""
+    arr = np.asarray(value)
+    return arr if arr.dtype.isnative else arr.astype(arr.dtype.newbyteorder("="))
+
+
 def require_finite(arr: np.ndarray, name: str) -> None:
     """A ValueError naming the first NaN or infinity of a float ``arr`` and
     its index (integer arrays hold none)."""

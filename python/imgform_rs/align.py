@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import as_real, integer, real
+from ._arrays import as_real, integer, native, real
 from ._balance import auto_balance
 from ._frame import FRAME_SEARCH as FRAME_SEARCH
 from ._frame import channels_frame_box
@@ -162,9 +162,7 @@ def _translation(dy: float, dx: float) -> np.ndarray:
 
 def _image(value: Any, name: str) -> np.ndarray:
     """An (H, W) uint8/uint16/float32 array; float64 is narrowed to float32."""
-    arr = np.asarray(value)
-    if not arr.dtype.isnative:  # big-endian data read as it is: same values
-        arr = arr.astype(arr.dtype.newbyteorder("="))
+    arr = native(value)
     if arr.dtype == np.float64:
         arr = arr.astype(np.float32)
     if arr.dtype not in _DTYPES:

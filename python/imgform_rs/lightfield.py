@@ -40,6 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
+from ._arrays import native
 from .camera import Camera
 
 Image = TypeVar("Image", npt.NDArray[np.uint8], npt.NDArray[np.uint16], npt.NDArray[np.float32])
@@ -267,7 +268,7 @@ def _aperture_mask(aperture: Any, grid: tuple[int, int]) -> np.ndarray:
 
 def _as_light_field(light_field: Any) -> tuple[np.ndarray, tuple[int, int]]:
     """``light_field`` as a C-contiguous (U, V, H, W, C) array of a kernel dtype."""
-    arr = np.asarray(light_field)
+    arr = native(light_field)
     if arr.dtype not in _DTYPES:
         raise TypeError(
             f"light_field must be a uint8, uint16 or float32 array, got dtype {arr.dtype}"

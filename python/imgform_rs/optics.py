@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, real
+from ._arrays import Float64Array, as_float_array, native, real
 
 # What the vectorised formulas return: an array of the broadcast shape, or a
 # NumPy float64 scalar when every argument was a scalar.
@@ -282,7 +282,7 @@ def render_defocus(
            [ 18, 180,  18],
            [  0,  18,   0]], dtype=uint8)
     """
-    depth_arr = np.asarray(depth)
+    depth_arr = native(depth)
     if depth_arr.dtype not in (np.float32, np.float64):
         raise TypeError(f"depth must be a float32 or float64 array, got dtype {depth_arr.dtype}")
     lens = (real(f, "f"), real(N, "N"), real(focus_distance, "focus_distance"))
