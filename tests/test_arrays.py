@@ -241,6 +241,19 @@ def test_film_switches_are_bools_not_any_truthy_value():
     )
 
 
+def test_geometry_switches_are_bools_not_any_truthy_value():
+    # "no" is truthy: it inverted the image, refined to subpixels, allowed
+    # points at infinity.
+    with pytest.raises(TypeError, match=r"^invert must be a bool, got 'no'$"):
+        ig.project_pinhole([1.0, 2.0, 4.0], 2.0, invert="no")
+    plate = np.random.default_rng(0).random((40, 40)).astype(np.float32)
+    with pytest.raises(TypeError, match=r"^subpixel must be a bool, got 'no'$"):
+        ig.align(plate, plate, max_shift=2, subpixel="no")
+    segments = [[0, 0, 100, 50], [0, 100, 100, 100], [0, 200, 100, 150]]
+    with pytest.raises(TypeError, match=r"^allow_infinite must be a bool, got 1$"):
+        ig.fit_vanishing_point(segments, allow_infinite=1)
+
+
 # Each call with a NumPy number, and the plain Python number it equals.
 SCALARS = [
     (lambda v: ig.pupil_psf(**{**PSF, "pixel_pitch": v}), np.float32(0.5e-3)),

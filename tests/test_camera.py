@@ -260,6 +260,13 @@ def test_vanishing_line_of_a_fronto_parallel_plane_is_the_line_at_infinity():
     np.testing.assert_array_equal(ig.vanishing_line(cam, [0.0, 0.0, -3.0]), [0.0, 0.0, 1.0])
 
 
+@pytest.mark.parametrize("depth", [1e-200, 1e200])
+def test_look_at_is_the_same_rotation_at_any_distance(depth):
+    # Before: NaN at 1e-200, and "up must not be parallel" at 1e200.
+    R, _ = ig.look_at([0.0, 0.0, 0.0], [0.0, 0.3 * depth, depth])
+    np.testing.assert_allclose(R, ig.look_at([0.0, 0.0, 0.0], [0.0, 0.3, 1.0])[0], atol=1e-15)
+
+
 def test_look_at_aims_the_optical_axis_and_keeps_up_upward():
     cam = ig.Camera.from_fov(1.0, (480, 640)).look_at([3.0, 2.0, -4.0], [0.0, 1.0, 5.0])
     np.testing.assert_allclose(cam.center, [3.0, 2.0, -4.0], atol=1e-12)
@@ -332,6 +339,11 @@ K_GOOD = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
         ({"dist": [0.1], "model": "fisheye"}, ValueError, "unknown distortion model"),
         ({"image_size": (480,)}, ValueError, r"image_size must be two positive integers"),
         ({"image_size": (0, 640)}, ValueError, r"image_size must be two positive integers"),
+        # Before: (1, 1) and (480, 640).
+        ({"image_size": (True, True)}, ValueError, r"two positive integers .*\(True, True\)"),
+        ({"image_size": (480.0, 640.0)}, ValueError, r"two positive integers"),
+        # Before: "argument 'model_name': 'NoneType' object cannot be converted".
+        ({"model": None}, TypeError, r"model must be a distortion model's name .*None"),
     ],
 )
 def test_bad_camera_parameters(kwargs, exc, match):

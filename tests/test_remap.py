@@ -335,6 +335,15 @@ IDENT = identity_map(8, 8)
             "fill must be",
         ),
         (lambda: ig.undistort_map(K, LENS, (3, 4, 5, 6)), ValueError, "shape must be"),
+        # Before: "'int' object is not iterable", a (1, 1) map, and "K must be
+        # upper triangular" of the new_K.
+        (lambda: ig.undistort_map(K, LENS, 48), ValueError, "shape must be .* got 48"),
+        (lambda: ig.undistort_map(K, LENS, (True, True)), ValueError, "shape must be"),
+        (
+            lambda: ig.undistort_map(K, LENS, (4, 4), new_K=np.diag([100.0, 100.0, 2.0])),
+            ValueError,
+            r"new_K must be upper triangular with new_K\[2\]",
+        ),
         (
             lambda: ig.add_lateral_ca(IMG, np.nan, 1.0),
             ValueError,

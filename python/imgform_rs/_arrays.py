@@ -103,6 +103,14 @@ def real(value: Any, name: str) -> float:
         return float("-inf") if number < 0 else float("inf")
 
 
+def flag(value: Any, name: str) -> bool:
+    """A switch checked to be a bool: a str such as ``"no"`` is truthy and
+    would silently switch it on."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a bool, got {value!r}")
+    return bool(value)
+
+
 def is_int(value: Any) -> bool:
     """Whether ``value`` is an int (a NumPy one too), and not a bool."""
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)

@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import as_real, integer, native, real
+from ._arrays import as_real, flag, integer, native, real
 from ._balance import auto_balance
 from ._frame import FRAME_SEARCH as FRAME_SEARCH
 from ._frame import channels_frame_box
@@ -352,7 +352,7 @@ def align(
         real(crop, "crop"),
         _levels(pyramid),
         str(features),
-        bool(subpixel),
+        flag(subpixel, "subpixel"),
     )
     if not subpixel:
         shift = (int(shift[0]), int(shift[1]))

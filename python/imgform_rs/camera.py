@@ -16,8 +16,8 @@ from typing import Any, Literal, NamedTuple
 import numpy as np
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, as_matrix, as_points, real, unbatch
-from .distortion import DistortionModel, lens_coefficients
+from ._arrays import Float64Array, as_float_array, as_matrix, as_points, is_int, real, unbatch
+from .distortion import DistortionModel, lens_coefficients, model_name
 
 FovAxis = Literal["horizontal", "vertical", "diagonal"]
 
@@ -65,15 +65,15 @@ def _image_size(image_size: Any) -> tuple[int, int] | None:
     if image_size is None:
         return None
     try:
-        height, width = (int(s) for s in image_size)
-        ok = height > 0 and width > 0 and tuple(image_size) == (height, width)
-    except (TypeError, ValueError):
-        ok = False
-    if not ok:
+        sides = tuple(image_size)
+    except TypeError:
+        sides = ()
+    # Ints only: True was read as 1 and 480.0 as 480.
+    if len(sides) != 2 or not all(is_int(s) and s > 0 for s in sides):
         raise ValueError(
             f"image_size must be two positive integers (height, width), got {image_size!r}"
         )
-    return height, width
+    return int(sides[0]), int(sides[1])
 
 
 def _frozen(arr: Float64Array) -> Float64Array:
@@ -122,7 +122,15 @@ def look_at(eye: Any, target: Any, up: Any = (0.0, 1.0, 0.0)) -> tuple[Float64Ar
     forward = target_v - eye_v
     if not np.any(forward):
         raise ValueError(f"eye and target must differ, both are {eye_v.tolist()}")
+    if not np.isfinite(forward).all():
+        raise ValueError(
+            f"target - eye overflows: eye {eye_v.tolist()}, target {target_v.tolist()}"
+        )
+    # Scaled first: the norm of (0, 0, 1e-200) underflowed to 0 (a NaN
+    # rotation), that of (0, 0, 1e200) overflowed (a false "parallel").
+    forward /= np.abs(forward).max()
     forward /= np.linalg.norm(forward)
+    up_v = up_v / np.abs(up_v).max() if np.any(up_v) else up_v
     right = np.cross(forward, up_v)
     norm = np.linalg.norm(right)
     if norm <= 1e-12 * max(np.linalg.norm(up_v), 1e-300):
@@ -191,9 +199,9 @@ class Camera:
         self._t = _frozen(np.zeros(3) if t is None else _vector3(t, "t"))
         coeffs = lens_coefficients(dist)
         self._dist = _frozen(np.array(coeffs, dtype=np.float64))
-        self._model = model
+        self._model = model_name(model)
         self._image_size = _image_size(image_size)
-        self._native = _native.NativeCamera(self._K, self._R, self._t, coeffs, model)
+        self._native = _native.NativeCamera(self._K, self._R, self._t, coeffs, self._model)
 
     @classmethod
     def from_intrinsics(

@@ -19,10 +19,22 @@ def lens_coefficients(dist: Any) -> list[float]:
     return [float(c) for c in as_float_array(dist, "dist").ravel()]
 
 
+def model_name(model: Any) -> str:
+    """``model`` checked to be a name (the kernels refuse names they do not
+    know, and list theirs): a None got an error about "model_name"."""
+    if not isinstance(model, str):
+        raise TypeError(
+            f'model must be a distortion model\'s name ("brown_conrady" or "division"), '
+            f"got {model!r}"
+        )
+    return model
+
+
 def _remap(points: Any, dist: Any, K: Any, model: str, undistort: bool):
     arr, single = as_points(points, 2)
     k = None if K is None else as_matrix(K, (3, 3), "K")
-    out, failed = _native.remap_lens_points(arr, lens_coefficients(dist), model, k, undistort)
+    coeffs = lens_coefficients(dist)
+    out, failed = _native.remap_lens_points(arr, coeffs, model_name(model), k, undistort)
     return unbatch(out, single), failed
 
 

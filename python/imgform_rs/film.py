@@ -62,7 +62,7 @@ import numpy.typing as npt
 
 from . import _native
 from . import spectral as sp
-from ._arrays import Float64Array, as_seed, real
+from ._arrays import Float64Array, as_seed, flag, real
 
 Float32Array = npt.NDArray[np.float32]
 Kind = Literal["negative", "reversal", "paper"]
@@ -907,8 +907,8 @@ def develop(
     """
     st = load_stock(stock)
     arr = _image(exposure, "exposure", len(st.layers))
-    couplers, halation = _flag(couplers, "couplers"), _flag(halation, "halation")
-    grain = _flag(grain, "grain")
+    couplers, halation = flag(couplers, "couplers"), flag(halation, "halation")
+    grain = flag(grain, "grain")
     halo_um = st.halation_um if halation and st.halation.any() else 0.0
     pixel_um = _pixel_um(frame_width_mm, arr.shape, halo_um, st.coupler_diffusion_um)
     grain_seed = as_seed(seed, "seed")
@@ -1069,7 +1069,7 @@ def print(
         As for :func:`develop`, applied to the paper.
     """
     neg, pap = _print_pair(negative, paper, "print")
-    couplers = _flag(couplers, "couplers")
+    couplers = flag(couplers, "couplers")
     fil = balance_print(neg, pap) if filtration is None else filtration
     f = np.array([fil.yellow, fil.magenta, fil.cyan])
     light = _print_light(neg, pap) * 10.0 ** -(f @ dichroic_filters(neg.wavelengths))
@@ -1108,20 +1108,12 @@ def scan(density: Any, stock: str | Path | Stock, *, illuminant: str = "D65") ->
     return _transmit(density, st, response)
 
 
-def _flag(value: Any, name: str) -> bool:
-    """A switch checked to be a bool: a str such as ``"no"`` is truthy and
-    would silently switch it on."""
-    if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be a bool, got {value!r}")
-    return bool(value)
-
-
 def to_srgb(xyz: Any, *, encode: bool = True) -> Float32Array:
     """sRGB (H, W, 3) in [0, 1] of D65-relative XYZ: the IEC 61966-2-1 matrix,
     clipped, and its transfer curve when ``encode``."""
     arr = _image(xyz, "xyz", 3)
     rgb = np.clip(arr @ sp.XYZ_TO_SRGB.T.astype(np.float32), 0.0, 1.0)
-    if _flag(encode, "encode"):
+    if flag(encode, "encode"):
         rgb = np.where(rgb <= 0.0031308, 12.92 * rgb, 1.055 * rgb ** (1 / 2.4) - 0.055)
     return rgb.astype(np.float32)
 
@@ -1161,7 +1153,7 @@ def simulate(
     st = load_stock(stock)
     if st.kind == "paper":
         raise ValueError(f"{st.name!r} is a paper: simulate takes a negative or reversal film")
-    _flag(encode, "encode")  # before the whole simulation, not after it
+    flag(encode, "encode")  # before the whole simulation, not after it
     dens = develop(
         expose(image, st, exposure_ev=exposure_ev),
         st,

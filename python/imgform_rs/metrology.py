@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, as_matrix, as_points, as_seed, real
+from ._arrays import Float64Array, as_float_array, as_matrix, as_points, as_seed, flag, real
 
 BoolArray = npt.NDArray[np.bool_]
 
@@ -147,7 +147,7 @@ def fit_vanishing_point(
     arr, _ = as_points(segments, 4, "segments")
     seed_int = as_seed(seed, "seed")
     homogeneous, at_infinity, residual, inliers = _native.fit_vanishing_point(
-        arr, real(threshold, "threshold"), seed_int, bool(allow_infinite)
+        arr, real(threshold, "threshold"), seed_int, flag(allow_infinite, "allow_infinite")
     )
     h = np.array(homogeneous)
     point = np.full(2, np.nan) if at_infinity else h[:2].copy()

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from . import _native
-from ._arrays import Float64Array, as_points, real, unbatch
+from ._arrays import Float64Array, as_points, flag, real, unbatch
 
 
 def project_pinhole(points: Any, f: float, *, invert: bool = True) -> Float64Array:
@@ -41,7 +41,7 @@ def project_pinhole(points: Any, f: float, *, invert: bool = True) -> Float64Arr
     array([[-0.5, -1. ]])
     """
     arr, single = as_points(points, 3)
-    return unbatch(_native.project_pinhole(arr, real(f, "f"), bool(invert)), single)
+    return unbatch(_native.project_pinhole(arr, real(f, "f"), flag(invert, "invert")), single)
 
 
 def project_orthographic(points: Any, *, scale: float = 1.0) -> Float64Array:

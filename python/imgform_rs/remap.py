@@ -28,8 +28,8 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import as_matrix, as_real, real
-from .distortion import DistortionModel, lens_coefficients
+from ._arrays import as_matrix, as_real, is_int, real
+from .distortion import DistortionModel, lens_coefficients, model_name
 
 RemapMap = _native.RemapMap
 
@@ -55,15 +55,18 @@ def _lens(
             )
         camera_or_K, dist, model = camera_or_K.K, camera_or_K.dist, own
     K = as_matrix(camera_or_K, (3, 3), "K")
-    return K, lens_coefficients(dist), model or "brown_conrady"
+    return K, lens_coefficients(dist), model_name("brown_conrady" if model is None else model)
 
 
 def _shape(shape: Any) -> tuple[int, int]:
     """(H, W) from an image shape (H, W) or (H, W, C)."""
     if shape is None:
         raise TypeError("shape is required: the output (H, W), e.g. image.shape")
-    dims = tuple(shape)
-    if len(dims) not in (2, 3) or not all(isinstance(d, (int, np.integer)) for d in dims):
+    try:
+        dims = tuple(shape)
+    except TypeError:  # a bare int
+        dims = ()
+    if len(dims) not in (2, 3) or not all(is_int(d) for d in dims):
         raise ValueError(f"shape must be (H, W) or (H, W, C) integers, got {shape!r}")
     if min(dims[:2]) < 1:
         raise ValueError(f"shape must be a non-empty (H, W), sizes >= 1, got {shape!r}")

@@ -18,13 +18,22 @@ impl Intrinsics {
     /// Reads a row-major 3x3 matrix.
     ///
     /// # Errors
+    /// As [`Self::named`], naming the matrix `K`.
+    pub fn from_matrix(k: &[f64; 9]) -> Result<Self> {
+        Self::named("K", k)
+    }
+
+    /// Reads a row-major 3x3 matrix that the caller calls `name` (a
+    /// function taking two, such as `K` and `new_K`, says which is wrong).
+    ///
+    /// # Errors
     /// Non-finite entries, a bottom row other than `[0, 0, 1]`, a non-zero
     /// `K[1][0]`, or a zero focal length (a singular `K`).
-    pub fn from_matrix(k: &[f64; 9]) -> Result<Self> {
-        all_finite("K", k)?;
+    pub fn named(name: &str, k: &[f64; 9]) -> Result<Self> {
+        all_finite(name, k)?;
         if k[3] != 0.0 || k[6] != 0.0 || k[7] != 0.0 || k[8] != 1.0 {
             return Err(invalid!(
-                "K must be upper triangular with K[2] = [0, 0, 1], got rows {:?}, {:?}, {:?}",
+                "{name} must be upper triangular with {name}[2] = [0, 0, 1], got rows {:?}, {:?}, {:?}",
                 &k[0..3],
                 &k[3..6],
                 &k[6..9]
@@ -32,7 +41,7 @@ impl Intrinsics {
         }
         if k[0] == 0.0 || k[4] == 0.0 {
             return Err(invalid!(
-                "K is singular: fx = {} and fy = {} must both be non-zero",
+                "{name} is singular: fx = {} and fy = {} must both be non-zero",
                 k[0],
                 k[4]
             ));

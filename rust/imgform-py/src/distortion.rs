@@ -13,13 +13,14 @@ pub fn model(name: &str, coeffs: Vec<f64>) -> PyResult<Distortion> {
     Distortion::new(name, &coeffs).map_err(to_pyerr)
 }
 
-/// Intrinsics from an optional (3, 3) float64 matrix.
-pub fn intrinsics(k: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Intrinsics>> {
+/// Intrinsics from an optional (3, 3) float64 matrix, called `name` in
+/// errors.
+pub fn intrinsics(k: Option<&Bound<'_, PyAny>>, name: &str) -> PyResult<Option<Intrinsics>> {
     k.map(|k| {
-        let m: [f64; 9] = fixed(k, &[3, 3], "K")?
+        let m: [f64; 9] = fixed(k, &[3, 3], name)?
             .try_into()
             .expect("checked shape (3, 3)");
-        Intrinsics::from_matrix(&m).map_err(to_pyerr)
+        Intrinsics::named(name, &m).map_err(to_pyerr)
     })
     .transpose()
 }
@@ -37,7 +38,7 @@ fn remap_lens_points<'py>(
     undistort: bool,
 ) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, usize)> {
     let lens = model(model_name, coeffs)?;
-    let k = intrinsics(k)?;
+    let k = intrinsics(k, "K")?;
     let arr = points(pts, 2, "points")?;
     let n = arr.shape()[0];
     let src = contiguous(&arr);

@@ -50,8 +50,8 @@ fn lens_map(
     undistort: bool,
 ) -> PyResult<PyRemapMap> {
     let lens = model(model_name, coeffs)?;
-    let k = intrinsics(Some(k))?.expect("K was given");
-    let new_k = intrinsics(new_k)?.unwrap_or(k);
+    let k = intrinsics(Some(k), "K")?.expect("K was given");
+    let new_k = intrinsics(new_k, "new_K")?.unwrap_or(k);
     let (h, w) = size(shape)?;
     let inner = detached(py, || {
         if undistort {
