@@ -328,6 +328,12 @@ def test_view_disparity_needs_a_camera():
         ({"dtype": np.uint16}, TypeError, "dtype"),
         ({"camera": "pinhole"}, TypeError, "Camera"),
         ({"camera": ig.Camera.from_intrinsics(10.0, 10.0, 4.0, 4.0)}, ValueError, "image_size"),
+        # A lens whose fold lies inside the image: "shade's colours must be finite".
+        (
+            {"camera": ig.Camera.from_fov(0.8, (24, 32), dist=[-0.6, 0, 0, 0])},
+            ValueError,
+            r"the camera's lens sees no ray at \d+ of 768 sample positions",
+        ),
         ({"scene": 42}, TypeError, "shade"),
         # A shade whose colours come as (3, N) once scrambled the views.
         ({"scene": lambda o, d: (scene.shade(o, d)[0].T, None)}, ValueError, r"\(\d+, 3\)"),

@@ -208,6 +208,15 @@ def render_light_field(
     xs = (np.arange(w)[:, None] + sub).ravel()
     pixels = np.stack(np.meshgrid(xs, ys), axis=-1).reshape(-1, 2)
     rays = camera.rays(pixels)
+    lost = ~np.isfinite(rays).all(axis=1)
+    if lost.any():
+        # Beyond the lens's fold its rays are NaN: the shader was blamed.
+        x, y = pixels[np.argmax(lost)]
+        raise ValueError(
+            f"the camera's lens sees no ray at {int(lost.sum())} of {len(rays)} sample "
+            f"positions (beyond its distortion's fold, from pixel ({x:.2f}, {y:.2f})): "
+            "give a lens that covers its image_size"
+        )
     du, dv = _offsets(grid)
     right, down = camera.R[0], camera.R[1]
     views = np.empty((*grid, h, w, 3), dtype=dtype)
