@@ -264,7 +264,11 @@ def test_vanishing_line_of_a_fronto_parallel_plane_is_the_line_at_infinity():
 def test_look_at_is_the_same_rotation_at_any_distance(depth):
     # Before: NaN at 1e-200, and "up must not be parallel" at 1e200.
     R, _ = ig.look_at([0.0, 0.0, 0.0], [0.0, 0.3 * depth, depth])
-    np.testing.assert_allclose(R, ig.look_at([0.0, 0.0, 0.0], [0.0, 0.3, 1.0])[0], atol=1e-15)
+    want, _ = ig.look_at([0.0, 0.0, 0.0], [0.0, 0.3, 1.0])
+    np.testing.assert_allclose(R, want, atol=1e-15)
+    # An up vector of any length too.
+    R, _ = ig.look_at([0.0, 0.0, 0.0], [0.0, 0.3, 1.0], up=[0.0, depth, 0.0])
+    np.testing.assert_allclose(R, want, atol=1e-15)
 
 
 def test_look_at_aims_the_optical_axis_and_keeps_up_upward():

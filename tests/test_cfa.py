@@ -260,7 +260,8 @@ def test_pattern_from_rawpy_refuses_other_colours():
             ValueError,
             r"cannot be written as TIFF SRATIONALs",
         ),
-        (np.zeros((30, 30), np.uint16), {"pixel_aspect": 1e12}, ValueError, "TIFF RATIONALs"),
+        (np.zeros((30, 30), np.uint16), {"focal_length": 1e12}, ValueError, "TIFF RATIONALs"),
+        (np.zeros((30, 30), np.uint16), {"pixel_aspect": 1e12}, ValueError, "0.1..10"),
         (
             np.zeros((30, 30), np.uint16),
             {"color_matrix": [[1, 0, 0], [0, np.nan, 0], [0, 0, 1]]},

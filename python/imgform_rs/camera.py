@@ -81,6 +81,18 @@ def _frozen(arr: Float64Array) -> Float64Array:
     return arr
 
 
+def _length(v: Float64Array) -> float:
+    """The Euclidean length of a non-zero ``v``, scaled first only where its
+    squares overflow or underflow: (0, 0, 1e-200) had length 0, so a NaN
+    rotation, and (0, 0, 1e200) infinity, so a false "parallel"."""
+    with np.errstate(over="ignore", under="ignore"):
+        length = float(np.linalg.norm(v))
+    if 0.0 < length < np.inf:
+        return length
+    top = float(np.abs(v).max())
+    return top * float(np.linalg.norm(v / top))
+
+
 def look_at(eye: Any, target: Any, up: Any = (0.0, 1.0, 0.0)) -> tuple[Float64Array, Float64Array]:
     """The pose ``(R, t)`` of a camera at ``eye`` looking at ``target``.
 
@@ -126,11 +138,10 @@ def look_at(eye: Any, target: Any, up: Any = (0.0, 1.0, 0.0)) -> tuple[Float64Ar
         raise ValueError(
             f"target - eye overflows: eye {eye_v.tolist()}, target {target_v.tolist()}"
         )
-    # Scaled first: the norm of (0, 0, 1e-200) underflowed to 0 (a NaN
-    # rotation), that of (0, 0, 1e200) overflowed (a false "parallel").
-    forward /= np.abs(forward).max()
-    forward /= np.linalg.norm(forward)
-    up_v = up_v / np.abs(up_v).max() if np.any(up_v) else up_v
+    forward /= _length(forward)
+    top = np.abs(up_v).max()
+    if top > 0 and not 1e-150 < top < 1e150:  # its cross product would under- or overflow
+        up_v = up_v / top
     right = np.cross(forward, up_v)
     norm = np.linalg.norm(right)
     if norm <= 1e-12 * max(np.linalg.norm(up_v), 1e-300):
