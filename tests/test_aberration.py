@@ -245,6 +245,9 @@ def test_bad_input_is_refused_clearly() -> None:
         ig.render_aberrated(np.zeros((4, 4), np.uint8), np.ones((2, 2, 2)))
     with pytest.raises(ValueError, match="psf must contain only finite"):
         ig.render_aberrated(np.zeros((4, 4), np.uint8), [[np.nan]])
+    # Finite, but inf in the float32 kernel: the output was all NaN.
+    with pytest.raises(ValueError, match="within float32's range, got one of 1e"):
+        ig.render_aberrated(np.zeros((3, 3), np.float32), [[1e39]])
     with pytest.raises(TypeError, match="real numbers"):
         ig.render_aberrated(np.zeros((4, 4), np.uint8), [["a"]])
     # Whatever the PSF's size: the FFT tiles would spread it over a tile.

@@ -324,3 +324,17 @@ def test_a_horizon_through_points_given_at_any_scale_is_the_same_line():
     a, b = np.array([300.0, 200.0, 1.0]), np.array([900.0, 260.0, 1.0])
     expected = ig.fit_horizon(a, b)
     np.testing.assert_allclose(ig.fit_horizon(a * 1e300, b * 1e300), expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("scale", [1e160, 1e-200])
+def test_a_horizon_of_any_scale_gives_the_same_height(scale):
+    # Before: 301.5 m at 1e160 (the horizon normalised to a zero vector) and
+    # NaN at 1e-200, where the camera stands 1.5 m high.
+    cam = ig.Camera.from_intrinsics(800, 800, 320, 240).look_at([0, 1.5, -10], [0, 0.5, 10])
+    horizon = ig.vanishing_line(cam, [0, 1, 0])
+    up = ig.vanishing_point(cam, [0, 1, 0])
+    base, top = cam.project([2, 0, 5]), cam.project([2, 2, 5])
+    want = ig.camera_height(horizon, base, top, 2.0, vertical_vp=up)
+    assert want == pytest.approx(1.5)
+    got = ig.camera_height(horizon * scale, base, top, 2.0, vertical_vp=up)
+    assert got == pytest.approx(want, rel=1e-12)

@@ -330,7 +330,8 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
     TypeError
         ``image`` of an unsupported dtype, a non-numeric ``psf``.
     ValueError
-        Wrong shapes, non-finite taps or samples, or a PSF side above 1025.
+        Wrong shapes, non-finite taps or samples, taps beyond float32's
+        range, or a PSF side above 1025.
 
     Examples
     --------
@@ -344,4 +345,9 @@ def render_aberrated(image: np.ndarray, psf: npt.ArrayLike) -> np.ndarray:
     # NaN or an infinity would spread over a whole FFT tile for large PSFs
     # (the direct sum only over the PSF's footprint): refused on both paths.
     require_finite(np.asarray(image), "image")
-    return _native.render_aberrated(image, _psf_array(psf, "psf"))  # type: ignore[no-any-return]
+    taps = _psf_array(psf, "psf")
+    top = float(np.abs(taps).max())
+    if top > float(np.finfo(np.float32).max):
+        # The kernel sums in float32: such a tap became inf, and the output NaN.
+        raise ValueError(f"psf taps must lie within float32's range, got one of {top:g}")
+    return _native.render_aberrated(image, taps)  # type: ignore[no-any-return]

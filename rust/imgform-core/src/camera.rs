@@ -411,10 +411,21 @@ pub(crate) fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
+/// `v` at unit length. Where its squares would lose precision or overflow
+/// (components beyond 1e-150..1e150, as a homogeneous line or point of any
+/// scale may have), it is scaled by its largest component first: a horizon times
+/// 1e160 normalised to a zero vector, the line at infinity. Other vectors
+/// keep the bits of the plain division.
 #[inline]
 pub(crate) fn normalized(v: [f64; 3]) -> [f64; 3] {
-    let n = norm(v);
-    [v[0] / n, v[1] / n, v[2] / n]
+    let top = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if (1e-150..=1e150).contains(&top) || top == 0.0 || !top.is_finite() {
+        let n = norm(v);
+        return [v[0] / n, v[1] / n, v[2] / n];
+    }
+    let s = [v[0] / top, v[1] / top, v[2] / top];
+    let n = norm(s);
+    [s[0] / n, s[1] / n, s[2] / n]
 }
 
 /// The angle between two vectors, accurate also near 0 and pi (unlike `acos`).
@@ -439,6 +450,19 @@ mod tests {
     fn yaw(angle: f64) -> [f64; 9] {
         let (s, c) = angle.sin_cos();
         [c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c]
+    }
+
+    #[test]
+    fn vectors_of_any_scale_normalise_to_the_same_direction() {
+        let v = [3.0, -4.0, 12.0];
+        let want = normalized(v);
+        assert_eq!(want, [3.0 / 13.0, -4.0 / 13.0, 12.0 / 13.0]);
+        for scale in [1e-200, 1e-160, 1e160, 1e300] {
+            let got = normalized([v[0] * scale, v[1] * scale, v[2] * scale]);
+            for (g, w) in got.iter().zip(want) {
+                assert!((g - w).abs() < 1e-15, "{scale}: {got:?}");
+            }
+        }
     }
 
     #[test]
