@@ -394,6 +394,35 @@ def test_the_colour_matrix_fit_is_reported_and_the_de2000_variant_improves_it():
     assert ls.mean_delta_e < 3.0
 
 
+@pytest.mark.parametrize("method", ["least_squares", "de2000"])
+def test_the_fit_keeps_the_cameras_white_on_the_white_and_greys_neutral(method):
+    # Before, the free fit left every grey 0.4-1.1 CIEDE2000 off neutral, and
+    # AsShotNeutral through it was 0.7 % off the camera's own white.
+    cam = sp.SpectralCamera()
+    wl = cam.wavelengths
+    spd = sp.illuminant("D65", wl)
+    white = sp.xyz_weights(wl, spd, cam.rule).sum(axis=0)
+    camera_white = cam.camera_rates(spd[None])[0].astype(np.float64)
+    fit = sp.characterise(cam, method=method)
+    np.testing.assert_allclose(fit.matrix @ camera_white, white, rtol=1e-12)
+    _, neutral = sp.dng_color_tags(fit, white)
+    np.testing.assert_allclose(neutral, camera_white / camera_white.max(), rtol=1e-9)
+    assert fit.delta_e[19:].max() < 0.2  # the five greys below the white
+    free = sp.characterise(cam, method=method, preserve_white=False)
+    assert free.delta_e[19:].min() > 0.4
+    # Not at the chart's expense: the mean is lower, the worst patch (cyan) worse.
+    assert fit.mean_delta_e < free.mean_delta_e
+
+
+def test_a_white_to_preserve_must_be_a_camera_white():
+    rgb, xyz = np.eye(3) + 0.1, np.eye(3)
+    for bad in ([1.0, 0.0, 1.0], [1.0, np.nan, 1.0], [1.0, 1.0]):
+        with pytest.raises(ValueError, match="white_rgb must be the camera's 3 finite values > 0"):
+            sp.fit_color_matrix(rgb, xyz, [1.0, 1.0, 1.0], white_rgb=bad)
+    with pytest.raises(TypeError, match="preserve_white must be a bool"):
+        sp.characterise(sp.SpectralCamera(), preserve_white="no")
+
+
 def test_colorchecker_scene_to_dng_to_develop_gives_the_chart_colours(tmp_path):
     """Scene -> lens -> sensor -> DNG -> develop: the mean CIEDE2000 of the
     patches against the chart's own (sRGB-clipped) colours stays within the

@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native
-from ._arrays import Float64Array, as_float_array, as_real, as_seed
+from ._arrays import Float64Array, as_float_array, as_real, as_seed, flag
 from ._samples import F32_MAX, to_kernel
 from .cfa import as_pattern, pattern_cells
 
@@ -1104,12 +1104,20 @@ def fit_color_matrix(
     white_xyz: Any,
     *,
     method: Literal["least_squares", "de2000"] = "least_squares",
+    white_rgb: Any = None,
 ) -> ColorFit:
     """The 3x3 matrix ``M`` with ``xyz ≈ camera_rgb @ M.T``.
 
     ``"least_squares"`` minimises the squared XYZ error over the patches;
-    ``"de2000"`` starts there and refines all nine entries by
-    Levenberg-Marquardt on the patches' CIEDE2000 (scipy's ``least_squares``).
+    ``"de2000"`` starts there and refines the entries by Levenberg-Marquardt
+    on the patches' CIEDE2000 (scipy's ``least_squares``).
+
+    Given the camera's response to the white, ``white_rgb``, the fit keeps
+    ``M @ white_rgb = white_xyz`` exactly (white-point preserving least
+    squares, Finlayson and Drew 1996): a neutral then stays neutral, where a
+    free fit leaves it up to about 1 CIEDE2000 off (the Nikon 5100 under
+    D65: 0.6-1.1 on the ColorChecker's greys), and ``dng_color_tags``'s
+    neutral is the camera's own.
 
     Parameters
     ----------
@@ -1117,6 +1125,8 @@ def fit_color_matrix(
         Training patches (N >= 3), e.g. a simulated ColorChecker.
     white_xyz : array_like, shape (3,)
         The white the Lab differences refer to.
+    white_rgb : array_like, shape (3,), optional
+        The camera RGB of that white, each > 0.
 
     Raises
     ------
@@ -1135,7 +1145,7 @@ def fit_color_matrix(
         raise ValueError(f'method must be "least_squares" or "de2000", got {method!r}')
     if not (np.isfinite(rgb).all() and np.isfinite(target).all()):
         raise ValueError("camera_rgb and xyz must be finite (a NaN or inf patch has no colour)")
-    _white(white_xyz)
+    white = _white(white_xyz)
     rank = int(np.linalg.matrix_rank(rgb))
     if rank < 3:
         raise ValueError(
@@ -1148,14 +1158,37 @@ def fit_color_matrix(
     scale = float(np.abs(rgb).max())
     unit = rgb / scale
     matrix = np.linalg.lstsq(unit, target, rcond=None)[0].T
+    # The matrix moves only along ``free`` (3 x k): every row's change is a
+    # mix of its columns, which a preserved white's RGB is orthogonal to.
+    free = np.eye(3)
+    if white_rgb is not None:
+        w = _white_rgb(white_rgb) / scale
+        # The least-squares correction that takes w to the white exactly.
+        gram_w = np.linalg.solve(unit.T @ unit, w)
+        matrix += np.outer(white - matrix @ w, gram_w) / (w @ gram_w)
+        free = np.linalg.svd(w[None])[2][1:].T
     if method == "de2000":
         from scipy.optimize import least_squares
 
-        def residuals(m: Float64Array) -> Float64Array:
-            return delta_e2000(unit @ m.reshape(3, 3).T, target, white_xyz)
+        def moved(change: Float64Array) -> Float64Array:
+            return matrix + change.reshape(3, -1) @ free.T
 
-        matrix = least_squares(residuals, matrix.ravel(), method="lm").x.reshape(3, 3)
+        def residuals(change: Float64Array) -> Float64Array:
+            return delta_e2000(unit @ moved(change).T, target, white_xyz)
+
+        start = np.zeros(3 * free.shape[1])
+        matrix = moved(least_squares(residuals, start, method="lm").x)
     return ColorFit(matrix / scale, delta_e2000(unit @ matrix.T, target, white_xyz))
+
+
+def _white_rgb(white_rgb: Any) -> Float64Array:
+    """A camera white: three finite values > 0."""
+    w = as_float_array(white_rgb, "white_rgb")
+    if w.shape != (3,) or not (np.isfinite(w).all() and (w > 0).all()):
+        raise ValueError(
+            f"white_rgb must be the camera's 3 finite values > 0 for the white, got {white_rgb!r}"
+        )
+    return w
 
 
 def characterise(
@@ -1163,12 +1196,18 @@ def characterise(
     illuminant_name: str = "D65",
     *,
     method: Literal["least_squares", "de2000"] = "least_squares",
+    preserve_white: bool = True,
 ) -> ColorFit:
     """Fit ``camera``'s colour matrix on a simulated, noise-free ColorChecker.
 
     The 24 patches lit by the CIE illuminant give the camera's mean rates
     (integrated in Rust) and their XYZ (white Y = 1), and
-    :func:`fit_color_matrix` relates them.
+    :func:`fit_color_matrix` relates them, keeping the camera's response to
+    the perfect white on the white when ``preserve_white``. For the Nikon
+    5100 under D65 the mean even drops: mean / max CIEDE2000 1.09 / 4.13
+    over the patches against 1.25 / 3.44 free (the worst, cyan, lies outside
+    sRGB), and the greys land within 0.16 of neutral instead of 0.6-1.1 off
+    it (``"de2000"``: 1.01 / 3.97 against 1.06 / 3.58).
 
     Examples
     --------
@@ -1182,7 +1221,11 @@ def characterise(
     weights = xyz_weights(wl, spd, camera.rule)
     xyz = refl @ weights
     white = weights.sum(axis=0)
-    return fit_color_matrix(camera.camera_rates(refl * spd), xyz, white, method=method)
+    rgb = camera.camera_rates(refl * spd)
+    white_rgb = None
+    if flag(preserve_white, "preserve_white"):
+        white_rgb = camera.camera_rates(spd[None])[0]
+    return fit_color_matrix(rgb, xyz, white, method=method, white_rgb=white_rgb)
 
 
 def idt_matrix(
