@@ -48,6 +48,17 @@ def test_brown_conrady_forward_matches_opencv():
     np.testing.assert_allclose(ig.distort_points(pix, lens, K=k0), ref[:, 0], atol=1e-9)
 
 
+def test_far_points_of_a_barrel_division_lens_land_at_its_fold_not_its_centre():
+    # Past x ~ 1e154 the squares overflowed and the points went to (0, 0): the
+    # principal point for a ray all but parallel to the image plane.
+    fold = 1 / np.sqrt(0.2)
+    far = ig.distort_points([[1e100, 0.0], [0.0, -1e200]], [-0.2], model="division")
+    np.testing.assert_allclose(far, [[fold, 0.0], [0.0, -fold]], rtol=1e-15)
+    cam = ig.Camera([[800, 0, 320], [0, 800, 240], [0, 0, 1.0]], dist=[-0.2], model="division")
+    u = cam.project([[1.0, 0.0, 1e-10], [1.0, 0.0, 1e-160]])[:, 0]
+    np.testing.assert_allclose(u, 320 + 800 * fold, rtol=1e-9)
+
+
 def test_points_beyond_the_fold_are_reported_not_invented():
     strong_barrel = [-0.5, 0.0, 0.0, 0.0]
     out, ok = ig.undistort_points([[0.5, 0.0], [0.6, 0.0]], strong_barrel, return_converged=True)

@@ -180,6 +180,9 @@ fn brown_conrady_inverse(k: &[f64; 8], xd: f64, yd: f64) -> Option<(f64, f64)> {
 #[inline]
 fn division_distort(lambda: f64, x: f64, y: f64) -> Option<(f64, f64)> {
     let ru = (x * x + y * y).sqrt();
+    if ru > FAR {
+        return division_far(lambda, x, y);
+    }
     let t = lambda * ru;
     if t == 0.0 {
         return Some((x, y));
@@ -191,6 +194,32 @@ fn division_distort(lambda: f64, x: f64, y: f64) -> Option<(f64, f64)> {
     // rd / ru = (1 - sqrt(disc)) / (2 t ru), rewritten without cancellation.
     let s = 2.0 / (1.0 + disc.sqrt());
     Some((x * s, y * s))
+}
+
+/// Beyond this `r_u` the squares in [`division_distort`] overflow.
+const FAR: f64 = 1e150;
+
+/// [`division_distort`] for points so far off axis that `r_u²` overflows
+/// (a ray all but parallel to the image plane): the same root with `r_u`
+/// taken out of the square root, `r_d = 2 / (1 / r_u + sqrt(1 / r_u² - 4 λ))`,
+/// which tends to the fold radius `1 / sqrt(-λ)` of a barrel lens. Such
+/// points went to the centre. A pincushion lens (`λ > 0`) has no image
+/// there.
+#[cold]
+fn division_far(lambda: f64, x: f64, y: f64) -> Option<(f64, f64)> {
+    if lambda > 0.0 {
+        return None;
+    }
+    let m = x.abs().max(y.abs());
+    let (xm, ym) = (x / m, y / m);
+    let h = xm.hypot(ym);
+    let inv = (m * h).recip();
+    let rd = if lambda == 0.0 {
+        m * h
+    } else {
+        2.0 / (inv + (inv * inv - 4.0 * lambda).sqrt())
+    };
+    Some((xm / h * rd, ym / h * rd))
 }
 
 /// Which way [`remap_points`] maps.
@@ -249,6 +278,34 @@ mod tests {
         let (xd, yd) = Distortion::BrownConrady(LENS).distort(0.5, 0.0).unwrap();
         assert!((xd - 0.466734375).abs() < 1e-15, "{xd}");
         assert!((yd - 1e-3 * 0.25).abs() < 1e-15, "{yd}");
+    }
+
+    #[test]
+    fn far_points_of_a_barrel_division_lens_approach_its_fold() {
+        // r_d -> 1 / sqrt(0.2) as r_u grows; past 1e154 the squares overflowed
+        // and the points went to the centre.
+        let fold = 1.0 / 0.2f64.sqrt();
+        let lens = Distortion::Division(-0.2);
+        let mut last = 0.0;
+        for ru in [1e3, 1e100, 1e149, 1e151, 1e160, 1e200, 1e300] {
+            let (xd, yd) = lens.distort(0.6 * ru, -0.8 * ru).unwrap();
+            let rd = xd.hypot(yd);
+            assert!(
+                rd > last - 1e-15 && rd <= fold + 1e-15,
+                "{ru}: {rd} after {last}"
+            );
+            assert!(fold - rd < 3.0 / ru + 1e-15, "{ru}: {rd}");
+            assert!(
+                (yd / xd + 0.8 / 0.6).abs() < 1e-12,
+                "{ru}: the direction is kept"
+            );
+            last = rd;
+        }
+        assert!(Distortion::Division(0.2).distort(1e200, 0.0).is_none());
+        assert_eq!(
+            Distortion::Division(0.0).distort(1e200, 0.0),
+            Some((1e200, 0.0))
+        );
     }
 
     #[test]
