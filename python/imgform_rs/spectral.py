@@ -1115,8 +1115,7 @@ def fit_color_matrix(
     Given the camera's response to the white, ``white_rgb``, the fit keeps
     ``M @ white_rgb = white_xyz`` exactly (white-point preserving least
     squares, Finlayson and Drew 1996): a neutral then stays neutral, where a
-    free fit leaves it up to about 1 CIEDE2000 off (the Nikon 5100 under
-    D65: 0.6-1.1 on the ColorChecker's greys), and ``dng_color_tags``'s
+    free fit may leave it about 1 CIEDE2000 off, and ``dng_color_tags``'s
     neutral is the camera's own.
 
     Parameters
@@ -1203,11 +1202,9 @@ def characterise(
     The 24 patches lit by the CIE illuminant give the camera's mean rates
     (integrated in Rust) and their XYZ (white Y = 1), and
     :func:`fit_color_matrix` relates them, keeping the camera's response to
-    the perfect white on the white when ``preserve_white``. For the Nikon
-    5100 under D65 the mean even drops: mean / max CIEDE2000 1.09 / 4.13
-    over the patches against 1.25 / 3.44 free (the worst, cyan, lies outside
-    sRGB), and the greys land within 0.16 of neutral instead of 0.6-1.1 off
-    it (``"de2000"``: 1.01 / 3.97 against 1.06 / 3.58).
+    the perfect white on the white when ``preserve_white``: the greys then
+    stay neutral, and for the Nikon 5100 the patches' mean error drops too
+    (the spectral guide gives the figures).
 
     Examples
     --------
