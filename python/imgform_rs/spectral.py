@@ -1243,9 +1243,9 @@ def idt_matrix(
     channel that responds most to the light. colour-science takes the
     channel whose sensitivity peaks highest instead, which for a camera whose
     tabulated peaks tie (the default Nikon 5100, each channel normalised to
-    1) turns on the sampling: its first row was (0.56, 0.34, 0.09) on a
-    5 nm grid and (0.76, 0.21, 0.03) on a 10 nm one. Where both rules pick
-    the same channel, a test reproduces ``matrix_idt`` to 1e-3.
+    1) turns on the sampling (the spectral guide gives the figures). Where
+    both rules pick the same channel, a test reproduces ``matrix_idt`` to
+    1e-3.
 
     Parameters
     ----------
