@@ -241,7 +241,7 @@ def _report_path(outdir: Path, kind: str) -> Path:
 
 
 def _earlier(outdir: Path, kind: str) -> list[FileResult]:
-    """The entries of the folder's earlier report, by output path. An
+    """The entries of the folder's earlier report, in its order. An
     unreadable report records nothing."""
     try:
         entries = json.loads(_report_path(outdir, kind).read_text())["files"]
