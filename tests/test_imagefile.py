@@ -288,6 +288,19 @@ def test_exif_orientation_turns_sensor_pixels_as_develop_does(flip):
     np.testing.assert_array_equal(np.asarray(ImageOps.exif_transpose(pil)), _orient(img, flip))
 
 
+@pytest.mark.parametrize("flip", range(8))
+def test_a_16_bit_colour_png_comes_upright_as_an_8_bit_one_does(tmp_path, flip):
+    from imgform_rs._png import read_image
+
+    img = rgb(np.uint8, 6, 8, seed=flip)
+    exif = exif_bytes(SHOT, flip, oriented=False)
+    eight = ig.write_image(tmp_path / "eight.png", img, exif=exif)
+    sixteen = ig.write_image(tmp_path / "sixteen.png", img.astype(np.uint16) * 257, exif=exif)
+    # The 16-bit reader (read_png16) used to skip the EXIF turn that the rest get.
+    np.testing.assert_array_equal(read_image(sixteen), read_image(eight).astype(np.uint16) * 257)
+    assert read_image(eight).shape == _orient(img, flip).shape
+
+
 @pytest.mark.skipif(RAW_DIR is None, reason="../shared/data/raw is not present")
 def test_shot_info_comes_from_the_raw_and_unknowns_stay_out():
     crw = ig.load_raw(RAW_DIR / "canon_powershot_s40_CRW_0113.CRW").shot

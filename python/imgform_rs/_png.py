@@ -102,6 +102,21 @@ def read_png16(data: bytes) -> np.ndarray | None:
 _NOT_RGB = ("CMYK", "YCbCr", "LAB", "HSV")
 
 
+def upright(img: np.ndarray, data: bytes) -> np.ndarray:
+    """``img``, decoded from ``data`` without Pillow's turn, turned by the
+    file's EXIF orientation as Pillow turns what it decodes: the LibRaw flip
+    code that the orientation stands for, applied as ``develop`` applies it."""
+    from PIL import Image
+
+    from ._exif import _EXIF_ORIENTATION, _ORIENTATION
+    from .develop import _orient
+
+    with Image.open(io.BytesIO(data)) as im:
+        orientation = im.getexif().get(_ORIENTATION, 1)
+    flips = {tag: flip for flip, tag in _EXIF_ORIENTATION.items()}
+    return _orient(img, flips.get(orientation, 0))
+
+
 def read_image(path: Path) -> np.ndarray:
     """The pixels of an image file: a 16-bit colour PNG at its full depth
     (:func:`read_png16`), any other file by imageio. Decoded from the file's
@@ -115,7 +130,7 @@ def read_image(path: Path) -> np.ndarray:
     data = read_regular(path)
     img = read_png16(data)
     if img is not None:
-        return img
+        return upright(img, data)
     ext = path.suffix or None
     mode = iio.immeta(data, extension=ext).get("mode")
     if mode is None:  # not Pillow's: tifffile's TIFF, ...
