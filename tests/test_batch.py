@@ -450,6 +450,24 @@ def test_a_batch_removes_the_partial_files_of_its_own_outputs_only(tmp_path, cli
     )
 
 
+def test_a_name_the_file_system_takes_is_written_and_its_partial_file_found(tmp_path, client, raws):
+    """A 240-byte stem: the partial names that the batch and write_image add
+    ~40 bytes to were refused (ENAMETOOLONG) before partial_stem cut them."""
+    from imgform_rs._imagefile import partial_stem
+
+    paths, _ = raws
+    long = tmp_path / ("写真" * 40 + Path(paths[0]).suffix)
+    shutil.copy(paths[0], long)
+    out = tmp_path / "out"
+    out.mkdir()
+    target = out / (long.stem + ".png")
+    dead = out / f".{partial_stem(target)}.part-0123abcd.png"
+    dead.write_bytes(b"half a file")
+    report = batch.develop_many([long], out, client=client)
+    assert [f.status for f in report.files] == ["ok"]
+    assert outputs(out) == sorted([target.name, report.path.name])
+
+
 def test_inputs_with_one_output_are_refused_before_anything_is_written(
     tmp_path, client, raws, capsys
 ):

@@ -288,6 +288,24 @@ def test_exif_orientation_turns_sensor_pixels_as_develop_does(flip):
     np.testing.assert_array_equal(np.asarray(ImageOps.exif_transpose(pil)), _orient(img, flip))
 
 
+@pytest.mark.parametrize("stem", ["a" * 240, "写真" * 40, "é" * 125])
+@pytest.mark.parametrize("suffix", [".png", ".jpg", ".tif"])
+def test_any_name_the_file_system_takes_is_written(tmp_path, stem, suffix):
+    from imgform_rs._imagefile import NAME_MAX, partial_path, partial_stem
+
+    img = rgb(np.uint8, 4, 6)
+    target = tmp_path / (stem + suffix)
+    assert len(os.fsencode(target.name)) <= NAME_MAX
+    # Its partial name, 40 bytes longer, used to be refused as too long.
+    assert ig.write_image(target, img) == target
+    assert os.listdir(tmp_path) == [target.name]
+    partial = partial_path(target).name
+    assert len(partial.encode("utf-8")) <= NAME_MAX and partial.endswith(suffix)
+    # Cut stems stay apart: the batch finds a target's partial files by them.
+    twins = (tmp_path / f"{stem[:-1]}{end}{suffix}" for end in "xy")
+    assert len({partial_stem(t) for t in twins}) == 2
+
+
 @pytest.mark.parametrize("flip", range(8))
 def test_a_16_bit_colour_png_comes_upright_as_an_8_bit_one_does(tmp_path, flip):
     from imgform_rs._png import read_image

@@ -34,6 +34,7 @@ file whole. The limits we know are checked before that, with a clear error.
 
 from __future__ import annotations
 
+import hashlib
 import numbers
 import os
 import stat
@@ -297,11 +298,35 @@ def check_exr(color: str, tone: str, exif: bytes | None) -> None:
     _openexr()
 
 
+#: The longest file name (bytes) of the common file systems (ext4, XFS,
+#: Btrfs, APFS, NTFS in UTF-16 units): a partial name is kept within it.
+NAME_MAX = 255
+#: The random part of a partial name.
+_TAG_HEX = 32
+
+
 def partial_path(target: Path) -> Path:
     """A unique name beside ``target`` with its suffix (writers pick the
     format from it), hidden, so a half-written file is never mistaken for
-    an output."""
-    return target.with_name(f".{target.stem}.part-{uuid.uuid4().hex}{target.suffix}")
+    an output; its stem is :func:`partial_stem`'s."""
+    return target.with_name(f".{partial_stem(target)}.part-{uuid.uuid4().hex}{target.suffix}")
+
+
+def partial_stem(target: Path) -> str:
+    """``target``'s stem as :func:`partial_path` names it: whole where the
+    name fits in :data:`NAME_MAX` bytes, else cut to fit and marked by a
+    digest of the whole stem (a name the file system takes must not become
+    one it refuses by the 40 bytes a partial name adds)."""
+    stem = os.fsencode(target.stem)
+    suffix = os.fsencode(target.suffix)
+    room = NAME_MAX - len(b"..part-") - _TAG_HEX - len(suffix)
+    if len(stem) <= room:
+        return target.stem
+    digest = hashlib.sha256(stem).hexdigest()[:8]
+    cut = target.stem[: room - len(digest) - 1]
+    while len(os.fsencode(cut)) > room - len(digest) - 1:
+        cut = cut[:-1]  # whole characters: a name stays valid UTF-8
+    return f"{cut}~{digest}"
 
 
 def landing(target: Path) -> Path:

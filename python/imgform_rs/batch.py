@@ -43,7 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from ._chunked import demosaic_dask, develop_dask
-from ._imagefile import landing, partial_path, replace_onto
+from ._imagefile import landing, partial_path, partial_stem, replace_onto
 
 __all__ = [
     "WORKER_CONFIG",
@@ -281,7 +281,7 @@ def _remove_leftovers(outdir: Path, targets: Iterable[Path]) -> None:
     """Temporary files (:func:`~imgform_rs._imagefile.partial_path`) that
     workers killed mid-write left behind: one scan of the folder, not one
     per file, which for thousands of files would be quadratic."""
-    wanted = {(t.stem, t.suffix) for t in targets}
+    wanted = {(partial_stem(t), t.suffix) for t in targets}
     for tmp in outdir.glob(".*.part-*"):
         if any((stem, tmp.suffix) in wanted for stem in _partial_stems(tmp.name)):
             tmp.unlink(missing_ok=True)
