@@ -93,6 +93,31 @@ def test_lossless_files_keep_every_sample_and_carry_profile_and_exif(tmp_path, n
         assert tags["Orientation"] == 1
 
 
+@pytest.mark.parametrize("name", ["a.jpg", "a.png", "a.tif"])
+def test_text_beyond_ascii_keeps_its_utf8_bytes(tmp_path, name):
+    """Pillow wrote every non-ASCII character as "?" (and re-wrote a caller's
+    UTF-8 so), and tifffile refused it: the bytes now pass as they are."""
+    shot = replace(SHOT, make="Cámara", artist="José Müller", lens="Objectif ƒ/1.8")
+    path = ig.write_image(tmp_path / name, rgb(np.uint8), exif=exif_bytes(shot, 0, True))
+    theirs = Image.Exif()
+    theirs[315] = "Zoë".encode()  # a caller's EXIF, as exiftool writes UTF-8
+    again = ig.write_image(tmp_path / f"b{path.suffix}", rgb(np.uint8), exif=theirs.tobytes())
+    with Image.open(path) as im, Image.open(again) as other:
+        exif, raw, caller = im.getexif(), im.info.get("exif"), other.getexif()
+    # Pillow reads every text tag as Latin-1: its bytes are the file's.
+    text = {tag: exif[tag].encode("latin-1").decode() for tag in (271, 315)}
+    assert text == {271: "Cámara", 315: "José Müller"}
+    assert caller[315].encode("latin-1").decode() == "Zoë"
+    if raw is not None:  # JPEG and PNG carry the Exif IFD, whose LensModel is ASCII
+        tiff = raw.removeprefix(b"Exif\0\0")
+        order = "<" if tiff[:2] == b"II" else ">"
+        (ifd0,) = struct.unpack_from(order + "I", tiff, 4)
+        (sub,) = struct.unpack(order + "I", ifd_entries(tiff, ifd0)[0x8769][2])
+        kind, count, _ = ifd_entries(tiff, sub)[42036]
+        assert (kind, count) == (2, len(shot.lens.encode()) + 1)
+        assert exif.get_ifd(0x8769)[42036].encode("latin-1").decode() == shot.lens
+
+
 def test_exif_numbers_are_rationals_and_the_exif_ifd_has_its_version(tmp_path):
     """CIPA DC-008: ExposureTime, FNumber and FocalLength are RATIONAL (type
     5), and the Exif IFD must carry ExifVersion (UNDEFINED, 4 bytes)."""
@@ -486,6 +511,16 @@ def test_exr_keeps_linear_floats_with_chromaticities_and_shot_details(tmp_path, 
     assert header["capDate"] == "2026:11:27 10:30:05"
     assert header["expTime"] == pytest.approx(1 / 125) and header["aperture"] == pytest.approx(5.6)
     assert header["isoSpeed"] == 400 and header["focalLength"] == 35
+
+
+def test_exr_text_beyond_ascii_is_the_exif_s_utf8(tmp_path):
+    openexr = pytest.importorskip("OpenEXR")
+    shot = replace(SHOT, artist="José Müller", lens="Objectif ƒ/1.8")
+    exif = exif_bytes(shot, 0, True)
+    path = ig.write_image(tmp_path / "a.exr", rgb(np.float32), tone="linear", exif=exif)
+    with openexr.File(str(path)) as exr:
+        header = dict(exr.header())
+    assert header["owner"] == shot.artist and header["lensModel"] == shot.lens
 
 
 def test_exr_takes_the_first_set_value_of_a_multi_valued_exif_number(tmp_path):

@@ -19,6 +19,11 @@ DC-008 gives them (readers such as exiftool and piexif expect it; Pillow
 would write a float as DOUBLE), and the Exif IFD carries the ExifVersion it
 makes mandatory.
 
+Text (make, model, artist, lens) is written as its UTF-8 bytes in the ASCII
+tags, as cameras and exiftool write what ASCII cannot hold, and text in an
+EXIF given to the writers passes with its bytes unchanged: Pillow would write
+every other character as "?", and tifffile refuses it.
+
 The tags that describe the written image rather than the shot are added by
 :func:`for_image` as the file is written: its size (PixelXDimension,
 PixelYDimension), whether its colours are sRGB (ColorSpace 1) or anything else
@@ -62,6 +67,7 @@ _ISO_SHORT_MAX, _REI_ONLY = 65535, 2
 _COMPONENTS, _YCBCR = 37121, b"\x01\x02\x03\x00"
 # The TIFF type of opaque bytes.
 _UNDEFINED = 7
+_ASCII = 2
 _FLASHPIX_VERSION, _FLASHPIX_1_0 = 40960, b"0100"
 _COLOR_SPACE, _SRGB, _UNCALIBRATED = 40961, 1, 0xFFFF
 _PIXEL_X, _PIXEL_Y = 40962, 40963
@@ -161,7 +167,7 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
     exif[_SOFTWARE] = "imgform-rs"
     for tag, text in ((_MAKE, info.make), (_MODEL, info.model), (_ARTIST, info.artist)):
         if text:
-            exif[tag] = text
+            _put_text(exif, None, tag, text.encode())
     sub = exif.get_ifd(_EXIF_IFD)
     sub[_EXIF_VERSION] = _VERSION
     if info.taken is not None:
@@ -184,8 +190,8 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
             sub[_RECOMMENDED_EXPOSURE_INDEX] = iso
     for tag, text in ((_LENS_MAKE, info.lens_make), (_LENS_MODEL, info.lens)):
         if text:
-            sub[tag] = text
-    return exif.tobytes()
+            _put_text(sub, _EXIF_IFD, tag, text.encode())
+    return _as_text(exif.tobytes(), sub)
 
 
 def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -> bytes:
@@ -199,6 +205,10 @@ def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -
     tags = Image.Exif()
     tags.load(exif)
     sub = tags.get_ifd(_EXIF_IFD)
+    for ifd, group in ((tags, None), (sub, _EXIF_IFD)):
+        for tag, value in list(ifd.items()):
+            if isinstance(value, str):
+                _put_text(ifd, group, tag, text_bytes(value))
     sub.setdefault(_EXIF_VERSION, _VERSION)
     sub[_FLASHPIX_VERSION] = _FLASHPIX_1_0
     sub[_COLOR_SPACE] = _SRGB if srgb else _UNCALIBRATED
@@ -207,25 +217,54 @@ def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -
         sub[_COMPONENTS] = _YCBCR
     else:
         sub.pop(_COMPONENTS, None)
-    written = tags.tobytes()
-    return _undefined(written, _COMPONENTS) if jpeg else written
+    written = _as_text(tags.tobytes(), sub)
+    return _retype(written, _EXIF_IFD, {_COMPONENTS: _UNDEFINED}) if jpeg else written
 
 
-def _undefined(exif: bytes, tag: int) -> bytes:
-    """``exif`` with the Exif IFD's ``tag`` typed UNDEFINED (7), as CIPA
-    DC-008 types ComponentsConfiguration: Pillow knows no type for it and
-    writes its four bytes as BYTE (1), whose entry is laid out the same."""
+def text_bytes(value: str) -> bytes:
+    """The bytes of a text tag as Pillow loaded it: Pillow decodes every
+    ASCII tag as Latin-1, so this gives back what the file holds, the UTF-8
+    that cameras and exiftool write beyond ASCII included."""
+    return value.encode("latin-1")
+
+
+def _put_text(ifd: Any, group: int | None, tag: int, raw: bytes) -> None:
+    """Sets the text ``tag`` of ``ifd`` (of the sub-IFD ``group``) to the
+    bytes ``raw`` as they are: Pillow writes a ``str`` as ASCII with every
+    other character made "?". A tag Pillow knows as ASCII takes the bytes and
+    Pillow ends them with NUL; Pillow would write any other tag's bytes as
+    BYTE, so it gets its NUL here and :func:`_as_text` makes it ASCII."""
+    from PIL import TiffTags
+
+    known = TiffTags.lookup(tag, group).type == _ASCII
+    ifd[tag] = raw if known else raw + b"\0"
+
+
+def _as_text(exif: bytes, sub: dict) -> bytes:
+    """``exif`` with the Exif IFD's text tags that :func:`_put_text` left as
+    BYTE typed ASCII, whose entry is laid out the same (IFD0's text tags
+    Pillow knows as ASCII)."""
+    texts = [tag for tag, value in sub.items() if isinstance(value, bytes) and value[-1:] == b"\0"]
+    return _retype(exif, _EXIF_IFD, dict.fromkeys(texts, _ASCII)) if texts else exif
+
+
+def _retype(exif: bytes, group: int, types: dict[int, int]) -> bytes:
+    """``exif`` with the tags of its sub-IFD ``group`` typed as ``types``
+    says: ComponentsConfiguration as CIPA DC-008 types it, UNDEFINED (7),
+    which Pillow, knowing no type for it, writes as BYTE (1); text as ASCII
+    (2). Each entry keeps its layout: these types all have one-byte units."""
     tiff = bytearray(exif.removeprefix(b"Exif\0\0"))
     order = "<" if tiff[:2] == b"II" else ">"
     (ifd0,) = struct.unpack_from(order + "I", tiff, 4)
     sub = next(
         struct.unpack_from(order + "I", tiff, entry + 8)[0]
         for entry in _entries(tiff, order, ifd0)
-        if struct.unpack_from(order + "H", tiff, entry)[0] == _EXIF_IFD
+        if struct.unpack_from(order + "H", tiff, entry)[0] == group
     )
     for entry in _entries(tiff, order, sub):
-        if struct.unpack_from(order + "H", tiff, entry)[0] == tag:
-            struct.pack_into(order + "H", tiff, entry + 2, _UNDEFINED)
+        kind = types.get(struct.unpack_from(order + "H", tiff, entry)[0])
+        if kind is not None:
+            struct.pack_into(order + "H", tiff, entry + 2, kind)
     return b"Exif\0\0" + bytes(tiff)
 
 

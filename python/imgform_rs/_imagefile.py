@@ -189,15 +189,19 @@ def _pillow(
 def _tiff(target: Path, img: np.ndarray, icc: bytes | None, exif: bytes | None) -> None:
     import tifffile
 
-    extratags, software = [], "imgform-rs"
+    extratags: list[tuple] = []
+    software: str | bytes = "imgform-rs"
     if exif:
         from PIL import Image
 
         ifd0 = Image.Exif()
         ifd0.load(exif)
-        software = ifd0.get(_SOFTWARE, software)
+        if isinstance(ifd0.get(_SOFTWARE), str):
+            software = _exif.text_bytes(ifd0[_SOFTWARE])
         for tag, kind in _TIFF_TAGS.items():
             value = ifd0.get(tag)
+            if isinstance(value, str):  # its bytes: tifffile takes only ASCII text
+                value = _exif.text_bytes(value)
             if value is not None:
                 extratags.append((tag, kind, 1 if kind == "H" else 0, value, True))
     tifffile.imwrite(
@@ -250,8 +254,8 @@ def _exr_attributes(exif: bytes | None) -> dict[str, Any]:
                 # A tag of several values (EXIF 2.2's ISOSpeedRatings may be
                 # (0, 200)): the first one that is set; OpenEXR's is a float.
                 value = next((v for v in value if v), None)
-            if isinstance(value, str):
-                attributes[name] = value
+            if isinstance(value, str):  # OpenEXR's text is UTF-8, as EXIF's mostly is
+                attributes[name] = _exif.text_bytes(value).decode(errors="replace")
             elif isinstance(value, numbers.Real):  # rationals are Pillow's IFDRational
                 attributes[name] = float(value)
     return attributes
