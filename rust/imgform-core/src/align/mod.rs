@@ -158,7 +158,8 @@ pub fn similarity<T: Sample>(
     metric: Metric,
 ) -> Result<f64> {
     same_size(a, b, ("a", "b"))?;
-    let (pa, pb) = (Converted::new(a, "a")?, Converted::new(b, "b")?);
+    let (mut pa, mut pb) = (Converted::new(a, "a")?, Converted::new(b, "b")?);
+    Converted::centre(&mut pa, &mut pb, metric);
     let zero = Candidates {
         center: (0, 0),
         radius: 0,
@@ -232,10 +233,11 @@ pub fn align<T: Sample>(
         ));
     }
     let n_levels = level_count(w, h, opts)?;
-    let (r0, m0) = (
+    let (mut r0, mut m0) = (
         Converted::new(reference, "reference")?,
         Converted::new(moving, "moving")?,
     );
+    Converted::centre(&mut r0, &mut m0, opts.metric);
     // Levels 1..=n_levels; level 0 is read from the caller's images.
     let mut coarse: Vec<(Plane, Plane)> = Vec::with_capacity(n_levels);
     for _ in 0..n_levels {

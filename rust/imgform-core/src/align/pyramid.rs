@@ -1,10 +1,9 @@
 //! What the search reads: the caller's image converted row by row, and the
 //! `f32` planes of the coarser levels and of gradient features.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use rayon::prelude::*;
 
+use super::metric::Metric;
 use crate::error::{CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
 use crate::parallel::{for_each_row, ROWS_PER_TASK};
@@ -12,11 +11,13 @@ use crate::parallel::{for_each_row, ROWS_PER_TASK};
 /// Rows of `f32` samples with `offset` subtracted (`stored = value -
 /// offset`), the form every kernel of the search reads.
 ///
-/// The offset is the middle of the input type's range (127.5 for `u8`,
-/// 32767.5 for `u16`, 0.5 for `f32`). Centring keeps the `f32` cross
-/// products of the search small next to their sum, so a 16-bit plate with a
-/// large mean does not lose the covariance NCC is made of to rounding; SSD
-/// and NCC do not depend on a common offset, cosine undoes it.
+/// Centring keeps the `f32` cross products of the search small next to
+/// their sum: a plate whose structure is a few levels on a large mean (a
+/// dim 16-bit scan near white, floats far from [0, 1]) would otherwise lose
+/// the covariance NCC is made of to rounding. The search centres each image
+/// on its own mean for NCC, which no offset changes, and both on the mean
+/// of the two for SSD, which needs a common one, and cosine, which undoes it
+/// ([`Converted::centre`]).
 pub trait Rows: Sync {
     fn width(&self) -> usize;
     fn height(&self) -> usize;
@@ -32,6 +33,8 @@ pub trait Rows: Sync {
 pub struct Converted<'a, T> {
     view: ImageView<'a, T>,
     offset: f32,
+    /// The mean of the samples.
+    mean: f64,
 }
 
 impl<'a, T: Sample> Converted<'a, T> {
@@ -48,19 +51,16 @@ impl<'a, T: Sample> Converted<'a, T> {
                 view.channels()
             )));
         }
-        // The smallest bad row whatever the thread count: bands of rows in
-        // parallel, then `fetch_min`.
-        let bad = AtomicUsize::new(usize::MAX);
-        (0..view.height())
+        // Each row's sum in f64, in parallel, then added in order: the same
+        // mean whatever the thread count. A row of finite f32 samples cannot
+        // sum past f64's range, so a row holding NaN or an infinity is the
+        // first whose sum is not finite.
+        let sums: Vec<f64> = (0..view.height())
             .into_par_iter()
             .with_min_len(ROWS_PER_TASK)
-            .for_each(|y| {
-                if view.row(y).iter().any(|v| !v.to_f32().is_finite()) {
-                    bad.fetch_min(y, Ordering::Relaxed);
-                }
-            });
-        let y = bad.into_inner();
-        if y != usize::MAX {
+            .map(|y| view.row(y).iter().map(|v| f64::from(v.to_f32())).sum())
+            .collect();
+        if let Some(y) = sums.iter().position(|s| !s.is_finite()) {
             let v = view
                 .row(y)
                 .iter()
@@ -71,10 +71,24 @@ impl<'a, T: Sample> Converted<'a, T> {
                 v.unwrap_or(f32::NAN)
             ));
         }
+        let count = (view.width() * view.height()).max(1) as f64;
         Ok(Self {
             view: *view,
             offset: T::FULL_SCALE / 2.0,
+            mean: sums.iter().sum::<f64>() / count,
         })
+    }
+
+    /// The pair centred as the search of `metric` reads them best: each on
+    /// its own mean for NCC, both on the mean of the two otherwise (see
+    /// [`Rows`]).
+    pub fn centre(a: &mut Self, b: &mut Self, metric: Metric) {
+        let common = (0.5 * (a.mean + b.mean)) as f32;
+        if metric == Metric::Ncc {
+            (a.offset, b.offset) = (a.mean as f32, b.mean as f32);
+        } else {
+            (a.offset, b.offset) = (common, common);
+        }
     }
 }
 
@@ -251,6 +265,28 @@ mod tests {
         let rgb = [0u8; 12];
         let view = ImageView::contiguous(&rgb, 2, 2, 3).unwrap();
         assert!(Converted::new(&view, "a").is_err());
+    }
+
+    #[test]
+    fn ncc_centres_each_image_on_its_mean_the_others_on_a_common_one() {
+        let (pa, pb) = ([60000u16, 60002, 60004, 60006], [5000u16, 5001, 5002, 5005]);
+        let (va, vb) = (
+            ImageView::contiguous(&pa, 2, 2, 1).unwrap(),
+            ImageView::contiguous(&pb, 2, 2, 1).unwrap(),
+        );
+        let (mut a, mut b) = (
+            Converted::new(&va, "a").unwrap(),
+            Converted::new(&vb, "b").unwrap(),
+        );
+        Converted::centre(&mut a, &mut b, Metric::Ncc);
+        assert_eq!((a.offset(), b.offset()), (60003.0, 5002.0));
+        let mut row = [0.0f32; 2];
+        a.fill_row(0, &mut row);
+        assert_eq!(row, [-3.0, -1.0]);
+        for metric in [Metric::Ssd, Metric::Cosine] {
+            Converted::centre(&mut a, &mut b, metric);
+            assert_eq!((a.offset(), b.offset()), (32502.5, 32502.5));
+        }
     }
 
     #[test]
