@@ -278,3 +278,28 @@ SCALARS = [
 def test_numpy_scalars_and_0d_arrays_are_the_numbers_they_hold(call, number):
     plain = number.item()
     np.testing.assert_array_equal(call(number), call(plain))
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs resource limits of a child process")
+@pytest.mark.parametrize(
+    "call",
+    [
+        "ig.demosaic(np.broadcast_to(np.uint8(7), (40000, 40000)), 'RGGB', 'bilinear')",
+        "ig.mosaic(np.broadcast_to(np.uint8(7), (25000, 25000, 3)), 'RGGB')",
+    ],
+)
+def test_a_copy_beyond_the_memory_left_is_a_memory_error_not_an_abort(call):
+    """A strided view whose contiguous copy cannot be had: Rust's failed
+    allocation aborted the interpreter (SIGABRT). Run where the address
+    space is capped at 1.5 GB; the views themselves take no memory."""
+    import subprocess
+    import sys
+
+    code = (
+        "import resource, numpy as np, imgform_rs as ig\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (1_500_000_000, 1_500_000_000))\n"
+        f"try:\n    {call}\nexcept MemoryError as e:\n    print('MemoryError', e)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-500:]
+    assert done.stdout.startswith("MemoryError"), done.stdout

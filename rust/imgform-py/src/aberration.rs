@@ -19,7 +19,7 @@ fn psf_values(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(Vec<f64>, (usize,
         ))
     })?;
     let (h, w) = (arr.shape()[0], arr.shape()[1]);
-    Ok((contiguous(&arr).into_owned(), (h, w)))
+    Ok((contiguous(&arr)?.into_owned(), (h, w)))
 }
 
 /// Diffraction PSF of a circular pupil with defocus and spherical aberration.
@@ -124,7 +124,7 @@ fn convolve<'py, T: Sample + Element>(
     let py = img.py();
     let shape = img.shape().to_vec();
     let (h, w, c) = image_dims(&shape, "image")?;
-    let src = contiguous(&img);
+    let src = contiguous(&img)?;
     let out = detached_into(py, &shape, |out: &mut [T]| {
         let view = ImageView::contiguous(&src, w, h, c)?;
         aberration::render_aberrated(view, psf, psf_shape, out)

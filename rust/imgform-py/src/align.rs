@@ -46,7 +46,7 @@ where
     let b = partner(b, &a, names.1)?;
     let (h, w, c) = image_dims(a.shape(), names.0)?;
     let (hb, wb, cb) = image_dims(b.shape(), names.1)?;
-    let (sa, sb) = (contiguous(&a), contiguous(&b));
+    let (sa, sb) = (contiguous(&a)?, contiguous(&b)?);
     detached(py, || {
         let va = ImageView::contiguous(&sa, w, h, c)?;
         let vb = ImageView::contiguous(&sb, wb, hb, cb)?;
@@ -157,8 +157,8 @@ fn refine_of<'py, T: Element + Sample>(
         .iter()
         .map(|b| image_dims(b.shape(), "moving"))
         .collect::<PyResult<Vec<_>>>()?;
-    let sa = contiguous(&a);
-    let sbs: Vec<_> = bs.iter().map(contiguous).collect();
+    let sa = contiguous(&a)?;
+    let sbs = bs.iter().map(contiguous).collect::<PyResult<Vec<_>>>()?;
     let res = detached(py, || {
         let va = ImageView::contiguous(&sa, w, h, c)?;
         let vbs = sbs

@@ -11,7 +11,7 @@ use numpy::{
     Element, IntoPyArray, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArray2,
     PyReadonlyArrayDyn, PyUntypedArray, PyUntypedArrayMethods,
 };
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::intern;
 use pyo3::prelude::*;
 
@@ -23,13 +23,30 @@ use crate::errors::detached;
 /// `as_slice` alone is not enough: it also accepts Fortran-ordered arrays
 /// (a transposed view, `np.asfortranarray`), whose memory holds the
 /// transpose of the row-major order the kernels read.
+///
+/// # Errors
+/// `MemoryError` when the copy cannot be allocated: a failed allocation of
+/// a `Vec` aborts the process, as a large strided view (a transposed
+/// memmap) in a container with little memory would.
 pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
     arr: &'a numpy::PyReadonlyArray<'_, T, D>,
-) -> Cow<'a, [T]> {
-    match arr.as_slice() {
-        Ok(s) if arr.is_c_contiguous() => Cow::Borrowed(s),
-        _ => Cow::Owned(arr.as_array().iter().copied().collect()),
+) -> PyResult<Cow<'a, [T]>> {
+    if let Ok(s) = arr.as_slice() {
+        if arr.is_c_contiguous() {
+            return Ok(Cow::Borrowed(s));
+        }
     }
+    let view = arr.as_array();
+    let mut copy = Vec::new();
+    copy.try_reserve_exact(view.len()).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "no memory for a contiguous copy of a non-contiguous array of shape {:?} ({} bytes)",
+            view.shape(),
+            view.len() * std::mem::size_of::<T>()
+        ))
+    })?;
+    copy.extend(view.iter().copied());
+    Ok(Cow::Owned(copy))
 }
 
 /// The dtype name of any object, for error messages.
@@ -77,7 +94,7 @@ pub fn fixed<'py>(obj: &Bound<'py, PyAny>, shape: &[usize], name: &str) -> PyRes
         ))
     })?;
     exact_shape(name, arr.shape(), shape)?;
-    Ok(contiguous(&arr).into_owned())
+    Ok(contiguous(&arr)?.into_owned())
 }
 
 /// The `ValueError` for an array `name` of shape `got` where exactly

@@ -51,7 +51,7 @@ impl NativeCamera {
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let arr = points(points_world, 3, "points")?;
         let n = arr.shape()[0];
-        let src = contiguous(&arr);
+        let src = contiguous(&arr)?;
         detached_into(py, &[n, 2], |out| self.0.project(&src, out))
     }
 
@@ -76,8 +76,8 @@ impl NativeCamera {
                 z.len()
             )));
         }
-        let src = contiguous(&arr);
-        let z = contiguous(&z);
+        let src = contiguous(&arr)?;
+        let z = contiguous(&z)?;
         detached_into(py, &[n, 3], |out| self.0.unproject(&src, &z, out))
     }
 
@@ -89,7 +89,7 @@ impl NativeCamera {
     ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
         let arr = points(pixels, 2, "pixels")?;
         let n = arr.shape()[0];
-        let src = contiguous(&arr);
+        let src = contiguous(&arr)?;
         detached_into(py, &[n, 3], |out| self.0.rays(&src, out))
     }
 

@@ -30,7 +30,7 @@ pub fn pattern_arg(obj: &Bound<'_, PyAny>) -> PyResult<CfaPattern> {
             )))
         }
     };
-    CfaPattern::from_cells(&contiguous(&arr), rows, cols).map_err(to_pyerr)
+    CfaPattern::from_cells(&contiguous(&arr)?, rows, cols).map_err(to_pyerr)
 }
 
 /// The pattern as users see it: its name when it has one, else its tile.
@@ -82,7 +82,7 @@ fn mosaic_typed<'py, T: Sample + Element>(
     p: &CfaPattern,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = rgb_dims(arr.shape(), "rgb")?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let out = detached_into(py, &[h, w], |out| {
         cfa::mosaic(ImageView::contiguous(&src, w, h, 3)?, p, out)
     })?;
@@ -120,7 +120,7 @@ fn simulate_typed<'py, T: Sample + Element>(
     params: &SensorParams,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w) = rgb_dims(arr.shape(), "rgb")?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let out = detached_into(py, &[h, w], |out| {
         cfa::simulate_sensor(ImageView::contiguous(&src, w, h, 3)?, p, params, out)
     })?;

@@ -71,10 +71,10 @@ fn render<'py, T: Sample + Element>(
             depth.shape()
         )));
     }
-    let src = contiguous(&img);
+    let src = contiguous(&img)?;
     let out = match depth {
-        AnyDepth::F32(d) => run(py, &src, dims, &contiguous(d), lens)?,
-        AnyDepth::F64(d) => run(py, &src, dims, &contiguous(d), lens)?,
+        AnyDepth::F32(d) => run(py, &src, dims, &contiguous(d)?, lens)?,
+        AnyDepth::F64(d) => run(py, &src, dims, &contiguous(d)?, lens)?,
     };
     Ok(to_numpy(py, out, &shape)?.into_any())
 }

@@ -29,7 +29,7 @@ fn demosaic_typed<'py, T: Sample + Element>(
             )))
         }
     };
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let kernel = |out: &mut [T]| {
         let raw = ImageView::contiguous(&src, w, h, 1)?;
         demosaic_kernel(raw, p, method, white_level, out)

@@ -203,7 +203,7 @@ fn develop<'py>(
         method: Method::from_name_for(method, &pattern).map_err(to_pyerr)?,
         auto_bright: auto_bright.map(|pixels| AutoBright { pixels }),
     };
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let (p, pat) = (&params, &pattern);
     let lens = lens.as_ref().map(|l| l.get().corrector());
     // 8-bit output keeps a 16-bit demosaic; 16-bit and float outputs are

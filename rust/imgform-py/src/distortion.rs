@@ -41,7 +41,7 @@ fn remap_lens_points<'py>(
     let k = intrinsics(k, "K")?;
     let arr = points(pts, 2, "points")?;
     let n = arr.shape()[0];
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let mut out = vec![0.0; 2 * n];
     let direction = if undistort {
         Direction::Undistort

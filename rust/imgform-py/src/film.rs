@@ -58,7 +58,7 @@ fn film_develop<'py>(
         .map_err(to_pyerr)?;
     let n = emulsion.layers();
     let (arr, h, w) = planes(exposure, "exposure", n)?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[h, w, n], |out| {
         emulsion.develop(&src, (w, h), gain, halation.as_ref(), out)
     })
@@ -95,7 +95,7 @@ fn film_transmit<'py>(
         )));
     }
     let m = response.len() / base.len();
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[h, w, m], |out| {
         model.transmit(&src, w, h, &response, out)
     })
@@ -121,7 +121,7 @@ fn film_print<'py>(
     let negative = Dyes::new(&base, &dyes).map_err(to_pyerr)?;
     let paper = emulsion(&curves, &matrix, diffusion)?;
     let (arr, h, w) = planes(density, "density", negative.layers())?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[h, w, paper.layers()], |out| {
         print(&negative, &src, (w, h), &light, &paper, gain, out)
     })
@@ -138,7 +138,7 @@ fn film_halation<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let n = strength.len();
     let (arr, h, w) = planes(exposure, "exposure", n)?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[h, w, n], |out| {
         halation(&src, w, h, &strength, sigma, out)
     })
@@ -154,7 +154,7 @@ fn film_grain<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let n = per_grain.len();
     let (arr, h, w) = planes(density, "density", n)?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[h, w, n], |out| {
         add_grain(&src, w, h, &per_grain, seed, out)
     })

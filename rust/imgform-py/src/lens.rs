@@ -107,7 +107,7 @@ impl NativeLensCorrection {
                 "black must be a 2-D tile, got shape {shape:?}"
             )));
         }
-        let tile = contiguous(&black).to_vec();
+        let tile = contiguous(&black)?.to_vec();
         dispatch_image!(img, devignette_typed(py, self.0.lens(), &tile, shape[1]))
     }
 }
@@ -122,7 +122,7 @@ fn geometry_typed<'py, T: Resample + Element>(
     out: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (h, w, c) = image_dims(arr.shape(), "image")?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let kernel = |out: &mut [T]| {
         let view = ImageView::contiguous(&src, w, h, c)?;
         lens.correct_geometry(&view, interpolation, fill, vignetting, out)

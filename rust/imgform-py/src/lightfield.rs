@@ -31,7 +31,7 @@ fn stack<'py, T: Sample + Element>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let py = views.py();
     let (h, w, c) = view_dims(views.shape(), grid)?;
-    let src = contiguous(&views);
+    let src = contiguous(&views)?;
     let shape = [alphas.len(), h, w, c];
     let out = detached_into(py, &shape, |out: &mut [T]| {
         let lf = LightField::new(&src, grid, h, w, c)?;

@@ -29,7 +29,7 @@ fn fit_vanishing_point<'py>(
 ) -> PyResult<((f64, f64, f64), bool, f64, Bound<'py, PyArrayDyn<bool>>)> {
     let arr = points(segments, 4, "segments")?;
     let n = arr.shape()[0];
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let opts = FitOptions {
         threshold,
         seed,
@@ -91,7 +91,7 @@ fn relative_height<'py>(
             top.shape()
         )));
     }
-    let (base, top) = (contiguous(&base), contiguous(&top));
+    let (base, top) = (contiguous(&base)?, contiguous(&top)?);
     detached_into(py, &[n], |out| metric.heights(&base, &top, out))
 }
 

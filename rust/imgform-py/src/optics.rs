@@ -34,7 +34,10 @@ where
         .iter()
         .map(|(obj, name)| column(obj, name))
         .collect::<PyResult<Vec<_>>>()?;
-    let slices: Vec<_> = arrays.iter().map(contiguous).collect();
+    let slices = arrays
+        .iter()
+        .map(contiguous)
+        .collect::<PyResult<Vec<_>>>()?;
     let inputs: [&[f64]; K] = std::array::from_fn(|k| &*slices[k]);
     // Inputs are either full length or a single value (a scalar argument);
     // as in NumPy, an empty input makes the result empty.

@@ -17,7 +17,7 @@ fn project_pinhole<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let arr = points(points_cam, 3, "points")?;
     let n = arr.shape()[0];
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[n, 2], |out| {
         projection::project_pinhole(&src, f, invert, out)
     })
@@ -33,7 +33,7 @@ fn project_orthographic<'py>(
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let arr = points(points_cam, 3, "points")?;
     let n = arr.shape()[0];
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[n, 2], |out| {
         projection::project_orthographic(&src, scale, out)
     })

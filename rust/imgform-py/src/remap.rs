@@ -78,7 +78,7 @@ impl PyRemapMap {
             )));
         }
         let (h, w) = (mx.shape()[0], mx.shape()[1]);
-        let (xs, ys) = (contiguous(&mx), contiguous(&my));
+        let (xs, ys) = (contiguous(&mx)?, contiguous(&my)?);
         let inner = detached(py, || remap::RemapMap::from_planes(&xs, &ys, w, h))?;
         Ok(Self { inner })
     }
@@ -160,7 +160,7 @@ where
 {
     let (h, w, c) = image_dims(arr.shape(), "image")?;
     let shape = out_shape(arr.shape());
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     let out = detached_into(py, &shape, |out| {
         let view = ImageView::contiguous(&src, w, h, c)?;
         kernel(&view, out)

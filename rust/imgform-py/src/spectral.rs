@@ -37,7 +37,7 @@ fn table(obj: &Bound<'_, PyAny>, name: &str, cols: usize) -> PyResult<(Vec<f64>,
         ))
     })?;
     match *arr.shape() {
-        [rows, c] if c == cols && rows > 0 => Ok((contiguous(&arr).into_owned(), rows)),
+        [rows, c] if c == cols && rows > 0 => Ok((contiguous(&arr)?.into_owned(), rows)),
         ref other => Err(PyValueError::new_err(format!(
             "{name} must have shape (C, {cols}), one row per channel and one column per \
              wavelength, got {other:?}"
@@ -100,7 +100,7 @@ fn spectral_integrate<'py>(
     let l = arr.shape().last().copied().unwrap_or(0);
     let (h, w) = hwl(arr.shape(), "spectra", l, "L samples per pixel")?;
     let (resp, channels) = table(response, "response", l)?;
-    let src = contiguous(&arr);
+    let src = contiguous(&arr)?;
     detached_into(py, &[h, w, channels], |out| {
         integrate(&src, w, h, l, &resp, channels, out)
     })
@@ -121,7 +121,7 @@ fn flat_pair_stats(
             b.shape()
         )));
     }
-    let (a, b) = (contiguous(&a), contiguous(&b));
+    let (a, b) = (contiguous(&a)?, contiguous(&b)?);
     let s = detached(py, || pair_stats(&a, &b))?;
     Ok((s.mean, s.temporal_variance, s.spatial_variance))
 }
@@ -208,7 +208,7 @@ impl NativeSensor {
                 )))
             }
         };
-        let src = contiguous(&arr);
+        let src = contiguous(&arr)?;
         detached_into(py, &[h, w], |out| self.0.capture_rates(&src, w, h, out))
     }
 
@@ -234,7 +234,7 @@ impl NativeSensor {
         }
         let p = pattern_arg(pattern)?;
         let f = falloff_arg(falloff)?;
-        let src = contiguous(&arr);
+        let src = contiguous(&arr)?;
         detached_into(py, &[h, w], |out| {
             self.0
                 .capture_spectral(&src, w, h, l, &resp, &p, f.as_ref(), out)
@@ -263,7 +263,7 @@ impl NativeSensor {
         let m: [f64; 9] = m.try_into().expect("checked shape (3, 3)");
         let p = pattern_arg(pattern)?;
         let f = falloff_arg(falloff)?;
-        let src = contiguous(&arr);
+        let src = contiguous(&arr)?;
         detached_into(py, &[h, w], |out| {
             self.0.capture_rgb(&src, w, h, &m, &p, f.as_ref(), out)
         })
