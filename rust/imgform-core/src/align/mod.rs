@@ -324,9 +324,19 @@ fn level_surface<S: Rows>(r: &S, m: &S, opts: &Options, cands: Candidates) -> Ve
 /// Offset of the vertex of the parabola through `(-1, m)`, `(0, c)`, `(1, p)`
 /// from 0, in `[-0.5, 0.5]`; 0 when a neighbour is missing or the parabola
 /// does not open the way the metric's optimum does (a plateau, a ridge).
+///
+/// SSD's scores are distances, the square roots of the sums, whose surface
+/// is a V at its minimum: a parabola through them pulls the vertex towards
+/// the integer shift (2.166 for 2.25). It goes through the sums themselves,
+/// which a small shift of a smooth image changes quadratically.
 fn vertex(m: Option<f64>, c: f64, p: Option<f64>, metric: Metric) -> f64 {
     let (Some(m), Some(p)) = (m, p) else {
         return 0.0;
+    };
+    let (m, c, p) = if metric == Metric::Ssd {
+        (m * m, c * c, p * p)
+    } else {
+        (m, c, p)
     };
     let curvature = m - 2.0 * c + p;
     let opens = if metric.higher_is_better() {
