@@ -3,6 +3,7 @@ maps and gains against lensfunpy's, matching, and develop / CLI integration."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -189,6 +190,16 @@ def test_positions_are_point_symmetric_about_the_centre(k1, kr, w, h) -> None:
 def test_a_profile_without_models_changes_nothing() -> None:
     img = np.random.default_rng(1).integers(0, 65535, (30, 40, 3), dtype=np.uint16)
     assert np.array_equal(_synthetic().correct(img), img)
+    # Nothing to correct still gives a new array of a checked image: it gave
+    # the caller's own array back, strided views and float64 included.
+    shaded = _synthetic(distortion=("poly3", (-0.05,)), vignetting=(-0.3, 0.0, 0.0))
+    for profile, kwargs in ((_synthetic(), {}), (shaded, dict(geometry=False, vignetting=False))):
+        view = img[:, ::2]
+        out = profile.correct(view, **kwargs)
+        assert out.flags.c_contiguous and not np.shares_memory(out, view)
+        np.testing.assert_array_equal(out, view)
+        with pytest.raises(TypeError, match="uint8, uint16 or float32"):
+            profile.correct(img.astype(np.float64), **kwargs)
     pos = _synthetic().positions(40, 30)
     np.testing.assert_allclose(pos[5, 7, 2], [7, 5], atol=1e-9)
 
@@ -317,6 +328,22 @@ def test_without_aperture_vignetting_is_skipped_and_reported() -> None:
     m = find_profile("EF-S 18-55mm f/3.5-5.6 IS", ("Canon", "Canon EOS 550D"), focal_length=24)
     assert m.profile is not None and m.profile.vignetting is None
     assert "aperture unknown" in m.report()
+
+
+@pytest.mark.parametrize(
+    ("setting", "why"),
+    [
+        (dict(aperture=1.0), "does not reach f/1$"),
+        (dict(aperture=8.0, distance=0.01), "does not reach f/8 focused at 0.01 m$"),
+    ],
+)
+def test_a_setting_beyond_the_vignetting_calibration_is_reported(setting, why) -> None:
+    """It used to drop the vignetting correction without a word."""
+    lens, camera = "EF-S 18-55mm f/3.5-5.6 IS", ("Canon", "Canon EOS 550D")
+    m = find_profile(lens, camera, focal_length=35, **setting)
+    assert m.profile is not None and m.profile.vignetting is None
+    assert re.search("vignetting skipped: its calibration " + why, m.reason)
+    assert find_profile(lens, camera, focal_length=35, aperture=8.0).profile.vignetting
 
 
 def test_matching_is_deterministic() -> None:

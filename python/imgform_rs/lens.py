@@ -44,7 +44,7 @@ import glob
 import math
 import os
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -253,14 +253,18 @@ class LensProfile:
         (True, 1.0)
         """
         h, w = np.shape(image)[:2]
-        native = self.native(w, h)
         devignette = vignetting and self.vignetting is not None
         fill_value = real(fill, "fill")
         if geometry and self.corrects_geometry:
             # One pass: each sample is read at its position and multiplied
             # by the vignetting gain there.
+            native = self.native(w, h)
             return native.correct_geometry(image, interpolation, fill_value, devignette, out=out)
-        result = native.devignette(image, np.zeros((1, 1))) if devignette else image
+        # Vignetting alone, or nothing to do: the devignetting pass, with a
+        # gain of 1 for nothing, so the result is a new array (or ``out``)
+        # of an image checked as every other path checks it.
+        plain = self if devignette else replace(self, vignetting=None)
+        result = plain.native(w, h).devignette(image, np.zeros((1, 1)))
         return result if out is None else _samples.fill_out(out, result, np.asarray(image))
 
     def describe(self) -> str:
@@ -457,6 +461,9 @@ def find_profile(
     notes = [n for n in (note, lens_note) if n]
     if not ap and chosen.calib_vignetting:
         notes.append("vignetting skipped: aperture unknown")
+    elif vig is None and chosen.calib_vignetting:
+        at = f" focused at {dist:g} m" if distance else ""
+        notes.append(f"vignetting skipped: its calibration does not reach f/{ap:g}{at}")
     key = (chosen.maker, chosen.model, _crop_key(chosen.crop_factor))
     profile = LensProfile(
         lens=_name(chosen),
