@@ -625,6 +625,23 @@ def test_default_search_range_covers_15_percent_of_the_channel():
     assert shifts == {"r": (20, -19), "g": far, "b": (0, 0)}
 
 
+@pytest.mark.parametrize("rows", [16, 17, 18, 25])
+@pytest.mark.parametrize("crop", [0.0, 0.1, 0.3])
+def test_the_default_search_range_is_one_align_takes(rows, crop):
+    """A floor of 15 on channels of 16 or 17 rows: align refused the
+    max_shift=15 that colorize_plate chose, naming a parameter never given."""
+    chan = (smooth_field(rows, rows, 60) * 255).astype(np.uint8)
+    k = default_max_shift(rows, 60, crop)
+    assert ig.align(chan, chan, max_shift=k, crop=crop).shift == (0, 0)
+    if k < 15:  # cut by the overlap: one more is refused
+        with pytest.raises(ValueError, match="too small for max_shift"):
+            ig.align(chan, chan, max_shift=k + 1, crop=crop)
+    plate = np.concatenate([chan, chan, chan])
+    rgb, shifts = ig.colorize_plate(plate, frame=False, crop=crop)
+    assert rgb.shape == (rows, 60, 3)
+    assert shifts == {"r": (0, 0), "g": (0, 0), "b": (0, 0)}
+
+
 def test_frame_detection_reads_full_resolution_rows_of_a_large_plate():
     """On a plate large enough for the sampled statistics (step 2), the crop
     still falls on the exact full-resolution rows and columns of the frame."""

@@ -44,6 +44,8 @@ LOW_CORRELATION = 0.3
 #: channel's shorter side: the exposures of a real plate are rarely more
 #: than ~6 % apart, and 20 % leaves room for any scan's cropping.
 DEFAULT_RANGE = 0.2
+#: Rows and columns the smallest overlap of a search keeps (the core's).
+MIN_OVERLAP = 2
 
 
 #: :func:`align`'s default most Gauss-Newton steps per ECC pyramid level.
@@ -708,7 +710,7 @@ def _colorize(
     features = _resolve_features(features, motion)
     h = arr.shape[0] // 3
     chans = {"b": arr[:h], "g": arr[h : 2 * h], "r": arr[2 * h : 3 * h]}
-    k = default_max_shift(h, arr.shape[1]) if max_shift is None else max_shift
+    k = default_max_shift(h, arr.shape[1], crop) if max_shift is None else max_shift
     ref = chans[reference]
     others = [c for c in "rgb" if c != reference]
     search = {"max_shift": k, "metric": metric, "crop": crop, "pyramid": pyramid}
@@ -789,11 +791,19 @@ def describe_estimate(found: tuple | Alignment) -> str:
     return f"{text} (LOW CONFIDENCE: {why})"
 
 
-def default_max_shift(height: int, width: int) -> int:
+def default_max_shift(height: int, width: int, crop: float = 0.1) -> int:
     """:func:`colorize_plate`'s search range for channels of ``height x
     width``: ``DEFAULT_RANGE`` of the shorter side (at least 15), so any shift
-    a real plate has is inside it; the pyramid keeps the wide range cheap."""
-    return min(max(15, round(DEFAULT_RANGE * min(height, width))), min(height, width) - 1)
+    a real plate has is inside it; the pyramid keeps the wide range cheap.
+
+    Never more than :func:`align` takes with ``crop``: the overlap of its
+    largest shift with the cropped window must keep :data:`MIN_OVERLAP`
+    rows and columns, which the floor of 15 broke on channels of fewer than
+    ~20 rows (align then refused a ``max_shift`` the caller never gave)."""
+    crop = real(crop, "crop")
+    wanted = max(15, round(DEFAULT_RANGE * min(height, width)))
+    fits = min(n - math.floor(crop * n) - MIN_OVERLAP for n in (height, width))
+    return max(0, min(wanted, min(height, width) - 1, fits))
 
 
 def _common_area(h: int, w: int, shifts) -> tuple[slice, slice]:
