@@ -383,6 +383,15 @@ def test_fractional_apply_shift_interpolates_bilinearly():
         ig.apply_shift(img, (1.0, np.nan))
 
 
+def test_a_nan_of_the_image_stays_nan_where_it_is_read_and_only_outside_is_fill():
+    """NaN marked the taps from outside, so every pixel that read the
+    image's own NaN became ``fill`` too."""
+    row = np.array([[1.0, np.nan, 3.0, 4.0, 5.0]])
+    got = ig.apply_shift(row, (0, 0.5), fill=-1)
+    np.testing.assert_array_equal(got, [[-1.0, np.nan, np.nan, 3.5, 4.5]])
+    np.testing.assert_array_equal(ig.apply_shift(row, (0, 1), fill=-1), [[-1, 1, np.nan, 3, 4]])
+
+
 @pytest.mark.parametrize("shift", [(1, 0), (1.5, 0)])
 def test_apply_shift_refuses_a_fill_the_dtype_cannot_hold(shift):
     """-1 on uint8 was an OverflowError for an integer shift and became 0

@@ -498,13 +498,17 @@ def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
     ty, tx = dy - fy, dx - fx
     src = img.astype(np.float64)
     acc = np.zeros_like(src)
-    # out(y) = (1 - ty) img(y - fy) + ty img(y - fy - 1), and likewise in x;
-    # NaN marks the samples that came from outside.
+    # out(y) = (1 - ty) img(y - fy) + ty img(y - fy - 1), and likewise in x.
+    # A mask of the image marks the taps from outside (a NaN of the image's
+    # own stays NaN where it is read).
+    inside = np.ones(img.shape, bool)
+    outside = np.zeros(img.shape, bool)
     for oy, wy in ((fy, 1.0 - ty), (fy + 1, ty)):
         for ox, wx in ((fx, 1.0 - tx), (fx + 1, tx)):
             if wy * wx > 0.0:
-                acc += wy * wx * _roll_fill(src, oy, ox, np.nan)
-    acc[np.isnan(acc)] = fill
+                acc += wy * wx * _roll_fill(src, oy, ox, 0.0)
+                outside |= ~_roll_fill(inside, oy, ox, False)
+    acc[outside] = fill
     if img.dtype.kind in "iu":
         info = np.iinfo(img.dtype)
         acc = np.clip(np.floor(acc + 0.5), info.min, info.max)
