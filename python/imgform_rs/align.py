@@ -527,6 +527,7 @@ def apply_warp(
     image : ndarray (H, W) or (H, W, C), uint8, uint16 or float32
     matrix : array_like, shape (2, 3)
     fill : number
+        As in :func:`imgform_rs.remap`: finite, held exactly by the dtype.
     interpolation : {"bilinear", "bicubic"}
 
     Returns

@@ -70,7 +70,8 @@ def add_lateral_ca(
     interpolation : {"bilinear", "bicubic"}
     fill : float
         Value read outside the image (where a channel shrinks, ``scale < 1``,
-        its outermost ring samples beyond the edge).
+        its outermost ring samples beyond the edge); finite, held exactly by
+        the dtype, as in :func:`imgform_rs.remap`.
 
     Returns
     -------

@@ -230,7 +230,9 @@ class LensProfile:
             Which corrections to apply (those the profile has).
         interpolation : {"bilinear", "bicubic"}
         fill : float
-            Value read outside the source (the border pincushion correction leaves).
+            Value read outside the source (the border pincushion correction
+            leaves); finite, held exactly by the dtype, as in
+            :func:`imgform_rs.remap`.
         out : ndarray, optional
             Where to write the result, returned instead of a new array: the
             image's shape and dtype, C-contiguous, writeable, sharing no

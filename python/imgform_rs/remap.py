@@ -190,8 +190,9 @@ def remap(
         float planes are converted once (build a :class:`RemapMap` to reuse).
     interpolation : {"bilinear", "bicubic"}
     fill : float
-        Value of taps outside the image; must be representable in the
-        image's dtype (e.g. an integer 0..255 for uint8).
+        Value of taps outside the image; a finite value the image's dtype
+        holds exactly (an integer 0..255 for uint8; not NaN: the kernels
+        weigh every tap, and a NaN tap would spread into its neighbours).
 
     Returns
     -------
