@@ -17,6 +17,7 @@ import imgform_rs as ig
 from conftest import shared_path
 from imgform_rs._exif import exif_bytes
 from imgform_rs._icc import icc_profile
+from imgform_rs._png import read_image
 from imgform_rs.colorspace import COLOR_SPACES
 from imgform_rs.develop import _orient
 from imgform_rs.dng import write_dng
@@ -116,6 +117,19 @@ def test_text_beyond_ascii_keeps_its_utf8_bytes(tmp_path, name):
         kind, count, _ = ifd_entries(tiff, sub)[42036]
         assert (kind, count) == (2, len(shot.lens.encode()) + 1)
         assert exif.get_ifd(0x8769)[42036].encode("latin-1").decode() == shot.lens
+
+
+@pytest.mark.parametrize("name", ["a.png", "a.tif"])
+@pytest.mark.parametrize("dtype", [">u2", ">f4"])
+def test_big_endian_samples_are_written_as_the_values_they_hold(tmp_path, name, dtype):
+    """They were refused as not being the uint16 or float32 they are."""
+    img = rgb(np.dtype(dtype).newbyteorder("=").type, 6, 8)
+    if name == "a.png" and img.dtype.kind == "f":
+        img = (img * 65535).astype(np.uint16)  # PNG writes floats as 16 bits
+    swapped = img.astype(img.dtype.newbyteorder(">"))
+    path = ig.write_image(tmp_path / name, swapped, tone="linear")
+    back = tifffile.imread(path) if name == "a.tif" else np.asarray(read_image(path))
+    np.testing.assert_array_equal(back, img)
 
 
 def test_exif_numbers_are_rationals_and_the_exif_ifd_has_its_version(tmp_path):
@@ -333,8 +347,6 @@ def test_any_name_the_file_system_takes_is_written(tmp_path, stem, suffix):
 
 @pytest.mark.parametrize("flip", range(8))
 def test_a_16_bit_colour_png_comes_upright_as_an_8_bit_one_does(tmp_path, flip):
-    from imgform_rs._png import read_image
-
     img = rgb(np.uint8, 6, 8, seed=flip)
     exif = exif_bytes(SHOT, flip, oriented=False)
     eight = ig.write_image(tmp_path / "eight.png", img, exif=exif)

@@ -46,6 +46,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _exif
+from ._arrays import native
 from ._icc import icc_profile
 from ._png import write_png
 
@@ -451,7 +452,7 @@ def write_image(
     quality = check_quality(quality)
     if exif is not None:
         exif = _check_exif(exif)
-    img = np.asarray(image)
+    img = native(image)  # big-endian samples: the values they hold
     if exif is not None and kind in ("jpeg", "png") and img.ndim in (2, 3):
         srgb = color == "srgb" and _tone_for(color, tone) == "srgb"
         height, width = img.shape[:2]
