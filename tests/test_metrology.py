@@ -187,6 +187,19 @@ def test_parallel_lines_at_infinity():
     assert h == pytest.approx(0.7, rel=1e-12)
 
 
+@pytest.mark.parametrize("size", [1.0, 1e3, 1e9])
+def test_lines_at_infinity_is_a_matter_of_angle_not_of_pixels(size):
+    """Two lines of an image ``size`` wide meeting at 1e-8 rad meet at a point
+    5e7 widths away; the test was made on pixel coordinates, so at 1000 px
+    that point counted as at infinity, and a scaled image changed the answer."""
+    for angle, far in ((1e-8, False), (1e-12, True)):
+        segs = np.array([[0, 0.4, 1, 0.4], [0, 0.6, 1, 0.6 - np.tan(angle)]]) * size
+        fit = ig.fit_vanishing_point(segs, allow_infinite=True)
+        assert fit.at_infinity == far
+        if not far:
+            np.testing.assert_allclose(fit.point / size, [0.2 / angle, 0.4], rtol=1e-6)
+
+
 def test_vectorised_heights_match_one_by_one():
     rng = np.random.default_rng(0)
     base = rng.uniform(0, 640, (20, 2)) + [0, 300]

@@ -405,7 +405,10 @@ pub fn fit_vanishing_point(segments: &[f64], opts: &FitOptions) -> Result<Vanish
     }
     check_determined(count, jj, threshold)?;
     let residual = (cost(&segs, &inliers, v) / count as f64).sqrt() / frame.s;
-    let (homogeneous, at_infinity) = pixel_point(frame.to_pixels(v));
+    // Decided in the normalised frame, where the tolerance means an angle
+    // between the image lines: in pixels it would scale with the image.
+    let at_infinity = v[2].abs() <= INFINITY_TOLERANCE * norm(v);
+    let homogeneous = pixel_point(frame.to_pixels(v), at_infinity);
     if at_infinity && !opts.allow_infinite {
         return Err(invalid!(
             "the segments are parallel in the image: their vanishing point is at infinity, in direction ({:.6}, {:.6}); pass allow_infinite=True to get it as a homogeneous direction",
@@ -441,11 +444,11 @@ fn check_determined(count: usize, jj: [f64; 3], threshold: f64) -> Result<()> {
     Ok(())
 }
 
-/// Canonical pixel form of a homogeneous point: `(u, v, 1)`, or a unit
-/// direction `(du, dv, 0)` with `du > 0` (or `dv > 0` when `du = 0`).
-fn pixel_point(p: Vec3) -> (Vec3, bool) {
-    if p[2].abs() > INFINITY_TOLERANCE * norm(p) {
-        return ([p[0] / p[2], p[1] / p[2], 1.0], false);
+/// Canonical pixel form of a homogeneous point: `(u, v, 1)`, or, `at_infinity`,
+/// a unit direction `(du, dv, 0)` with `du > 0` (or `dv > 0` when `du = 0`).
+fn pixel_point(p: Vec3, at_infinity: bool) -> Vec3 {
+    if !at_infinity {
+        return [p[0] / p[2], p[1] / p[2], 1.0];
     }
     let len = p[0].hypot(p[1]);
     let sign = if p[0] > 0.0 || (p[0] == 0.0 && p[1] > 0.0) {
@@ -453,7 +456,7 @@ fn pixel_point(p: Vec3) -> (Vec3, bool) {
     } else {
         -1.0
     };
-    ([sign * p[0] / len, sign * p[1] / len, 0.0], true)
+    [sign * p[0] / len, sign * p[1] / len, 0.0]
 }
 
 #[cfg(test)]
