@@ -87,3 +87,21 @@ def test_the_horizon_matches_a_heavily_supersampled_reference():
     # differs from it by 0.014).
     assert err_ours < 0.02, err_ours
     assert err_ours < 0.15 * err_2x2, (err_ours, err_2x2)
+
+
+def test_the_ground_is_met_only_ahead_of_a_ray():
+    """From below the ground, a ray going down used to hit it at a negative
+    distance, and render gave negative depths."""
+    import imgform_rs as ig
+
+    down = np.array([[0.0, -0.5, np.sqrt(0.75)]])
+    colour, distance = scene.shade(np.array([0.0, -1.0, 0.0]), down)
+    assert distance[0] == np.inf
+    np.testing.assert_allclose(colour[0], (0.55 - 0.45 * 0.5) * np.array([0.55, 0.75, 1.0]))
+    cam = ig.Camera.from_fov(0.8, (12, 16)).look_at([0, -1.0, -3.0], [0, -2, 9.0])
+    px = np.stack(np.meshgrid(np.arange(16.0), np.arange(12.0)), -1).reshape(-1, 2)
+    colours, depths = scene.render(cam, px)
+    assert (depths > 0).all()
+    one = scene.render(cam, px[20])  # one pixel, as the point sets take it
+    assert one[0].shape == (3,) and one[1] == depths[20]
+    np.testing.assert_array_equal(one[0], colours[20])

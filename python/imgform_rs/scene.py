@@ -203,7 +203,10 @@ def shade(
     """
     t_box, which, normal = _hit_boxes(origin, dirs)
     with np.errstate(divide="ignore", invalid="ignore"):
-        t_ground = np.where(dirs[:, 1] < 0, -origin[1] / dirs[:, 1], np.inf)
+        t_ground = -origin[1] / dirs[:, 1]
+    # Ahead of the ray only: from below the ground, a ray going down never
+    # meets it (its negative distance used to paint it).
+    t_ground = np.where(t_ground > 0, t_ground, np.inf)
     ground = t_ground < t_box
     t = np.minimum(t_box, t_ground)
     sky = np.clip(0.55 + 0.45 * dirs[:, 1:2], 0, 1) * np.array([0.55, 0.75, 1.0])
@@ -226,11 +229,16 @@ def shade(
 def render(camera: Any, pixels: Float64Array) -> tuple[Float64Array, Float64Array]:
     """Colour (N, 3) in [0, 1] and z-depth (N,) (m; inf for sky) of the scene
     seen by ``camera`` (an :class:`imgform_rs.Camera`) through ``pixels``
-    (N, 2), the ground's texture averaged over each pixel's footprint.
+    (N, 2), the ground's texture averaged over each pixel's footprint; one
+    pixel (2,) gives a colour (3,) and a depth.
 
     The footprint comes from the rays through the next column and the next
     row (:func:`shade`'s ``footprint``), so lens distortion shapes it too.
     """
+    pixels = np.asarray(pixels, np.float64)
+    if pixels.shape == (2,):  # one pixel, as the point sets take it
+        colour, depth = render(camera, pixels[None])
+        return colour[0], depth[0]
     rays = camera.rays(pixels)
     d_du, d_dv = (camera.rays(pixels + step) - rays for step in ((1.0, 0.0), (0.0, 1.0)))
     colour, dist = shade(camera.center, rays, (d_du, d_dv))
