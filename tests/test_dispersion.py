@@ -150,6 +150,27 @@ def test_each_wavelength_is_defocused_and_magnified_by_its_focal_length():
         assert (right.sum(axis=0) * columns).sum() / right.sum() == pytest.approx(50.0, abs=1e-3)
 
 
+def test_one_wavelength_renders_as_it_does_among_others():
+    """A monochromatic render was refused as a grid of one sample."""
+    glass = Glass.from_abbe(1.5168, 64.17)
+    args = dict(f_d=50.0, N=4.0, focus_distance=2000.0, depth=2000.0, pixel_pitch=0.05)
+    every = render_dispersion(_two_points(), [400.0, LINE_D, 700.0], glass, **args)
+    one = render_dispersion(np.ascontiguousarray(_two_points()[:, :, :1]), [400.0], glass, **args)
+    np.testing.assert_array_equal(one[:, :, 0], every[:, :, 0])
+    with pytest.raises(ValueError, match="finite and > 0 nm"):
+        render_dispersion(_two_points()[:, :, :1], [-400.0], glass, **args)
+    with pytest.raises(TypeError, match="lateral must be a bool"):
+        render_dispersion(_two_points(), [400.0, 500.0, 600.0], glass, **args, lateral="no")
+
+
+def test_a_glass_is_the_same_whatever_sequence_holds_its_coefficients():
+    listed = Glass("cauchy", [1.5, 0.01])
+    assert listed == Glass("cauchy", (1.5, 0.01)) and hash(listed) == hash(
+        Glass("cauchy", (1.5, 0.01))
+    )
+    assert Glass("cauchy", np.array([1.5, 0.01])).coefficients == (1.5, 0.01)
+
+
 def test_render_dispersion_refuses_bad_input_by_name():
     glass = Glass.from_abbe(1.5168, 64.17)
     args = dict(f_d=50.0, N=4.0, focus_distance=2000.0, depth=2000.0, pixel_pitch=0.05)

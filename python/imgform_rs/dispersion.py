@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ._arrays import Float64Array, as_float_array, real
+from ._arrays import Float64Array, as_float_array, flag, real
 from .optics import image_distance, render_defocus
 from .remap import remap
 
@@ -71,6 +71,9 @@ class Glass:
             raise ValueError(
                 f"Sellmeier coefficients must be finite and >= 0, got {coeffs.tolist()}"
             )
+        # Held as a tuple of floats however given: a list made the glass
+        # unhashable and unequal to the same glass built from a tuple.
+        object.__setattr__(self, "coefficients", tuple(coeffs.tolist()))
         # A glass bends light at the d line, where catalogues measure it:
         # an index of 1 there made focal lengths NaN.
         self.index(LINE_D)
@@ -182,6 +185,20 @@ def _check_radiance(cube: npt.NDArray[np.float32]) -> None:
         )
 
 
+def _grid(wavelengths: Any) -> Float64Array:
+    """The wavelengths of a render: a grid as :func:`imgform_rs.spectral.
+    check_wavelengths` takes it, or one wavelength (a monochromatic render:
+    each wavelength is rendered on its own, so one needs no grid)."""
+    from .spectral import check_wavelengths
+
+    wl = as_float_array(wavelengths, "wavelengths")
+    if wl.shape != (1,):
+        return check_wavelengths(wl)
+    if not (np.isfinite(wl[0]) and wl[0] > 0):
+        raise ValueError(f"a wavelength must be finite and > 0 nm, got {wl[0]!r}")
+    return wl
+
+
 def render_dispersion(
     radiance: npt.NDArray[np.float32],
     wavelengths: Any,
@@ -209,7 +226,7 @@ def render_dispersion(
     radiance : ndarray, float32, shape (H, W, L)
         The pinhole (all in focus, undispersed) spectral image.
     wavelengths : array_like, shape (L,)
-        Its grid, nm.
+        Its grid, nm; one wavelength (L = 1) renders monochromatic light.
     glass : Glass
     f_d, N : float
         Focal length at the d line (mm) and f-number.
@@ -234,16 +251,15 @@ def render_dispersion(
         does not match the image, a depth map of another shape, or a
         wavelength whose focal length reaches the sensor (it focuses nothing).
     """
-    from .spectral import check_wavelengths
-
     if not isinstance(glass, Glass):
         raise TypeError(f"glass must be a Glass, got {type(glass).__name__}")
+    lateral = flag(lateral, "lateral")
     cube = np.asarray(radiance)
     if cube.dtype != np.float32 or cube.ndim != 3:
         raise TypeError(
             f"radiance must be a float32 (H, W, L) array, got {cube.dtype} of shape {cube.shape}"
         )
-    wl = check_wavelengths(wavelengths)
+    wl = _grid(wavelengths)
     if wl.shape != (cube.shape[2],):
         raise ValueError(
             f"wavelengths must hold the image's {cube.shape[2]} samples, got shape {wl.shape}"
