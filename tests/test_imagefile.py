@@ -650,3 +650,19 @@ def test_a_replaced_file_keeps_its_permissions_and_a_link_stays_a_link(tmp_path)
     with Image.open(real) as im:
         np.testing.assert_array_equal(np.asarray(im), new)
     assert sorted(os.listdir(tmp_path)) == ["link.png", "real.png"]
+
+
+def test_a_folder_or_a_loop_of_links_is_refused_naming_the_target(tmp_path, monkeypatch):
+    """A folder was found only after the whole image was encoded, and the
+    error named the hidden partial file; a loop of links was a RuntimeError."""
+    import imgform_rs._imagefile as imagefile
+
+    (tmp_path / "dir.png").mkdir()
+    (tmp_path / "loop.png").symlink_to("loop.png")
+    encoded = []
+    monkeypatch.setattr(imagefile, "_pillow", lambda *a: encoded.append(a))
+    with pytest.raises(IsADirectoryError, match=r"dir\.png'$"):
+        ig.write_image(tmp_path / "dir.png", rgb(np.uint8), overwrite=True)
+    with pytest.raises(OSError, match=r"symbolic links: '.*loop\.png'$"):
+        ig.write_image(tmp_path / "loop.png", rgb(np.uint8), overwrite=True)
+    assert encoded == [] and sorted(os.listdir(tmp_path)) == ["dir.png", "loop.png"]

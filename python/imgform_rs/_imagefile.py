@@ -34,6 +34,7 @@ file whole. The limits we know are checked before that, with a clear error.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import numbers
 import os
@@ -337,8 +338,15 @@ def partial_stem(target: Path) -> str:
 def landing(target: Path) -> Path:
     """Where a file written to ``target`` lands: through a symbolic link to
     the file it names (as ``open`` writes), so that replacing a linked file
-    keeps the link, and the partial file beside it is on its file system."""
-    return target.resolve() if target.is_symlink() else target
+    keeps the link, and the partial file beside it is on its file system.
+    A loop of links is the ``OSError`` that ``open`` raises (Python 3.11's
+    ``resolve`` raises ``RuntimeError``)."""
+    if not target.is_symlink():
+        return target
+    try:
+        return target.resolve()
+    except RuntimeError:
+        raise OSError(errno.ELOOP, os.strerror(errno.ELOOP), str(target)) from None
 
 
 def replace_onto(partial: Path, dest: Path) -> None:
@@ -462,6 +470,8 @@ def write_image(
         check_exr(color, _tone_for(color, tone), exif)
     if target.exists() and not overwrite:
         raise FileExistsError(f"{target} exists (pass overwrite=True to replace it)")
+    if target.is_dir():  # found now, not after the whole image is encoded
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file to replace", str(target))
     grey = img.ndim == 2
     icc = None if kind == "exr" else icc_profile(color, _tone_for(color, tone), grey=grey)
     dest = landing(target)
