@@ -265,6 +265,9 @@ def test_bad_alphas_and_native_shapes_are_refused():
         ig.focal_stack(lf, [])
     with pytest.raises(ValueError, match="finite"):
         ig.focal_stack(lf, [0.0, np.nan])
+    # A 2-D array of disparities was flattened into frames.
+    with pytest.raises(ValueError, match=r"1-D sequence of disparities, got shape \(2, 2\)"):
+        ig.focal_stack(lf, [[0, 1], [2, 3]])
     views = np.zeros((3 * 3 * 4 + 1, 5, 1), np.uint8)
     with pytest.raises(ValueError, match="views of equal height"):
         _native.focal_stack(views, (3, 3), [0.0], [True] * 9)
@@ -314,6 +317,15 @@ def test_view_disparity_needs_a_camera():
     # Before: AttributeError: 'str' object has no attribute 'K'.
     with pytest.raises(TypeError, match=r"camera must be an imgform_rs\.Camera, got str"):
         ig.view_disparity("pinhole", BASELINE, 2.0)
+
+
+def test_render_light_field_takes_a_grid_of_numpy_ints():
+    """The error said a NumPy pair was not "a pair (U, V) of integers"."""
+    args = {"camera": camera(), "baseline": 0.02}
+    np.testing.assert_array_equal(
+        ig.render_light_field(scene, grid=np.array([2, 2]), **args),
+        ig.render_light_field(scene, grid=(2, 2), **args),
+    )
 
 
 @pytest.mark.parametrize(

@@ -55,6 +55,8 @@ def _positive_int(value: Any, name: str) -> int:
 
 
 def _grid(grid: Any) -> tuple[int, int]:
+    if isinstance(grid, np.ndarray) and grid.ndim == 1:
+        grid = grid.tolist()  # its NumPy ints pass as ints
     if not isinstance(grid, Sequence) or len(grid) != 2:
         raise ValueError(f"grid must be a pair (U, V) of integers >= 1, got {grid!r}")
     return _positive_int(grid[0], "grid[0]"), _positive_int(grid[1], "grid[1]")
@@ -340,6 +342,8 @@ def focal_stack(light_field: Image, alphas: Any, *, aperture: Any = None) -> Ima
     if given.dtype.kind not in "iuf":
         # np.asarray(..., float64) would read the string "1" as 1.0.
         raise TypeError(f"alphas must be numbers, got {alphas!r}")
+    if given.ndim > 1:
+        raise ValueError(f"alphas must be a 1-D sequence of disparities, got shape {given.shape}")
     alpha_list = given.astype(np.float64).ravel()
     if alpha_list.size == 0:
         raise ValueError("alphas must hold at least one disparity, got none")
