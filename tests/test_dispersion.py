@@ -24,10 +24,32 @@ BK7 = Glass.from_sellmeier(
     [1.03961212, 0.231792344, 1.01046945], [0.00600069867, 0.0200179144, 103.560653]
 )
 
+# Schott F2's (the same datasheet facts).
+F2 = Glass.from_sellmeier(
+    [1.34533359, 0.209073176, 0.937357162], [0.00997743871, 0.0470450767, 111.886764]
+)
+
 
 def test_sellmeier_bk7_has_its_catalogue_index_and_abbe_number():
     assert float(BK7.index(LINE_D)) == pytest.approx(1.5168, abs=1e-4)
     assert BK7.abbe_number == pytest.approx(64.17, abs=0.05)
+    assert float(F2.index(LINE_D)) == pytest.approx(1.62004, abs=1e-4)
+    assert F2.abbe_number == pytest.approx(36.37, abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("glass", "shifts"),
+    [
+        (BK7, (-1.32, 0.36)),
+        (Glass.from_abbe(1.5168, 64.17), (-1.33, 0.35)),
+        (F2, (-2.46, 0.61)),
+        (Glass.from_abbe(1.62004, 36.37), (-2.30, 0.62)),
+    ],
+)
+def test_the_guides_focal_shifts_of_a_50_mm_singlet(glass, shifts):
+    """docs/guide/spectral.rst quotes these, at 400 and 700 nm (its F2 figures
+    were the (n_d, V_d) glass's, beside N-BK7's from Sellmeier)."""
+    np.testing.assert_allclose(focal_shift(glass, [400.0, 700.0], 50.0), shifts, atol=0.005)
 
 
 def test_the_abbe_glass_follows_the_sellmeier_glass_across_the_visible():
