@@ -101,7 +101,9 @@ def test_mosaic_is_the_masked_sum(dtype, p):
         ([[0, 1], [1, 3]], ValueError, "channel indices"),
         (np.zeros((6, 6), np.int64), ValueError, "X-Trans"),
         ([[0.0, 1.0], [1.0, 2.0]], TypeError, "got dtype float64"),
-        (3, ValueError, r"shape .*got \[\]"),
+        (3, TypeError, "got the scalar 3"),
+        # Beyond int64: the message named the wrapped value (-1).
+        (np.array([[2**64 - 1, 1], [1, 2]], np.uint64), ValueError, "got 18446744073709551615"),
     ],
 )
 def test_bad_patterns_say_what_is_accepted(pattern, exc, match):
@@ -127,9 +129,10 @@ def test_bad_images_say_what_is_accepted(rgb, exc, match):
         ig.mosaic(rgb, "RGGB")
 
 
-def test_channel_masks_checks_its_shape():
-    with pytest.raises(ValueError, match="two positive ints"):
-        ig.channel_masks((0, 3), "RGGB")
+@pytest.mark.parametrize("shape", [(0, 3), (True, 5), (10**20, 5), (2.0, 3), [4]])
+def test_channel_masks_checks_its_shape(shape):
+    with pytest.raises(ValueError, match=r"shape must be a tuple \(H, W\) of two ints"):
+        ig.channel_masks(shape, "RGGB")
 
 
 def test_sensor_levels_noise_and_seed():
@@ -230,6 +233,9 @@ def test_pattern_from_rawpy_refuses_other_colours():
         color_desc = b"CMYG"
 
     with pytest.raises(ValueError, match="only R, G, B"):
+        ig.pattern_from_rawpy(Cmyg())
+    Cmyg.raw_pattern = np.array([[0, 1], [4, 2]], np.uint8)  # an IndexError before
+    with pytest.raises(ValueError, match="raw_pattern names colour 4, but color_desc 'CMYG'"):
         ig.pattern_from_rawpy(Cmyg())
 
 

@@ -24,6 +24,8 @@ SampleT = TypeVar("SampleT", np.uint8, np.uint16, np.float32)
 AnySampleT = TypeVar("AnySampleT", bound=np.number[Any])
 
 _CHANNEL_OF_LETTER = {"R": 0, "G": 1, "B": 2}
+#: The longest side an array can have.
+_MAX_SIDE = int(np.iinfo(np.intp).max)
 
 
 def as_pattern(pattern: Any) -> str | npt.NDArray[np.int64]:
@@ -42,10 +44,15 @@ def as_pattern(pattern: Any) -> str | npt.NDArray[np.int64]:
     if isinstance(pattern, str):
         return pattern
     arr = np.asarray(pattern)
-    if arr.dtype.kind not in "iu":
+    if arr.dtype.kind not in "iu" or arr.ndim == 0:
+        got = f"dtype {arr.dtype}" if arr.ndim else f"the scalar {pattern!r}"
         raise TypeError(
-            "a CFA pattern array must hold integer channel indices 0=R, 1=G, 2=B, "
-            f"got dtype {arr.dtype}"
+            "a CFA pattern must be a name or an array of integer channel indices "
+            f"0=R, 1=G, 2=B, got {got}"
+        )
+    if arr.size and arr.max() > 2:  # before int64, which would wrap 2**63 and above
+        raise ValueError(
+            f"a CFA pattern array must hold channel indices 0=R, 1=G, 2=B, got {arr.max()}"
         )
     return np.asarray(arr, dtype=np.int64, order="C")
 
@@ -149,6 +156,11 @@ def pattern_from_rawpy(raw: Any) -> str | npt.NDArray[np.uint8]:
         raise ValueError("this raw file has no colour filter array (raw_pattern is None)")
     desc = raw.color_desc.decode("ascii") if isinstance(raw.color_desc, bytes) else raw.color_desc
     tile = np.asarray(tile)
+    beyond = [int(i) for i in tile.ravel() if not 0 <= i < len(desc)]
+    if beyond:
+        raise ValueError(
+            f"raw_pattern names colour {beyond[0]}, but color_desc {desc!r} has {len(desc)} colours"
+        )
     letters = [desc[i] for i in tile.ravel()]
     unknown = sorted(set(letters) - set(_CHANNEL_OF_LETTER))
     if unknown:
@@ -225,9 +237,11 @@ def channel_masks(shape: tuple[int, int], pattern: Pattern) -> npt.NDArray[np.bo
     if (
         not isinstance(shape, (tuple, list))
         or len(shape) != 2
-        or not all(isinstance(v, (int, np.integer)) and v > 0 for v in shape)
+        or not all(is_int(v) and 0 < v <= _MAX_SIDE for v in shape)
     ):
-        raise ValueError(f"shape must be a tuple (H, W) of two positive ints, got {shape!r}")
+        raise ValueError(
+            f"shape must be a tuple (H, W) of two ints from 1 to {_MAX_SIDE}, got {shape!r}"
+        )
     return _native.channel_masks((int(shape[0]), int(shape[1])), as_pattern(pattern))
 
 

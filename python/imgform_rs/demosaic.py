@@ -306,7 +306,9 @@ XTRANS_DEMOSAIC_METHODS: tuple[str, ...] = tuple(_native.XTRANS_DEMOSAIC_METHODS
 """The methods :func:`demosaic` accepts for X-Trans mosaics."""
 
 SCALED_DEMOSAIC_METHODS: tuple[str, ...] = tuple(_native.SCALED_DEMOSAIC_METHODS)
-"""The methods whose result depends on :func:`demosaic`'s ``white_level``."""
+"""The methods whose result depends on :func:`demosaic`'s ``white_level``
+(on Bayer mosaics: the aliases ``"best"`` and ``"quality"`` are
+``"markesteijn"`` for X-Trans, which does not depend on it)."""
 
 # Any real dtype: see the Parameters of demosaic for the conversions.
 SampleT = TypeVar("SampleT", bound=np.number[Any])
