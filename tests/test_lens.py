@@ -282,6 +282,9 @@ def test_bad_profiles_and_images_raise_clear_errors() -> None:
         native.correct_geometry(np.zeros((10, 11, 3), np.uint8))
     with pytest.raises(TypeError, match="uint8, uint16 or float32"):
         native.correct_geometry(np.zeros((10, 10, 3), np.int32))
+    for size in [(3.7, 5), (True, 5), (0, 5)]:  # 3.7 was truncated to 3
+        with pytest.raises(ValueError, match="width and height must be ints >= 1"):
+            _synthetic().native(*size)
 
 
 # --- matching -----------------------------------------------------------------
@@ -301,7 +304,13 @@ def test_a_known_camera_and_lens_match_with_the_candidates_reported() -> None:
 @pytest.mark.parametrize(
     ("lens", "camera", "focal", "why"),
     [
-        ("nonexistent lens", "Canon EOS 550D", 18, "ambiguous"),
+        ("nonexistent lens", "Canon EOS 550D", 18, "not in lensfun; a loose search finds several"),
+        (
+            "EF-S 18-55mm f/3.5-5.6 IS",
+            "Nonexistent X1",
+            18,
+            "camera 'Canon Nonexistent X1' is not in",
+        ),
         ("EF-S 18-55mm f/3.5-5.6 IS", "Canon EOS 5D Mark III", 18, "not in the lensfun database"),
         ("EF-S 18-55mm f/3.5-5.6 IS", "Canon EOS 550D", 300, "outside"),
         ("EF-S 18-55mm f/3.5-5.6 IS", "Canon EOS 550D", 0, "focal length unknown"),
@@ -322,6 +331,16 @@ def test_the_full_frame_rule_keeps_aps_c_profiles_off_full_frame_cameras() -> No
         "EF-S 18-55mm f/3.5-5.6 IS", ("Canon", "Canon EOS 5D Mark III"), focal_length=18
     )
     assert m.profile is None
+
+
+def test_a_camera_is_a_name_or_a_maker_and_model_pair() -> None:
+    lens, pair = "EF-S 18-55mm f/3.5-5.6 IS", ("Canon", "Canon EOS 550D")
+    want = find_profile(lens, pair, focal_length=24)
+    # A list was read as its repr and matched only loosely.
+    assert find_profile(lens, list(pair), focal_length=24) == want
+    for bad in [("Canon", "Canon EOS 550D", "x"), ("Canon", 550), 550]:
+        with pytest.raises(TypeError, match="camera must be a model's name or a"):
+            find_profile(lens, bad, focal_length=24)
 
 
 def test_without_aperture_vignetting_is_skipped_and_reported() -> None:

@@ -51,7 +51,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _native, _samples
-from ._arrays import real
+from ._arrays import is_int, real
 from .remap import ImageT, Interpolation
 
 __all__ = ["LensMatch", "LensProfile", "find_profile", "lens_database", "match_lens"]
@@ -186,9 +186,10 @@ class LensProfile:
         (~4 ms and ~7 MB at 24 MP) serves every later image of a batch or
         sequence from that lens at that setting (a profile built with
         unhashable terms, lists, gets a new one each time)."""
+        if not (is_int(width) and is_int(height) and min(width, height) >= 1):
+            # int(3.7) would quietly size the grid for another image.
+            raise ValueError(f"width and height must be ints >= 1, got {width!r} x {height!r}")
         width, height = int(width), int(height)
-        if min(width, height) < 1:
-            raise ValueError(f"width and height must be >= 1, got {width}x{height}")
         try:
             hash(self)
         except TypeError:
@@ -350,19 +351,35 @@ def _best(entries: list[Any]) -> list[Any]:
     return sorted(entries, key=lambda e: (-e.score, e.maker, e.model))
 
 
+def _maker_model(camera: Any) -> tuple[str, str]:
+    """``camera`` as (maker, model): a pair of names, or a model's name."""
+    if isinstance(camera, str):
+        return "", camera
+    if isinstance(camera, (tuple, list)) and len(camera) == 2:
+        if all(isinstance(name, str) for name in camera):
+            return camera[0], camera[1]
+    raise TypeError(f"camera must be a model's name or a (maker, model) pair, got {camera!r}")
+
+
 def _find_camera(db: Any, maker: str, model: str) -> tuple[Any | None, str]:
     if not (maker or model):
         return None, "the file names no camera"
+    name = (maker + " " + model).strip()
     for loose in (False, True):
         found = _best(db.find_cameras(maker or None, model or None, loose_search=loose))
         if not found:
             continue
         if loose and len(found) > 1 and found[0].score == found[1].score:
-            return None, f"camera {maker} {model!r} is ambiguous in lensfun: " + ", ".join(
-                _name(c) for c in found[:3]
-            )
+            return None, _unmatched("camera", name, found)
         return found[0], "loose camera match" if loose else ""
-    return None, f"camera {(maker + ' ' + model).strip()!r} is not in the lensfun database"
+    return None, f"camera {name!r} is not in the lensfun database"
+
+
+def _unmatched(kind: str, name: str, found: list[Any]) -> str:
+    """Why a name that only a loose search found, and more than once, is not
+    taken: an unknown model's name reads as several."""
+    alike = ", ".join(_name(f) for f in found[:3])
+    return f"{kind} {name!r} is not in lensfun; a loose search finds several alike: {alike}"
 
 
 def _find_lenses(db: Any, camera: Any, lens: str) -> tuple[list[Any], str]:
@@ -372,9 +389,7 @@ def _find_lenses(db: Any, camera: Any, lens: str) -> tuple[list[Any], str]:
         if not found:
             continue
         if loose and len(found) > 1 and found[0].score == found[1].score:
-            return [], f"lens {lens!r} is ambiguous in lensfun: " + ", ".join(
-                _name(f) for f in found[:3]
-            )
+            return [], _unmatched("lens", lens, found)
         return found, "loose lens match" if loose else ""
     return [], f"lens {lens!r} is not in the lensfun database for {_name(camera)}"
 
@@ -432,12 +447,13 @@ def find_profile(
     ImportError
         lensfunpy is not installed.
     TypeError
-        A setting that is not a real number (or None for the optional ones).
+        A setting that is not a real number (or None for the optional ones),
+        or a camera that is neither a name nor a (maker, model) pair.
     """
     focal = _positive(focal_length, "focal_length")
     ap = _positive(aperture, "aperture")
     dist = _positive(distance, "distance") or _FAR
-    maker, model = camera if isinstance(camera, tuple) else ("", str(camera))
+    maker, model = _maker_model(camera)
     db = lens_database()
     cam, note = _find_camera(db, maker, model)
     searched = (maker + " " + model).strip()
