@@ -273,7 +273,7 @@ def test_bad_profiles_and_images_raise_clear_errors() -> None:
         _synthetic(tca=("poly3", (1.0, 1.0))).positions(10, 10)
     with pytest.raises(ValueError, match="crop factor"):
         _synthetic(crop_factor=0.0).positions(10, 10)
-    with pytest.raises(ValueError, match=">= 1, got -5x10"):
+    with pytest.raises(ValueError, match=">= 1, got -5 x 10"):
         _synthetic().positions(-5, 10)
     with pytest.raises(MemoryError):  # 447 GiB of positions, not a panic
         _synthetic().positions(100_000, 100_000)
