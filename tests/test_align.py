@@ -293,6 +293,10 @@ def test_bad_input_raises_clear_errors():
             ig.align(a, a, max_shift=k)
     with pytest.raises(ValueError, match="too small"):
         ig.align(a[:6, :6], a[:6, :6], max_shift=5, crop=0.1)
+    huge = a.astype(np.float64)
+    huge[3, 4] = 1e300  # reported as "holds inf" once narrowed
+    with pytest.raises(ValueError, match=r"moving holds 1e\+300 at \(3, 4\), beyond float32's"):
+        ig.align(a.astype(np.float64), huge)
     bad = a.copy()
     bad[3, 4] = np.nan
     with pytest.raises(ValueError, match=r"finite.*row 3"):

@@ -166,6 +166,13 @@ def _image(value: Any, name: str) -> np.ndarray:
     """An (H, W) uint8/uint16/float32 array; float64 is narrowed to float32."""
     arr = native(value)
     if arr.dtype == np.float64:
+        big = np.isfinite(arr) & (np.abs(arr) > np.finfo(np.float32).max)
+        if big.any():  # narrowed, it would be reported as holding inf
+            at = tuple(int(i) for i in np.argwhere(big)[0])
+            raise ValueError(
+                f"{name} holds {arr[at]:g} at {at}, beyond float32's range "
+                "(float64 images are narrowed to float32)"
+            )
         arr = arr.astype(np.float32)
     if arr.dtype not in _DTYPES:
         raise TypeError(f"{name} must be a uint8, uint16 or float32 array, got dtype {arr.dtype}")
