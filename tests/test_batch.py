@@ -406,6 +406,47 @@ def test_develop_many_matches_develop_reports_the_corrupt_file_and_resumes(tmp_p
     assert [(f.seconds, f.detail) for f in fourth.files] == made
 
 
+def test_an_interrupted_batch_reports_the_files_that_finished(tmp_path, client, raws):
+    """Ctrl-C on a cluster run wrote no report: the files done were lost to it."""
+    paths, _ = raws
+    out = tmp_path / "out"
+    seen = []
+
+    def interrupt(result, done, total):
+        seen.append(result.output)
+        if done == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        batch.develop_many(paths, out, client=client, on_result=interrupt)
+    saved = json.loads((out / "imgform-develop-report.json").read_text())["files"]
+    assert sorted(f["output"] for f in saved) == sorted(seen)
+    assert all(f["status"] == "ok" and Path(f["output"]).exists() for f in saved)
+
+
+def test_the_report_knows_its_outputs_however_their_paths_were_spelled(
+    tmp_path, client, raws, monkeypatch
+):
+    """Entries were compared by path as typed, and tested for existence from
+    the directory of the later run: a run from elsewhere dropped them, and
+    absolute paths gave one output two entries."""
+    paths, _ = raws
+    out = tmp_path / "out"
+    monkeypatch.chdir(tmp_path)
+    batch.develop_many([paths[0]], "out", client=client)
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    batch.develop_many([paths[1]], out, client=client)
+    again = batch.develop_many([paths[0]], out.absolute(), client=client)
+    saved = json.loads(again.path.read_text())["files"]
+    assert sorted((Path(f["output"]).name, f["status"]) for f in saved) == [
+        ("shot0.png", "skipped"),
+        ("shot1.png", "ok"),
+    ]
+    assert saved[0]["seconds"] > 0  # how the first run made it, kept
+
+
 def test_develop_many_writes_what_develop_file_writes(tmp_path, client, raws):
     import io
     from pathlib import Path

@@ -252,11 +252,13 @@ def _earlier(outdir: Path, kind: str) -> list[FileResult]:
 
 def _skipped(source: Path, target: Path, before: dict[str, FileResult]) -> FileResult:
     """A re-run's entry for an output it kept: how the earlier run made it,
-    rather than nothing."""
-    earlier = before.get(str(target))
+    rather than nothing (``before`` by output name, see :func:`_write_report`)."""
+    earlier = before.get(target.name)
     if earlier is None or earlier.status == "failed":
         return FileResult(str(source), str(target), "skipped", "output exists", 0.0)
-    return replace(earlier, source=str(source), status="skipped", reason="output exists")
+    return replace(
+        earlier, source=str(source), output=str(target), status="skipped", reason="output exists"
+    )
 
 
 def _write_report(
@@ -264,13 +266,19 @@ def _write_report(
 ) -> BatchReport:
     """The report of this run's files, written after the earlier runs'
     entries for other outputs (another format, other sources) that are
-    still there or failed: a run replaced them all before."""
+    still there or failed: a run replaced them all before.
+
+    Every output lies in ``outdir``, so an entry is known by its output's
+    name: the paths it records are spelled as each run was given them, from
+    the directory it ran in (relative, absolute, through links), which no
+    later run can compare or test for existence as strings."""
     path = _report_path(outdir, kind)
-    ours = {r.output for r in results}
+    ours = {Path(r.output).name for r in results}
     kept = [
         r
         for r in earlier
-        if r.output not in ours and (r.status == "failed" or Path(r.output).exists())
+        if Path(r.output).name not in ours
+        and (r.status == "failed" or (outdir / Path(r.output).name).exists())
     ]
     text = json.dumps({"files": [asdict(r) for r in [*results, *kept]]}, indent=1)
     write_atomically(path, lambda tmp: tmp.write_text(text + "\n"))
@@ -302,11 +310,18 @@ OnResult = Callable[[FileResult, int, int], None]
 
 
 def _submit_all(
-    client: Any, kind: str, pairs: list, options: dict, tick: Callable[[FileResult], None]
-) -> list[FileResult]:
-    """Runs the pairs one task each; results in completion order. The tasks
-    get absolute paths, since a scheduler's workers may run in another
-    directory than the client; the results name the paths as given."""
+    client: Any,
+    kind: str,
+    pairs: list,
+    options: dict,
+    tick: Callable[[FileResult], None],
+    results: list[FileResult],
+) -> None:
+    """Runs the pairs one task each, appending their results to ``results``
+    in completion order (an interrupted run keeps those that finished). The
+    tasks get absolute paths, since a scheduler's workers may run in another
+    directory than the client; the results, their reasons too, name the
+    paths as given."""
     distributed = _distributed()
     futures = {
         client.submit(
@@ -314,16 +329,16 @@ def _submit_all(
         ): (s, t)
         for s, t in pairs
     }
-    results = []
     for future in distributed.as_completed(futures):
         source, target = futures[future]
         try:
-            result = replace(future.result(), source=str(source), output=str(target))
+            result = future.result()
+            reason = result.reason.replace(str(source.absolute()), str(source), 1)
+            result = replace(result, source=str(source), output=str(target), reason=reason)
         except Exception as exc:  # a lost worker after all retries, an OOM kill...
             result = FileResult(str(source), str(target), "failed", f"{source}: {exc!r}", 0.0)
         results.append(result)
         tick(result)
-    return results
 
 
 def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple[Path, Path]]:
@@ -337,6 +352,9 @@ def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple
     are one file.
     """
     pairs = [(Path(s), Path(outdir) / f"{Path(s).stem}{suffix}") for s in sources]
+    nameless = [str(source) for source, _ in pairs if not source.stem]
+    if nameless:  # ".", "..", "/": their output would be the hidden OUTDIR/.png
+        raise ValueError(f"{', '.join(nameless)}: a folder, not a file; nothing was written")
     writers: dict[str, list[Path]] = {}
     for source, target in pairs:
         writers.setdefault(str(target).casefold(), []).append(source)
@@ -374,11 +392,14 @@ def _identity(path: Path) -> tuple:
 
 def output_folder(outdir: Any, *, make: bool = True) -> Path:
     """``outdir``, made if missing (unless not ``make``: a dry run). A file in
-    its place is a NotADirectoryError saying so, where ``Path.mkdir`` says
-    "File exists"."""
+    its place, or in the place of a folder above it, is a NotADirectoryError
+    saying so, where ``Path.mkdir`` says "File exists" (or, unmade, nothing)."""
     out = Path(outdir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"the output folder {out} is a file")
+    above = next((p for p in out.parents if p.exists()), None)
+    if above is not None and not above.is_dir():
+        raise NotADirectoryError(f"the output folder {out} lies under the file {above}")
     if make:
         out.mkdir(parents=True, exist_ok=True)
     return out
@@ -402,7 +423,7 @@ def _run_batch(
     pairs = output_paths(sources, outdir, suffix)
     out = output_folder(outdir)
     earlier = _earlier(out, kind)
-    before = {r.output: r for r in earlier}
+    before = {Path(r.output).name: r for r in earlier}
     skipped = [_skipped(s, t, before) for s, t in pairs if t.exists() and not overwrite]
     todo = [(s, t) for s, t in pairs if overwrite or not t.exists()]
     counter = itertools.count(1)
@@ -414,15 +435,23 @@ def _run_batch(
     for result in skipped:
         tick(result)
     done: list[FileResult] = []
-    if todo:
-        with contextlib.ExitStack() as stack:
-            if client is None:
-                client = stack.enter_context(local_client())
-            done = _submit_all(client, kind, todo, options, tick)
-        _remove_leftovers(out, (t for _, t in todo))
     order = {str(t): i for i, (_, t) in enumerate(pairs)}
-    results = sorted(skipped + done, key=lambda r: order[r.output])
-    return _write_report(out, kind, results, earlier)
+
+    def report() -> BatchReport:
+        results = sorted(skipped + done, key=lambda r: order[r.output])
+        return _write_report(out, kind, results, earlier)
+
+    if todo:
+        try:
+            with contextlib.ExitStack() as stack:
+                if client is None:
+                    client = stack.enter_context(local_client())
+                _submit_all(client, kind, todo, options, tick, done)
+        except KeyboardInterrupt:
+            report()  # the files that finished keep their entries
+            raise
+        _remove_leftovers(out, (t for _, t in todo))
+    return report()
 
 
 def _check_develop_options(format: str, options: dict) -> None:
