@@ -803,3 +803,17 @@ def test_colorize_plate_finishes_with_balance_on_request():
     done, _ = ig.colorize_plate(plate, frame=False, white_balance=True, auto_contrast=True)
     assert done.shape == plain.shape and done.dtype == np.uint16
     np.testing.assert_array_equal(done, ig.auto_balance(plain))
+
+
+def test_a_float_rgb_plate_keeps_its_fractions_and_one_beyond_0_1_is_refused(tmp_path):
+    """A float RGB scan's mean was rounded to 0 or 1 (a black-and-white plate);
+    one on 0..255 was written clipped, all white."""
+    tifffile = pytest.importorskip("tifffile")
+    from imgform_rs.align import read_plate
+
+    grey = synthetic_plate(np.float32)
+    tifffile.imwrite(tmp_path / "rgb.tif", np.repeat(grey[..., None], 3, -1), photometric="rgb")
+    np.testing.assert_allclose(read_plate(tmp_path / "rgb.tif"), grey, atol=1e-6)
+    tifffile.imwrite(tmp_path / "big.tif", grey * 255)
+    with pytest.raises(ValueError, match="a float plate holds values from 0 to 1"):
+        read_plate(tmp_path / "big.tif")

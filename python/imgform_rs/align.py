@@ -884,7 +884,8 @@ def read_plate(path: str | Path) -> np.ndarray:
     ------
     ValueError
         A file that cannot be read or decoded, or is not a 2-D / RGB image
-        of uint8, uint16 or float32 samples; the message names the file.
+        of uint8, uint16 or float32 samples (floats from 0 to 1, NaN
+        refused); the message names the file.
     """
     from ._png import read_image
 
@@ -895,10 +896,19 @@ def read_plate(path: str | Path) -> np.ndarray:
         reason = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise ValueError(f"cannot read plate {str(path)!r}: {reason}") from exc
     if img.ndim == 3 and img.shape[2] in (3, 4):
-        img = np.floor(img[..., :3].mean(axis=-1, dtype=np.float64) + 0.5).astype(img.dtype)
+        grey = img[..., :3].mean(axis=-1, dtype=np.float64)
+        # Integers round to the nearest level; floats keep their fraction
+        # (rounded too, a float scan on 0..1 became black and white).
+        img = (grey if img.dtype.kind == "f" else np.floor(grey + 0.5)).astype(img.dtype)
     if img.ndim != 2 or img.dtype not in _DTYPES:
         raise ValueError(
             f"plate {str(path)!r} must be a grey or RGB image of uint8, uint16 or float32, "
             f"got {img.dtype} {img.shape}"
+        )
+    if img.dtype.kind == "f" and img.size and not (img.min() >= 0 and img.max() <= 1):
+        # Its colour image is written on 0..1: a scan on 0..255 came out white.
+        raise ValueError(
+            f"a float plate holds values from 0 to 1, {str(path)!r} holds "
+            f"{img.min():g} to {img.max():g}"
         )
     return img
