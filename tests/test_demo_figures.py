@@ -80,3 +80,28 @@ def test_the_demo_writes_all_its_pictures_or_none_and_keeps_what_is_there(
     assert sorted(p.name for p in out.iterdir()) == ["a.png", "b.png"]  # no hidden folder left
     assert cli.main(["demo", "--out", str(out), "--overwrite"]) == 0
     assert (out / "a.png").read_bytes().startswith(b"\x89PNG")
+
+
+@pytest.mark.parametrize("case", ["file as folder", "under a file", "bad plate"])
+def test_the_demo_command_refuses_bad_arguments_in_one_line_before_rendering(
+    tmp_path, capsys, monkeypatch, case
+):
+    """A folder under a file and an unreadable plate were tracebacks, the
+    plate's after ~15 s of rendering, leaving an empty folder."""
+    from imgform_rs import cli, demo
+
+    def render(*args, **kwargs):
+        raise AssertionError("rendering started")
+
+    monkeypatch.setattr(demo, "run", render)
+    (tmp_path / "scene.png").write_bytes(b"a file")
+    (tmp_path / "plate.jpg").write_bytes(b"not a JPEG")
+    args = {
+        "file as folder": ["-o", str(tmp_path / "scene.png")],
+        "under a file": ["-o", str(tmp_path / "scene.png" / "sub")],
+        "bad plate": ["-o", str(tmp_path / "out"), "--plate", str(tmp_path / "plate.jpg")],
+    }[case]
+    assert cli.main(["demo", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("imgform demo: ") and err.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["plate.jpg", "scene.png"]

@@ -515,7 +515,7 @@ def test_cli_develops_good_files_reports_bad_ones_and_keeps_outputs(tmp_path, ca
     assert main(["develop", str(good), str(bad), "-o", str(out), "--bps", "16"]) == 1
     captured = capsys.readouterr()
     assert f"{bad}: not a raw file LibRaw can open" in captured.err
-    assert "1 of 2 files failed" in captured.err
+    assert "1 of 2 raws failed" in captured.err
     img = iio_read(out / "card.png")
     assert img.dtype == np.uint16 and img.shape == (40, 56, 3)
     before = (out / "card.png").stat().st_mtime_ns
@@ -566,6 +566,49 @@ def test_cli_dry_run_lists_and_touches_nothing(tmp_path, capsys, grey_card):
     assert f"{good}: would write {out / 'card.png'}" in printed
     assert f"{missing}: no such file, would fail" in printed
     assert not out.exists()
+    # A kept output is kept whatever its input: decided first, as a run does
+    # (the dry run said "no such file, would fail" where the run kept it).
+    out.mkdir()
+    (out / "missing.png").write_bytes(b"made before")
+    assert main(["develop", str(missing), "-o", str(out), "--dry-run"]) == 0
+    assert "missing.png exists, would keep it" in capsys.readouterr().out
+    assert main(["develop", str(missing), "-o", str(out)]) == 0
+    assert "missing.png exists, kept" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("source", [".", "/"])
+def test_cli_refuses_a_folder_as_input_before_anything(tmp_path, capsys, source):
+    """Its output was OUTDIR/.png, refused as a path 'that must end in .png'."""
+    from imgform_rs.cli import main
+
+    out = tmp_path / "out"
+    assert main(["develop", source, "-o", str(out)]) == 2
+    assert f"{source}: a folder, not a file; nothing was written" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_an_interrupted_parallel_develop_says_every_file_it_wrote(
+    tmp_path, capsys, grey_card, monkeypatch
+):
+    """Ctrl-C: the files in progress finish (threads cannot be stopped); they
+    were written without a line saying so."""
+    import shutil
+
+    from imgform_rs import cli
+
+    good, _ = grey_card
+    sources = [shutil.copy(good, tmp_path / f"card{i}.dng") for i in range(4)]
+
+    def interrupt(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_progress", interrupt)  # after the first file's line
+    out = tmp_path / "out"
+    assert cli.main(["develop", *map(str, sources), "-o", str(out), "-j", "2"]) == 130
+    captured = capsys.readouterr()
+    assert "interrupted; finishing the" in captured.err
+    written = sorted(os.listdir(out))
+    assert written and all(f"-> {out / name}" in captured.out for name in written)
 
 
 @pytest.mark.parametrize("extra", [[], ["--overwrite"], ["--dry-run"], ["-j", "2"]])

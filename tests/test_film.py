@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -551,3 +554,58 @@ def test_the_film_cli_reads_a_cmyk_jpeg_and_an_exif_turn_as_they_are_seen(tmp_pa
     assert np.corrcoef(base[..., 0].ravel(), cmyk[..., 0].ravel())[0, 1] > 0.9
     assert turned_out.shape[:2] == base.shape[1::-1]
     assert np.corrcoef(np.rot90(base, -1)[..., 1].ravel(), turned_out[..., 1].ravel())[0, 1] > 0.9
+
+
+@pytest.mark.parametrize(
+    ("options", "match"),
+    [
+        (["--ev", "nan"], "argument --ev: must be a finite number of stops"),
+        (["--ev", "1e9"], "argument --ev: must be a finite number of stops"),
+        (["--stock", "generic-paper"], "is a paper: simulate takes a negative or reversal"),
+        (["--paper", "generic-negative"], "needs a negative and a paper"),
+        (["--stock", "generic-reversal", "--paper", "generic-paper"], "viewed directly"),
+    ],
+)
+def test_the_film_cli_refuses_bad_options_before_any_image(tmp_path, capsys, options, match):
+    """Each was a failure of every image, after its whole simulation, and a
+    paper for a slide was silently ignored."""
+    from PIL import Image
+
+    from imgform_rs import cli
+
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(tmp_path / "a.png")
+    out = tmp_path / "o"
+    with contextlib.suppress(SystemExit):  # argparse's own refusals exit 2
+        assert cli.main(["film", str(tmp_path / "a.png"), "-o", str(out), *options]) == 2
+    assert re.search(match, capsys.readouterr().err)
+    assert not out.exists()
+
+
+def test_an_interrupted_command_says_so_in_one_line(tmp_path, capsys, monkeypatch):
+    from PIL import Image
+
+    from imgform_rs import cli
+
+    Image.fromarray(np.zeros((8, 8, 3), np.uint8)).save(tmp_path / "a.png")
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(film, "simulate", interrupt)
+    assert cli.main(["film", str(tmp_path / "a.png"), "-o", str(tmp_path / "o")]) == 130
+    assert capsys.readouterr().err == "imgform film: interrupted\n"
+    assert os.listdir(tmp_path / "o") == []
+
+
+def test_the_film_cli_takes_a_float_image_s_negatives_as_no_light(tmp_path):
+    """The sRGB decoding's power of a negative warned of NaN twice."""
+    import warnings
+
+    tifffile = pytest.importorskip("tifffile")
+    from imgform_rs import cli
+
+    img = np.linspace(-0.5, 1.0, 8 * 8 * 3, dtype=np.float32).reshape(8, 8, 3)
+    tifffile.imwrite(tmp_path / "neg.tif", img, photometric="rgb")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert cli.main(["film", str(tmp_path / "neg.tif"), "-o", str(tmp_path / "o")]) == 0

@@ -27,8 +27,15 @@ def _demo(args: argparse.Namespace) -> int:
         return 2
     camera_raw = SAMPLE_RAW if SAMPLE_RAW.is_file() else None
     try:
+        from .batch import output_folder
+
+        output_folder(args.out, make=False)  # a file named as the folder
+        if plate is not None:
+            from .align import read_plate
+
+            read_plate(plate)  # a bad plate found now, not after the other figures
         written = run(Path(args.out), plate=plate, camera_raw=camera_raw, overwrite=args.overwrite)
-    except FileExistsError as exc:
+    except (OSError, ValueError) as exc:  # an output that exists, an out that is a file
         print(f"imgform demo: {exc}", file=sys.stderr)
         return 2
     for path in written:
@@ -92,6 +99,12 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
     except (ImportError, OSError, ValueError) as exc:  # no Dask; a bad or lost scheduler
         print(f"{command}: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        from .batch import _report_path
+
+        report_file = _report_path(Path(args.out), args.command)
+        print(f"{command}: interrupted; the files done are in {report_file}", file=sys.stderr)
+        return 130
     failed = len(batch.failed)
     if failed:
         print(f"{command}: {failed} of {len(sources)} {unit} failed", file=sys.stderr)
@@ -198,6 +211,7 @@ def _srgb_to_linear(img: np.ndarray) -> np.ndarray:
         raise ValueError(f"film takes grey, RGB or RGBA images, got shape {img.shape}")
     # Grey (and alpha) repeated to three channels; RGB(A) without its alpha.
     v = np.repeat(v[..., :1], 3, axis=-1) if v.shape[2] < 3 else v[..., :3]
+    v = np.maximum(v, 0.0)  # a float image's negatives are no light (and the power's NaN)
     return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
@@ -209,8 +223,7 @@ def _film(args: argparse.Namespace) -> int:
     from .batch import write_atomically
 
     try:
-        stock = film.load_stock(args.stock)
-        paper = None if args.paper is None else film.load_stock(args.paper)
+        stock, paper = film._simulation_stocks(args.stock, args.paper)
     except (ValueError, OSError) as exc:
         print(f"imgform film: {exc}", file=sys.stderr)
         return 2
@@ -327,31 +340,42 @@ def _develop(args: argparse.Namespace) -> int:
     # Threads suffice: decoding and the Rust pipeline release the GIL.
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         futures = [(path, pool.submit(_develop_one, path, target, args)) for path, target in todo]
+        reported = 0
         try:
-            for i, (path, future) in enumerate(futures, start=1):
-                try:
-                    print(future.result())
-                except (ValueError, TypeError, OSError) as exc:
-                    failed += 1
-                    # RawError messages already start with the file name.
-                    reason = str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}"
-                    print(f"imgform develop: {reason}", file=sys.stderr)
-                _progress(i, len(futures), "raws")
+            for path, future in futures:
+                failed += _print_developed(path, future)
+                reported += 1
+                _progress(reported, len(futures), "raws")
         except KeyboardInterrupt:
             # Files not started are dropped; those being developed finish
-            # (threads cannot be stopped), each written whole or not at all.
+            # (threads cannot be stopped), each written whole or not at all,
+            # and said as the others were.
             pool.shutdown(wait=False, cancel_futures=True)
-            running = sum(f.running() for _, f in futures)
+            left = [(p, f) for p, f in futures[reported:] if not f.cancelled()]
             print(
-                f"imgform develop: interrupted; finishing the {running} file(s) in progress",
+                f"imgform develop: interrupted; finishing the {len(left)} file(s) in progress",
                 file=sys.stderr,
             )
+            for path, future in left:
+                _print_developed(path, future)
             return 130
     # Partial files a killed earlier run left of these outputs (as on Dask).
     _remove_leftovers(Path(args.out), (target for _, target in todo))
     if failed:
-        print(f"imgform develop: {failed} of {len(args.raws)} files failed", file=sys.stderr)
+        print(f"imgform develop: {failed} of {len(args.raws)} raws failed", file=sys.stderr)
     return 1 if failed else 0
+
+
+def _print_developed(path: Path, future) -> int:
+    """Prints one developed file's line, or its failure; 1 if it failed."""
+    try:
+        print(future.result())
+    except (ValueError, TypeError, OSError) as exc:
+        # RawError messages already start with the file name.
+        reason = str(exc) if str(exc).startswith(str(path)) else f"{path}: {exc}"
+        print(f"imgform develop: {reason}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _develop_dry_run(args: argparse.Namespace, pairs: list[tuple[Path, Path]]) -> int:
@@ -360,13 +384,13 @@ def _develop_dry_run(args: argparse.Namespace, pairs: list[tuple[Path, Path]]) -
     options = ", ".join(f"{k}={v!r}" for k, v in _develop_options(args).items())
     print(f"develop options: {options}; {args.format}, quality {args.quality}")
     failing = 0
-    for path, target in pairs:
-        if not path.is_file():
+    for path, target in pairs:  # in the order a run decides
+        if target.exists() and not args.overwrite:
+            print(f"{path}: {target} exists, would keep it")
+        elif not path.is_file():
             failing += 1
             why = "not a regular file" if path.exists() else "no such file"
             print(f"{path}: {why}, would fail")
-        elif target.exists() and not args.overwrite:
-            print(f"{path}: {target} exists, would keep it")
         else:
             print(f"{path}: would write {target}")
     return 1 if failing else 0
@@ -426,9 +450,34 @@ def _bps(text: str) -> int | str:
 
 
 def _jobs(text: str) -> int:
-    value = int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
     if value < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+        raise argparse.ArgumentTypeError(f"must be an int >= 1, got {text!r}")
+    return value
+
+
+def _ev(text: str) -> float:
+    """A film exposure change that :func:`imgform_rs.film.simulate` takes."""
+    from .film import _gain
+
+    try:
+        value = float(text)
+        _gain(value)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("exposure_ev ", "")) from None
+    return value
+
+
+def _max_shift(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be an int >= 0, got {text!r}")
     return value
 
 
@@ -457,7 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser(
         "demo", help="render the built-in sample scene through every camera model"
     )
-    demo.add_argument("--out", default="out", help="output folder (default: out)")
+    demo.add_argument("-o", "--out", default="out", help="output folder (default: out)")
     demo.add_argument(
         "--plate",
         help=f"a Prokudin-Gorskii scan to colourise (default: {SAMPLE_PLATE}, when present)",
@@ -478,7 +527,7 @@ def build_parser() -> argparse.ArgumentParser:
     align.add_argument("--reference", default="g", choices=["r", "g", "b"])
     align.add_argument(
         "--max-shift",
-        type=int,
+        type=_max_shift,
         default=None,
         help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15)",
     )
@@ -521,7 +570,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="a shipped stock name or a stock .json file (default: generic-negative)",
     )
     films.add_argument("--paper", default=None, help="printing paper (default: the generic one)")
-    films.add_argument("--ev", type=float, default=0.0, help="exposure change in stops")
+    films.add_argument("--ev", type=_ev, default=0.0, help="exposure change in stops")
     films.add_argument("--no-couplers", action="store_true", help="switch DIR couplers off")
     films.add_argument(
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
@@ -598,7 +647,8 @@ def build_parser() -> argparse.ArgumentParser:
     dev.add_argument(
         "--dry-run",
         action="store_true",
-        help="list what would be written, and do nothing (exit 1 if an input would fail)",
+        help="list what would be written, and do nothing (no raw is decoded: exit 1 if an "
+        "input is missing or not a file)",
     )
     _add_cluster_options(dev)
     dev.set_defaults(run=_develop)
@@ -612,7 +662,12 @@ def main(argv: list[str] | None = None) -> int:
         if hasattr(stream, "reconfigure"):
             stream.reconfigure(errors="backslashreplace")
     args = build_parser().parse_args(argv)
-    return int(args.run(args))
+    try:
+        return int(args.run(args))
+    except KeyboardInterrupt:
+        # Each output is written whole or not at all (write_atomically).
+        print(f"imgform {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -1112,6 +1112,27 @@ def to_srgb(xyz: Any, *, encode: bool = True) -> Float32Array:
     return rgb.astype(np.float32)
 
 
+def _simulation_stocks(
+    stock: str | Path | Stock, paper: str | Path | Stock | None
+) -> tuple[Stock, Stock | None]:
+    """:func:`simulate`'s film and the paper it is printed on (None for a
+    reversal film, viewed directly), checked before any work: a paper given
+    for a reversal film was ignored, and a film given as paper was found
+    only after the film's whole development."""
+    st = load_stock(stock)
+    if st.kind == "paper":
+        raise ValueError(f"{st.name!r} is a paper: simulate takes a negative or reversal film")
+    if st.kind != "negative":
+        if paper is not None:
+            raise ValueError(
+                f"{st.name!r} is a {st.kind} film, viewed directly: only a negative is "
+                f"printed on paper, got paper={paper!r}"
+            )
+        return st, None
+    default = "generic-paper" if len(st.layers) == 3 else "generic-bw-paper"
+    return _print_pair(st, default if paper is None else paper, "simulate")
+
+
 def simulate(
     image: Any,
     stock: str | Path | Stock = "generic-negative",
@@ -1143,10 +1164,14 @@ def simulate(
     -------
     ndarray, float32, (H, W, 3)
         sRGB, encoded unless ``encode=False``.
+
+    Raises
+    ------
+    ValueError
+        A paper as ``stock``; a ``paper`` for a reversal film, or one that is
+        not a paper (before any work); and what :func:`expose` refuses.
     """
-    st = load_stock(stock)
-    if st.kind == "paper":
-        raise ValueError(f"{st.name!r} is a paper: simulate takes a negative or reversal film")
+    st, pap = _simulation_stocks(stock, paper)
     flag(encode, "encode")  # before the whole simulation, not after it
     dens = develop(
         expose(image, st, exposure_ev=exposure_ev),
@@ -1157,9 +1182,7 @@ def simulate(
         seed=seed,
         frame_width_mm=frame_width_mm,
     )
-    if st.kind == "negative":
-        default = "generic-paper" if len(st.layers) == 3 else "generic-bw-paper"
-        pap = load_stock(default if paper is None else paper)
+    if pap is not None:
         fil = balance_print(st, pap, grey=MID_GREY * 2.0**exposure_ev)
         dens = print(
             dens, st, pap, filtration=fil, couplers=couplers, frame_width_mm=frame_width_mm
