@@ -303,3 +303,69 @@ def test_a_copy_beyond_the_memory_left_is_a_memory_error_not_an_abort(call):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-500:]
     assert done.stdout.startswith("MemoryError"), done.stdout
+
+
+def _in_a_child(code: str, timeout: float = 60) -> str:
+    """``code`` run in a fresh interpreter capped at 3 GB of address space:
+    an abort, a crash or a hang is a failure here, not the end of the run."""
+    import subprocess
+    import sys
+
+    head = "import resource, numpy as np, imgform_rs as ig, imgform_rs._native as n\n"
+    head += "resource.setrlimit(resource.RLIMIT_AS, (3 * 2**30, 3 * 2**30))\n"
+    done = subprocess.run(
+        [sys.executable, "-c", head + code], capture_output=True, text=True, timeout=timeout
+    )
+    assert done.returncode == 0, done.stderr[-800:]
+    return done.stdout
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs resource limits of a child process")
+@pytest.mark.parametrize(
+    ("call", "error"),
+    [
+        # Each hung, panicked or aborted (the native layer's own callers).
+        ("ig.distortion.undistort_points(np.zeros((1, 2)) + 0.3, [0, 0, 1e308, 0, 0])", None),
+        ("n.film_halation(np.ones((4, 4, 3), np.float32), [0.1] * 3, 1e9)", "at most 1000"),
+        (
+            "n.focal_stack(np.ones((4, 4, 1), np.uint8), (3, 0xAAAAAAAAAAAAAAAB), [0.0], [True])",
+            "views of equal height",
+        ),
+        ("n.spectral_integrate(np.ones((2, 2, 0), np.float32), np.ones((3, 0)))", "L >= 1"),
+        ("n.field_of_view(np.broadcast_to(0.05, (2**28,)), np.array([1.0]))", "no memory for"),
+        (
+            "n.simulate_sensor(np.full((2, 2, 3), np.inf, np.float32), 'RGGB', 1e3, 0, 12, 64, 1)",
+            "finite values, got inf at row 0, column 0",
+        ),
+        # Silently wrong: NaN black levels made every sample 0; a matrix was
+        # refused as a "spectral response ... at wavelength index 1".
+        (
+            "n.NativeLensCorrection(8, 8, 1.0, 1.0, 1.0, (0.0, 0.0), 'none', [], 'none', [],"
+            " vignetting=(0.1, 0.1, 0.1)).devignette(np.ones((8, 8), np.uint16),"
+            " np.full((2, 2), np.nan))",
+            "black levels must be finite, got NaN",
+        ),
+        (
+            "n.NativeSensor(exposure_time=0.01, full_well=1e4, read_noise=2.0,"
+            " electrons_per_dn=1.0, analog_gain=1.0, black_level=64, bit_depth=12,"
+            " dark_current=0.1, temperature=25.0, reference_temperature=25.0,"
+            " doubling_temperature=6.0, dsnu=0.01, prnu=0.01, column_noise=0.5, seed=1,"
+            " pattern_seed=2).capture_rgb(np.ones((2, 2, 3), np.float32),"
+            " np.eye(3) - 0.2 * np.eye(3, k=1), 'RGGB')",
+            r"RGB response matrix must be finite and >= 0 .*entry \(0, 1\) is -0.2",
+        ),
+        (
+            "ig.similarity(np.full((9, 9), 3e38, np.float32), np.ones((9, 9), np.float32))",
+            r"within ±2\^50",
+        ),
+    ],
+)
+def test_the_native_layer_neither_hangs_nor_aborts_on_extreme_input(call, error):
+    printed = _in_a_child(
+        f"try:\n    print('returned', {call})\nexcept Exception as e:\n"
+        "    print(type(e).__name__, e)\n"
+    )
+    if error is None:
+        assert printed.startswith("returned") and "nan" in printed
+    else:
+        assert re.search(error, printed), printed

@@ -384,6 +384,16 @@ pub fn simulate_sensor<T: Sample>(
     }
     let w = rgb.width();
     check_out_len(out.len(), w * rgb.height(), "simulate_sensor")?;
+    // NaN became no light and +inf 0 DN: refused, as the spectral sensor's
+    // captures refuse them (a negative is no light, as documented).
+    if let Some((y, i)) = rgb.find_first(|v| !v.is_finite()) {
+        return Err(invalid!(
+            "the image must hold finite values, got {:?} at row {y}, column {}, channel {}",
+            rgb.row(y)[i],
+            i / 3,
+            i % 3
+        ));
+    }
     let white = f64::from((1u32 << params.bit_depth) - 1);
     let black = f64::from(params.black_level);
     let gain = (white - black) / params.full_well;
@@ -486,6 +496,28 @@ mod tests {
             .all(|px| px.iter().filter(|&&m| m).count() == 1));
         // (0, 0) is blue, (1, 1) is red.
         assert!(out[2] && out[3 * 5]);
+    }
+
+    #[test]
+    fn sensor_refuses_light_that_is_not_a_number() {
+        // NaN read as no light, and +inf as 0 DN, a black pixel.
+        for bad in [f32::NAN, f32::INFINITY] {
+            let mut rgb = vec![0.5f32; 4 * 3 * 3];
+            rgb[(2 * 4 + 1) * 3 + 2] = bad;
+            let view = ImageView::contiguous(&rgb, 4, 3, 3).unwrap();
+            let params = SensorParams {
+                full_well: 1000.0,
+                read_noise: 0.0,
+                bit_depth: 12,
+                black_level: 0,
+                seed: 0,
+            };
+            let pattern = CfaPattern::from_name("RGGB").unwrap();
+            let e = simulate_sensor(view, &pattern, &params, &mut [0u16; 12])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("at row 2, column 1, channel 2"), "{e}");
+        }
     }
 
     #[test]

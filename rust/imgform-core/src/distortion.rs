@@ -146,6 +146,11 @@ fn brown_conrady_inverse(k: &[f64; 8], xd: f64, yd: f64) -> Option<(f64, f64)> {
     let tolerance = NEWTON_TOLERANCE * (1.0 + xd.abs().max(yd.abs()));
     let (mut p, mut at) = ((xd, yd), brown_conrady(k, xd, yd));
     while !one_to_one(at.1) {
+        if p == (0.0, 0.0) {
+            // Not one-to-one even on the axis: coefficients so large that
+            // the Jacobian there overflows (2 p1 = inf, times 0), no inverse.
+            return None;
+        }
         p = (p.0 * 0.5, p.1 * 0.5);
         at = brown_conrady(k, p.0, p.1);
     }
@@ -333,6 +338,16 @@ mod tests {
         assert!(model.undistort(0.6, 0.0).is_none());
         assert!(model.distort(0.8, 0.0).is_some() && model.distort(0.9, 0.0).is_none());
         assert!(Distortion::Division(0.5).distort(1.0, 0.0).is_none());
+    }
+
+    #[test]
+    fn coefficients_that_overflow_on_the_axis_have_no_inverse() {
+        // 2 p1 = inf, times 0 on the axis: the Jacobian is NaN everywhere the
+        // search for a one-to-one start looked, and it halved forever.
+        for k in [[0.0, 0.0, 1e308, 0.0, 0.0], [0.0, 0.0, 0.0, 1e308, 0.0]] {
+            let model = Distortion::new("brown_conrady", &k).unwrap();
+            assert_eq!(model.undistort(0.3, 0.2), None);
+        }
     }
 
     #[test]

@@ -1,5 +1,7 @@
 //! Borrowed image views and the sample types kernels are generic over.
 
+use rayon::prelude::*;
+
 use crate::error::{CoreError, Result};
 
 /// A pixel sample type: `u8`, `u16` or `f32`.
@@ -256,6 +258,18 @@ impl<'a, T: Copy> ImageView<'a, T> {
     #[inline(always)]
     pub fn at(&self, x: usize, y: usize, c: usize) -> T {
         self.data[y * self.stride + x * self.channels + c]
+    }
+
+    /// The first sample for which `bad` holds, in row-major order whatever
+    /// the thread count: its row and its index in the row.
+    pub fn find_first(&self, bad: impl Fn(&T) -> bool + Sync) -> Option<(usize, usize)>
+    where
+        T: Sync,
+    {
+        let y = (0..self.height)
+            .into_par_iter()
+            .find_first(|&y| self.row(y).iter().any(&bad))?;
+        Some((y, self.row(y).iter().position(&bad)?))
     }
 }
 

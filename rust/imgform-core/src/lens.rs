@@ -465,6 +465,10 @@ impl LensCorrection {
                 black_tile.len()
             )));
         }
+        if let Some(b) = black_tile.iter().find(|b| !b.is_finite()) {
+            // NaN or inf made every output sample 0.
+            return Err(invalid!("the black levels must be finite, got {b}"));
+        }
         let row_len = src.row_len();
         if out.len() != row_len * self.height {
             return Err(CoreError::Shape(format!(

@@ -65,8 +65,9 @@ impl<'a, T: Copy> LightField<'a, T> {
                 "light field must be non-empty, got shape (U, V, H, W, C) = {dims:?}"
             )));
         }
-        let needed: usize = dims.iter().product();
-        if data.len() != needed {
+        let needed = dims.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
+        if needed != Some(data.len()) {
+            let needed = needed.map_or("more than memory holds".into(), |n| n.to_string());
             return Err(CoreError::Shape(format!(
                 "light field buffer holds {} samples, shape (U, V, H, W, C) = {dims:?} needs {needed}",
                 data.len()

@@ -37,16 +37,29 @@ pub fn contiguous<'a, T: Element + Copy, D: numpy::ndarray::Dimension>(
         }
     }
     let view = arr.as_array();
-    let mut copy = Vec::new();
-    copy.try_reserve_exact(view.len()).map_err(|_| {
-        PyMemoryError::new_err(format!(
-            "no memory for a contiguous copy of a non-contiguous array of shape {:?} ({} bytes)",
-            view.shape(),
-            view.len() * std::mem::size_of::<T>()
-        ))
-    })?;
+    let mut copy = reserved(view.len(), "a contiguous copy of a non-contiguous array")?;
     copy.extend(view.iter().copied());
     Ok(Cow::Owned(copy))
+}
+
+/// An empty vector with room for `n` values, or a `MemoryError` naming
+/// `what` (a failed allocation of a `Vec` aborts the process).
+pub fn reserved<T>(n: usize, what: &str) -> PyResult<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "no memory for {what}: {n} values of {} bytes",
+            std::mem::size_of::<T>()
+        ))
+    })?;
+    Ok(v)
+}
+
+/// `n` copies of `value`, or a `MemoryError` naming `what`.
+pub fn filled<T: Clone>(n: usize, value: T, what: &str) -> PyResult<Vec<T>> {
+    let mut v = reserved(n, what)?;
+    v.resize(n, value);
+    Ok(v)
 }
 
 /// The dtype name of any object, for error messages.

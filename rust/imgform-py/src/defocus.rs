@@ -6,7 +6,7 @@ use numpy::{Element, PyReadonlyArray2, PyReadonlyArrayDyn, PyUntypedArrayMethods
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, describe, image_dims, to_numpy, AnyImage};
+use crate::arrays::{contiguous, describe, filled, image_dims, to_numpy, AnyImage};
 use crate::dispatch_image;
 use crate::errors::detached;
 
@@ -46,7 +46,7 @@ fn run<T: Sample, Z: Copy + Into<f64> + Sync>(
     depth: &[Z],
     lens: Lens,
 ) -> PyResult<Vec<T>> {
-    let mut out = vec![T::default(); src.len()];
+    let mut out = filled(src.len(), T::default(), "the output")?;
     detached(py, || {
         let view = ImageView::contiguous(src, w, h, c)?;
         defocus::render_defocus(view, depth, lens, &mut out)

@@ -5,7 +5,7 @@ use imgform_core::intrinsics::Intrinsics;
 use numpy::{PyArrayDyn, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, fixed, points, to_numpy};
+use crate::arrays::{contiguous, filled, fixed, points, to_numpy};
 use crate::errors::{detached, to_pyerr};
 
 /// A distortion model from its name and coefficients.
@@ -42,7 +42,7 @@ fn remap_lens_points<'py>(
     let arr = points(pts, 2, "points")?;
     let n = arr.shape()[0];
     let src = contiguous(&arr)?;
-    let mut out = vec![0.0; 2 * n];
+    let mut out = filled(2 * n, 0.0, "the output points")?;
     let direction = if undistort {
         Direction::Undistort
     } else {

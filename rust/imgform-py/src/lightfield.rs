@@ -13,7 +13,8 @@ use crate::dispatch_image;
 /// an `(U * V * H, W, C)` array.
 fn view_dims(shape: &[usize], grid: (usize, usize)) -> PyResult<(usize, usize, usize)> {
     let (rows, w, c) = image_dims(shape, "views")?;
-    let n = grid.0 * grid.1;
+    // Checked: a grid whose product wraps (3 x 0xAAAA...AB is 1) passed.
+    let n = grid.0.checked_mul(grid.1).unwrap_or(0);
     if n == 0 || rows % n != 0 {
         return Err(PyValueError::new_err(format!(
             "views must stack grid {grid:?} = {n} views of equal height along axis 0, got shape {shape:?}"

@@ -6,7 +6,7 @@ use numpy::{PyArrayDyn, PyReadonlyArray1};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 
-use crate::arrays::{contiguous, describe, to_numpy};
+use crate::arrays::{contiguous, describe, filled, to_numpy};
 use crate::errors::detached;
 
 /// A 1-D float64 array (one broadcast, flattened input).
@@ -46,7 +46,7 @@ where
     } else {
         inputs.iter().map(|s| s.len()).max().unwrap_or(0)
     };
-    let mut out = vec![O::default(); n];
+    let mut out = filled(n, O::default(), "the output")?;
     detached(py, || optics::vectorised(inputs, &mut out, formula))?;
     Ok(out)
 }

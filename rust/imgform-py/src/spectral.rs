@@ -55,6 +55,17 @@ fn hwl(shape: &[usize], name: &str, depth: usize, what: &str) -> PyResult<(usize
     }
 }
 
+/// `(H, W, L)` of a spectral image: at least one pixel, and one sample of
+/// each (L = 0 divided the work into chunks of none).
+fn spectra_dims(shape: &[usize]) -> PyResult<(usize, usize, usize)> {
+    match *shape {
+        [h, w, l] if h > 0 && w > 0 && l > 0 => Ok((h, w, l)),
+        _ => Err(PyValueError::new_err(format!(
+            "spectra must have shape (H, W, L), at least one pixel of L >= 1 samples, got {shape:?}"
+        ))),
+    }
+}
+
 /// The cos⁴ falloff of `(cx, cy, pitch_over_focal)`, or none.
 fn falloff_arg(falloff: Option<(f64, f64, f64)>) -> PyResult<Option<Falloff>> {
     falloff
@@ -97,8 +108,7 @@ fn spectral_integrate<'py>(
     response: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let arr = float32_array(spectra, "spectra", "(H, W, L)")?;
-    let l = arr.shape().last().copied().unwrap_or(0);
-    let (h, w) = hwl(arr.shape(), "spectra", l, "L samples per pixel")?;
+    let (h, w, l) = spectra_dims(arr.shape())?;
     let (resp, channels) = table(response, "response", l)?;
     let src = contiguous(&arr)?;
     detached_into(py, &[h, w, channels], |out| {
@@ -224,8 +234,7 @@ impl NativeSensor {
         falloff: Option<(f64, f64, f64)>,
     ) -> PyResult<Bound<'py, PyArrayDyn<u16>>> {
         let arr = float32_array(spectra, "spectra", "(H, W, L)")?;
-        let l = arr.shape().last().copied().unwrap_or(0);
-        let (h, w) = hwl(arr.shape(), "spectra", l, "L samples per pixel")?;
+        let (h, w, l) = spectra_dims(arr.shape())?;
         let (resp, channels) = table(response, "response", l)?;
         if channels != 3 {
             return Err(PyValueError::new_err(format!(

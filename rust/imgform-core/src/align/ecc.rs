@@ -634,9 +634,13 @@ where
         n
     });
     let need = MIN_PIXELS_PER_PARAM * motion.params();
-    let coarsest = Window::cropped(w >> levels, h >> levels, opts.crop);
+    // `checked_shr`: a plain `>>` of 64 levels or more shifts by the count
+    // modulo 64 in release builds, and such a pyramid passed the check.
+    let halve = |side: usize| side.checked_shr(levels.try_into().unwrap_or(u32::MAX));
+    let (cw, ch) = (halve(w).unwrap_or(0), halve(h).unwrap_or(0));
+    let coarsest = Window::cropped(cw, ch, opts.crop);
     let area = coarsest.y1.saturating_sub(coarsest.y0) * coarsest.x1.saturating_sub(coarsest.x0);
-    if w >> levels < 2 || h >> levels < 2 || area < need {
+    if cw < 2 || ch < 2 || area < need {
         return Err(invalid!(
             "images of {h}x{w} are too small for {} motion with crop={} and {levels} \
              pyramid levels: the coarsest window has {area} pixels, {need} are needed ({} per \
@@ -977,5 +981,17 @@ mod tests {
         assert!(e.contains("beyond"), "{e}");
         let nan = [[f64::NAN, 0.0, 0.0], [0.0, 1.0, 0.0]];
         assert!(refine(&rv, &rv, Motion::Translation, &nan, &opts()).is_err());
+        // 64 levels and more shifted by their count modulo 64 and passed,
+        // then asked for a pyramid that vector of levels could not hold.
+        for levels in [20, 64, 1 << 32, 1 << 62] {
+            let deep = EccOptions {
+                levels: Some(levels),
+                ..opts()
+            };
+            let e = refine(&rv, &rv, Motion::Translation, &IDENTITY, &deep)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(&format!("and {levels} pyramid levels")), "{e}");
+        }
     }
 }

@@ -37,13 +37,18 @@ pub struct Converted<'a, T> {
     mean: f64,
 }
 
+/// The largest magnitude of a sample the search takes: 2^50, so that the
+/// `f32` products of two (centred) samples, 2^102 at most, summed over a row
+/// of up to 2^17 stay within `f32` (2^128); ±3e38 made every score NaN.
+pub const SAMPLE_LIMIT: f32 = (1u64 << 50) as f32;
+
 impl<'a, T: Sample> Converted<'a, T> {
     /// Wraps a view after checking it.
     ///
     /// # Errors
     /// [`CoreError::Shape`] for a multi-channel view;
-    /// [`CoreError::InvalidArgument`] naming the first row holding a NaN or
-    /// an infinity.
+    /// [`CoreError::InvalidArgument`] naming the first sample that is NaN,
+    /// infinite or beyond [`SAMPLE_LIMIT`].
     pub fn new(view: &ImageView<'a, T>, name: &str) -> Result<Self> {
         if view.channels() != 1 {
             return Err(CoreError::Shape(format!(
@@ -51,26 +56,28 @@ impl<'a, T: Sample> Converted<'a, T> {
                 view.channels()
             )));
         }
+        let good = |v: &T| v.is_finite() && v.to_f32().abs() <= SAMPLE_LIMIT;
+        if let Some((y, x)) = view.find_first(|v| !good(v)) {
+            let v = view.row(y)[x].to_f32();
+            let (why, v) = if v.is_finite() {
+                (
+                    "lie within ±2^50 (the search sums their products in float32)",
+                    format!("{v:e}"),
+                )
+            } else {
+                ("be finite", v.to_string())
+            };
+            return Err(crate::invalid!(
+                "{name}'s samples must {why}, got {v} at row {y}, column {x}"
+            ));
+        }
         // Each row's sum in f64, in parallel, then added in order: the same
-        // mean whatever the thread count. A row of finite f32 samples cannot
-        // sum past f64's range, so a row holding NaN or an infinity is the
-        // first whose sum is not finite.
+        // mean whatever the thread count.
         let sums: Vec<f64> = (0..view.height())
             .into_par_iter()
             .with_min_len(ROWS_PER_TASK)
             .map(|y| view.row(y).iter().map(|v| f64::from(v.to_f32())).sum())
             .collect();
-        if let Some(y) = sums.iter().position(|s| !s.is_finite()) {
-            let v = view
-                .row(y)
-                .iter()
-                .map(|v| v.to_f32())
-                .find(|v| !v.is_finite());
-            return Err(crate::invalid!(
-                "{name} must contain only finite values, row {y} holds {}",
-                v.unwrap_or(f32::NAN)
-            ));
-        }
         let count = (view.width() * view.height()).max(1) as f64;
         Ok(Self {
             view: *view,
@@ -258,8 +265,13 @@ mod tests {
         let bad = [0.0f32, 1.0, 2.0, f32::NAN, 0.0, f32::INFINITY];
         let view = ImageView::contiguous(&bad, 2, 3, 1).unwrap();
         let err = Converted::new(&view, "moving").err().unwrap().to_string();
+        assert!(err.contains("moving's samples must be finite, got NaN at row 1, column 1"));
+        // Finite, but its products overflow the search's f32 sums (NaN scores).
+        let huge = [0.0f32, 3e38, 1.0, 2.0];
+        let view = ImageView::contiguous(&huge, 2, 2, 1).unwrap();
+        let err = Converted::new(&view, "a").err().unwrap().to_string();
         assert!(
-            err.contains("moving") && err.contains("row 1 holds NaN"),
+            err.contains("within ±2^50") && err.contains("row 0, column 1"),
             "{err}"
         );
         let rgb = [0u8; 12];

@@ -49,7 +49,6 @@ use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::parallel::for_each_band;
 use menon2007::Menon2007;
-use rayon::prelude::*;
 use rcd::Rcd;
 use tiled::TileKernel;
 
@@ -505,13 +504,11 @@ pub const SAMPLE_LIMIT: f32 = (1u128 << 100) as f32;
 /// clamped into) numbers around it that look valid. The first bad sample in
 /// row-major order is named, whatever the thread count.
 fn check_finite<T: Sample>(raw: &ImageView<'_, T>) -> Result<()> {
-    let good = |v: &T| v.is_finite() && v.to_f32().abs() <= SAMPLE_LIMIT;
-    let bad_row = (0..raw.height())
-        .into_par_iter()
-        .find_first(|&y| !raw.row(y).iter().all(good));
-    let Some(y) = bad_row else { return Ok(()) };
+    let bad = |v: &T| !(v.is_finite() && v.to_f32().abs() <= SAMPLE_LIMIT);
+    let Some((y, x)) = raw.find_first(bad) else {
+        return Ok(());
+    };
     let row = raw.row(y);
-    let x = row.iter().position(|v| !good(v)).unwrap_or_default();
     if row[x].is_finite() {
         return Err(invalid!(
             "the mosaic's samples must lie within ±2^100, got one beyond at row {y}, column \

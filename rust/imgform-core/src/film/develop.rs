@@ -259,7 +259,7 @@ impl Couplers {
             })
             .collect::<Result<Vec<_>>>()?;
         let taps = if diffusion > 0.0 {
-            gaussian_taps(diffusion)
+            gaussian_taps(diffusion, "the DIR diffusion length")?
         } else {
             vec![1.0]
         };

@@ -9,18 +9,35 @@
 //! uniform (the neutral wedge relies on this).
 
 use super::fastmath::wide;
+use crate::error::Result;
 use crate::image::mirror;
+use crate::invalid;
 use crate::parallel::{for_each_band, ROWS_PER_TASK};
+
+/// The widest Gaussian blurred (pixels): 3000 taps each side, a blur wider
+/// than any frame's diffusion or halation (tens of pixels) by far, and still
+/// seconds a megapixel. Beyond it the taps alone would not fit in memory
+/// (`sigma` = 1e18 asked for a vector of 3e18).
+pub const MAX_SIGMA: f64 = 1000.0;
 
 /// Taps of a normalised Gaussian of standard deviation `sigma` (pixels),
 /// out to 3 sigma (0.3 % of the weight beyond), centre first.
-pub fn gaussian_taps(sigma: f64) -> Vec<f32> {
-    let radius = (3.0 * sigma).ceil().max(0.0) as usize;
+///
+/// # Errors
+/// [`crate::CoreError::InvalidArgument`] naming `what` for a `sigma` that
+/// is not in `(0, MAX_SIGMA]`.
+pub fn gaussian_taps(sigma: f64, what: &str) -> Result<Vec<f32>> {
+    if !(sigma > 0.0 && sigma <= MAX_SIGMA) {
+        return Err(invalid!(
+            "{what} must be > 0 and at most {MAX_SIGMA} pixels, got {sigma}"
+        ));
+    }
+    let radius = (3.0 * sigma).ceil() as usize;
     let raw: Vec<f64> = (0..=radius)
         .map(|k| (-0.5 * (k as f64 / sigma).powi(2)).exp())
         .collect();
     let total = raw[0] + 2.0 * raw[1..].iter().sum::<f64>();
-    raw.iter().map(|w| (w / total) as f32).collect()
+    Ok(raw.iter().map(|w| (w / total) as f32).collect())
 }
 
 /// Blurs `src` `(height, width, channels)` into `out` with the symmetric
@@ -312,8 +329,20 @@ mod tests {
     use super::*;
 
     #[test]
+    fn taps_are_refused_beyond_the_widest_blur() {
+        for sigma in [0.0, -1.0, f64::NAN, MAX_SIGMA * 1.01, 1e18] {
+            let err = gaussian_taps(sigma, "the spread").unwrap_err().to_string();
+            assert!(
+                err.contains("the spread must be > 0 and at most 1000"),
+                "{err}"
+            );
+        }
+        assert_eq!(gaussian_taps(MAX_SIGMA, "s").unwrap().len(), 3001);
+    }
+
+    #[test]
     fn taps_sum_to_one_and_fall() {
-        let t = gaussian_taps(2.0);
+        let t = gaussian_taps(2.0, "sigma").unwrap();
         assert_eq!(t.len(), 7);
         let sum: f32 = t[0] + 2.0 * t[1..].iter().sum::<f32>();
         assert!((sum - 1.0).abs() < 1e-6);
@@ -322,7 +351,7 @@ mod tests {
 
     #[test]
     fn the_wide_row_convolution_gives_the_plain_bits() {
-        let taps = gaussian_taps(3.3);
+        let taps = gaussian_taps(3.3, "sigma").unwrap();
         let (channels, n) = (3, 3 * 45);
         let pad = (taps.len() - 1) * channels;
         let padded: Vec<f32> = (0..n + 2 * pad)
@@ -348,7 +377,7 @@ mod tests {
         // 37 rows: a band of 32 and a short one of 5 (steps of 4 rows with
         // rows to drop); 13 pixels of 3 samples: steps of 8 and a tail.
         let (w, h, c) = (13, 37, 3);
-        let taps = gaussian_taps(3.3);
+        let taps = gaussian_taps(3.3, "sigma").unwrap();
         let across: Vec<f32> = (0..w * h * c)
             .map(|i| ((i * 7919) % 1000) as f32 / 77.0)
             .collect();
@@ -383,7 +412,14 @@ mod tests {
             .map(|i| if i % 2 == 0 { 0.7 } else { 1.3 })
             .collect();
         let mut out = vec![0.0; src.len()];
-        blur(&src, w, h, c, &gaussian_taps(1.5), &mut out);
+        blur(
+            &src,
+            w,
+            h,
+            c,
+            &gaussian_taps(1.5, "sigma").unwrap(),
+            &mut out,
+        );
         for (a, b) in src.iter().zip(&out) {
             assert!((a - b).abs() < 1e-6);
         }
@@ -391,7 +427,14 @@ mod tests {
         let mut point = vec![0.0f32; 31 * 31];
         point[15 * 31 + 15] = 1.0;
         let mut spread = vec![0.0; point.len()];
-        blur(&point, 31, 31, 1, &gaussian_taps(2.0), &mut spread);
+        blur(
+            &point,
+            31,
+            31,
+            1,
+            &gaussian_taps(2.0, "sigma").unwrap(),
+            &mut spread,
+        );
         let total: f32 = spread.iter().sum();
         assert!((total - 1.0).abs() < 1e-5);
         assert!(spread[15 * 31 + 15] < 0.05);

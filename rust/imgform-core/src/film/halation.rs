@@ -14,7 +14,7 @@
 use super::check_lengths;
 use super::diffuse::{blur_columns_then, blur_rows, gaussian_taps};
 use super::fastmath::wide;
-use crate::error::{positive, Result};
+use crate::error::Result;
 use crate::invalid;
 
 /// Halation of per-layer strengths and one spread, validated once.
@@ -38,10 +38,9 @@ impl Halation {
                 strength[i]
             ));
         }
-        let sigma = positive("the halation spread (pixels)", sigma)?;
         Ok(Self {
             strength: strength.iter().map(|&a| a as f32).collect(),
-            taps: gaussian_taps(sigma),
+            taps: gaussian_taps(sigma, "the halation spread")?,
         })
     }
 
@@ -155,7 +154,7 @@ mod tests {
         halation(&ex, w, h, &[0.2, 0.05, 0.0], 4.0, &mut out).unwrap();
         // The point keeps 1 - a and gets back a times the blur's centre tap
         // squared (rows, then columns).
-        let centre = gaussian_taps(4.0)[0].powi(2);
+        let centre = gaussian_taps(4.0, "sigma").unwrap()[0].powi(2);
         for (i, a) in [0.2f32, 0.05, 0.0].iter().enumerate() {
             let total: f32 = out.iter().skip(i).step_by(3).sum();
             assert!((total - 1.0).abs() < 1e-5, "{i}: {total}");

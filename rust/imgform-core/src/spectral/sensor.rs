@@ -327,7 +327,16 @@ impl Sensor {
         falloff: Option<&Falloff>,
         out: &mut [u16],
     ) -> Result<()> {
-        check_response(matrix, 3, 3)?;
+        if let Some(i) = matrix.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+            // check_response would name a spectral response and a wavelength.
+            return Err(invalid!(
+                "the RGB response matrix must be finite and >= 0 (rates of light), entry \
+                 ({}, {}) is {}",
+                i / 3,
+                i % 3,
+                matrix[i]
+            ));
+        }
         check_input_len("rgb", rgb.len(), 3 * width * height)?;
         let bad = self.read_frame((width, height), falloff, rgb, out, |y, x0, src, row| {
             let mut first_bad = None;
