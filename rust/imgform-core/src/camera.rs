@@ -316,7 +316,8 @@ impl Camera {
     /// # Errors
     /// A non-finite or zero normal.
     pub fn vanishing_line(&self, plane_normal: [f64; 3]) -> Result<[f64; 3]> {
-        let m = self.rotate(nonzero("plane_normal", plane_normal)?);
+        // Rescaled: a normal of 5e-324s underflowed into a NaN line.
+        let m = self.rotate(rescaled(nonzero("plane_normal", plane_normal)?));
         if m[0].hypot(m[1]) <= PARALLEL_TOLERANCE * norm(m) {
             return Ok([0.0, 0.0, 1.0]);
         }
@@ -418,14 +419,21 @@ pub(crate) fn norm(v: [f64; 3]) -> f64 {
 /// keep the bits of the plain division.
 #[inline]
 pub(crate) fn normalized(v: [f64; 3]) -> [f64; 3] {
-    let top = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    if (1e-150..=1e150).contains(&top) || top == 0.0 || !top.is_finite() {
-        let n = norm(v);
-        return [v[0] / n, v[1] / n, v[2] / n];
-    }
-    let s = [v[0] / top, v[1] / top, v[2] / top];
+    let s = rescaled(v);
     let n = norm(s);
     [s[0] / n, s[1] / n, s[2] / n]
+}
+
+/// `v` itself, or, with components beyond 1e-150..1e150, `v` divided by its
+/// largest: the same direction, whose squares neither underflow nor
+/// overflow.
+#[inline]
+fn rescaled(v: [f64; 3]) -> [f64; 3] {
+    let top = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if (1e-150..=1e150).contains(&top) || top == 0.0 || !top.is_finite() {
+        return v;
+    }
+    [v[0] / top, v[1] / top, v[2] / top]
 }
 
 /// The angle between two vectors, accurate also near 0 and pi (unlike `acos`).
@@ -564,5 +572,14 @@ mod tests {
             .vanishing_line(cam.rotate_back([0.0, 0.0, 1.0]))
             .unwrap();
         assert_eq!(facing, [0.0, 0.0, 1.0]);
+        // A normal of any scale is the same plane (5e-324s gave NaN).
+        let line = cam.vanishing_line([1.0, 1.0, 0.0]).unwrap();
+        for scale in [5e-324, 1e-200, 1e200] {
+            let scaled = cam.vanishing_line([scale, scale, 0.0]).unwrap();
+            assert!(
+                (0..3).all(|i| (scaled[i] - line[i]).abs() < 1e-12),
+                "{scaled:?}"
+            );
+        }
     }
 }

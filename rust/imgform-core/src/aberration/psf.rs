@@ -333,7 +333,13 @@ fn relative_peak(values: &[f64], name: &str) -> Result<f64> {
     if total <= 0.0 {
         return Err(invalid!("{name} must have a positive sum, got {total}"));
     }
-    Ok(values.iter().fold(0.0f64, |a, &v| a.max(v)) / total)
+    let peak = values.iter().fold(0.0f64, |a, &v| a.max(v));
+    if total.is_infinite() {
+        // Summed in units of the peak: a sum of 1e308s overflowed, and the
+        // ratio came out 0.
+        return Ok(1.0 / values.iter().map(|v| v / peak).sum::<f64>());
+    }
+    Ok(peak / total)
 }
 
 #[cfg(test)]
@@ -350,6 +356,15 @@ mod tests {
             spherical,
             oversample: None,
         }
+    }
+
+    #[test]
+    fn strehl_ratio_of_intensities_of_any_scale() {
+        // A sum of 1e308s overflowed: the ratio was 0 where it is 1.
+        let huge = [1e308; 9];
+        assert_eq!(strehl_ratio(&huge, &[1.0; 9]).unwrap(), 1.0);
+        let peaked = [1e308, 5e307, 5e307];
+        assert!((strehl_ratio(&peaked, &[1.0, 0.5, 0.5]).unwrap() - 1.0).abs() < 1e-15);
     }
 
     #[test]
