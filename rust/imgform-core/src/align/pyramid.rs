@@ -42,6 +42,29 @@ pub struct Converted<'a, T> {
 /// of up to 2^17 stay within `f32` (2^128); ±3e38 made every score NaN.
 pub const SAMPLE_LIMIT: f32 = (1u64 << 50) as f32;
 
+/// Whether the search takes a sample: finite and within [`SAMPLE_LIMIT`].
+#[inline]
+fn good(v: f32) -> bool {
+    v.is_finite() && v.abs() <= SAMPLE_LIMIT
+}
+
+/// A row's sum and whether all its samples are [`good`], over independent
+/// `f32` accumulators that vectorise. The sum only centres the samples, and
+/// any centre gives the same scores, so `f32`'s rounding does not matter;
+/// it needs to come out the same on every run, which it does.
+fn row_sum<T: Sample>(row: &[T]) -> (f64, bool) {
+    const LANES: usize = 16;
+    let (mut sums, mut all) = ([0.0f32; LANES], true);
+    for chunk in row.chunks(LANES) {
+        for (s, v) in sums.iter_mut().zip(chunk) {
+            let v = v.to_f32();
+            all &= good(v);
+            *s += v;
+        }
+    }
+    (sums.iter().map(|&s| f64::from(s)).sum(), all)
+}
+
 impl<'a, T: Sample> Converted<'a, T> {
     /// Wraps a view after checking it.
     ///
@@ -56,9 +79,17 @@ impl<'a, T: Sample> Converted<'a, T> {
                 view.channels()
             )));
         }
-        let good = |v: &T| v.is_finite() && v.to_f32().abs() <= SAMPLE_LIMIT;
-        if let Some((y, x)) = view.find_first(|v| !good(v)) {
-            let v = view.row(y)[x].to_f32();
+        // One pass: each row's sum in f64 and whether all its samples are
+        // good, rows in parallel, the sums then added in order (the same mean
+        // whatever the thread count).
+        let rows: Vec<(f64, bool)> = (0..view.height())
+            .into_par_iter()
+            .with_min_len(ROWS_PER_TASK)
+            .map(|y| row_sum(view.row(y)))
+            .collect();
+        if let Some(y) = rows.iter().position(|&(_, good)| !good) {
+            let x = view.row(y).iter().position(|v| !good(v.to_f32()));
+            let v = view.row(y)[x.unwrap_or_default()].to_f32();
             let (why, v) = if v.is_finite() {
                 (
                     "lie within ±2^50 (the search sums their products in float32)",
@@ -68,16 +99,11 @@ impl<'a, T: Sample> Converted<'a, T> {
                 ("be finite", v.to_string())
             };
             return Err(crate::invalid!(
-                "{name}'s samples must {why}, got {v} at row {y}, column {x}"
+                "{name}'s samples must {why}, got {v} at row {y}, column {}",
+                x.unwrap_or_default()
             ));
         }
-        // Each row's sum in f64, in parallel, then added in order: the same
-        // mean whatever the thread count.
-        let sums: Vec<f64> = (0..view.height())
-            .into_par_iter()
-            .with_min_len(ROWS_PER_TASK)
-            .map(|y| view.row(y).iter().map(|v| f64::from(v.to_f32())).sum())
-            .collect();
+        let sums: Vec<f64> = rows.into_iter().map(|(sum, _)| sum).collect();
         let count = (view.width() * view.height()).max(1) as f64;
         Ok(Self {
             view: *view,
