@@ -132,6 +132,44 @@ def test_big_endian_samples_are_written_as_the_values_they_hold(tmp_path, name, 
     np.testing.assert_array_equal(back, img)
 
 
+def one_byte_exif(ifd0: dict[int, tuple[int, bytes]], sub: dict[int, tuple[int, bytes]]) -> bytes:
+    """Little-endian EXIF of tags ``{tag: (type, bytes)}`` of one-byte types,
+    IFD0 then the Exif IFD, each IFD's values stored after it."""
+
+    def ifd(entries, at, sub_at=None):
+        count = len(entries) + (sub_at is not None)
+        data_at = at + 2 + 12 * count + 4
+        rows, data = [], b""
+        for tag, (kind, value) in entries.items():
+            rows.append(struct.pack("<HHII", tag, kind, len(value), data_at + len(data)))
+            data += value + b"\0" * (len(value) % 2)
+        if sub_at is not None:
+            rows.append(struct.pack("<HHII", 0x8769, 4, 1, sub_at))
+        rows.sort(key=lambda row: struct.unpack_from("<H", row)[0])  # by tag
+        return struct.pack("<H", count) + b"".join(rows) + struct.pack("<I", 0) + data
+
+    size = len(ifd(ifd0, 8, 0))
+    return b"Exif\0\0II*\0" + struct.pack("<I", 8) + ifd(ifd0, 8, 8 + size) + ifd(sub, 8 + size)
+
+
+@pytest.mark.parametrize("name", ["a.jpg", "a.png"])
+def test_a_callers_exif_keeps_the_types_of_its_byte_tags(tmp_path, name):
+    """Pillow loads tags without their types: an UNDEFINED UserComment or
+    CFAPattern came out BYTE (or, for a while, ASCII when it ended in NUL),
+    and text Pillow does not know (UniqueCameraModel) came out BYTE."""
+    given = one_byte_exif(
+        {271: (2, b"Canon\0"), 50708: (2, b"My Cam\0")},
+        {37510: (7, b"ASCII\0\0\0hi\0"), 41730: (7, b"\0\2\0\2\0\1\1\0"), 37500: (1, b"ab\0")},
+    )
+    path = ig.write_image(tmp_path / name, rgb(np.uint8), exif=given)
+    with Image.open(path) as im:
+        tiff = im.info["exif"].removeprefix(b"Exif\0\0")
+    ifd0 = ifd_entries(tiff, struct.unpack_from("<I", tiff, 4)[0])
+    sub = ifd_entries(tiff, struct.unpack("<I", ifd0[0x8769][2])[0])
+    assert (ifd0[271][0], ifd0[50708][0]) == (2, 2)
+    assert (sub[37510][0], sub[41730][0], sub[37500][0]) == (7, 7, 1)
+
+
 def test_exif_numbers_are_rationals_and_the_exif_ifd_has_its_version(tmp_path):
     """CIPA DC-008: ExposureTime, FNumber and FocalLength are RATIONAL (type
     5), and the Exif IFD must carry ExifVersion (UNDEFINED, 4 bytes)."""

@@ -68,6 +68,8 @@ _COMPONENTS, _YCBCR = 37121, b"\x01\x02\x03\x00"
 # The TIFF type of opaque bytes.
 _UNDEFINED = 7
 _ASCII = 2
+#: TIFF types whose values are one-byte units: BYTE, ASCII, SBYTE, UNDEFINED.
+_ONE_BYTE = {1, 2, 6, 7}
 _FLASHPIX_VERSION, _FLASHPIX_1_0 = 40960, b"0100"
 _COLOR_SPACE, _SRGB, _UNCALIBRATED = 40961, 1, 0xFFFF
 _PIXEL_X, _PIXEL_Y = 40962, 40963
@@ -169,6 +171,7 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
         if text:
             _put_text(exif, None, tag, text.encode())
     sub = exif.get_ifd(_EXIF_IFD)
+    texts = {}
     sub[_EXIF_VERSION] = _VERSION
     if info.taken is not None:
         stamp = info.taken.strftime("%Y:%m:%d %H:%M:%S")
@@ -191,7 +194,8 @@ def exif_bytes(info: ShotInfo, flip: int, oriented: bool) -> bytes:
     for tag, text in ((_LENS_MAKE, info.lens_make), (_LENS_MODEL, info.lens)):
         if text:
             _put_text(sub, _EXIF_IFD, tag, text.encode())
-    return _as_text(exif.tobytes(), sub)
+            texts[tag] = _ASCII
+    return _retype(exif.tobytes(), _EXIF_IFD, texts)
 
 
 def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -> bytes:
@@ -205,6 +209,9 @@ def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -
     tags = Image.Exif()
     tags.load(exif)
     sub = tags.get_ifd(_EXIF_IFD)
+    # Pillow loads the values without their types and writes each by its
+    # own table: the one-byte types it writes otherwise are put back.
+    given = {group: _types(exif, group) for group in (None, _EXIF_IFD)}
     for ifd, group in ((tags, None), (sub, _EXIF_IFD)):
         for tag, value in list(ifd.items()):
             if isinstance(value, str):
@@ -217,8 +224,10 @@ def for_image(exif: bytes, width: int, height: int, *, jpeg: bool, srgb: bool) -
         sub[_COMPONENTS] = _YCBCR
     else:
         sub.pop(_COMPONENTS, None)
-    written = _as_text(tags.tobytes(), sub)
-    return _retype(written, _EXIF_IFD, {_COMPONENTS: _UNDEFINED}) if jpeg else written
+    if jpeg:
+        given[_EXIF_IFD][_COMPONENTS] = _UNDEFINED
+    written = _retype(tags.tobytes(), None, given[None])
+    return _retype(written, _EXIF_IFD, given[_EXIF_IFD])
 
 
 def text_bytes(value: str) -> bytes:
@@ -233,39 +242,63 @@ def _put_text(ifd: Any, group: int | None, tag: int, raw: bytes) -> None:
     bytes ``raw`` as they are: Pillow writes a ``str`` as ASCII with every
     other character made "?". A tag Pillow knows as ASCII takes the bytes and
     Pillow ends them with NUL; Pillow would write any other tag's bytes as
-    BYTE, so it gets its NUL here and :func:`_as_text` makes it ASCII."""
+    BYTE, so it gets its NUL here, and :func:`_retype` makes it ASCII."""
     from PIL import TiffTags
 
     known = TiffTags.lookup(tag, group).type == _ASCII
     ifd[tag] = raw if known else raw + b"\0"
 
 
-def _as_text(exif: bytes, sub: dict) -> bytes:
-    """``exif`` with the Exif IFD's text tags that :func:`_put_text` left as
-    BYTE typed ASCII, whose entry is laid out the same (IFD0's text tags
-    Pillow knows as ASCII)."""
-    texts = [tag for tag, value in sub.items() if isinstance(value, bytes) and value[-1:] == b"\0"]
-    return _retype(exif, _EXIF_IFD, dict.fromkeys(texts, _ASCII)) if texts else exif
+def _types(exif: bytes, group: int | None) -> dict[int, int]:
+    """The TIFF type of each tag of ``exif``'s IFD0 (``group`` None) or of
+    its sub-IFD ``group`` (none if it has none, or cannot be read)."""
+    tiff = exif.removeprefix(b"Exif\0\0")
+    try:
+        order = "<" if tiff[:2] == b"II" else ">"
+        found = _ifd(tiff, order, group)
+        if found is None:
+            return {}
+        return {
+            struct.unpack_from(order + "H", tiff, entry)[0]: struct.unpack_from(
+                order + "H", tiff, entry + 2
+            )[0]
+            for entry in _entries(tiff, order, found)
+        }
+    except struct.error:
+        return {}
 
 
-def _retype(exif: bytes, group: int, types: dict[int, int]) -> bytes:
-    """``exif`` with the tags of its sub-IFD ``group`` typed as ``types``
-    says: ComponentsConfiguration as CIPA DC-008 types it, UNDEFINED (7),
-    which Pillow, knowing no type for it, writes as BYTE (1); text as ASCII
-    (2). Each entry keeps its layout: these types all have one-byte units."""
+def _retype(exif: bytes, group: int | None, types: dict[int, int]) -> bytes:
+    """``exif`` with the tags of its IFD0 (``group`` None) or sub-IFD
+    ``group`` typed as ``types`` says, where both the type written and the
+    type wanted have one-byte units (BYTE, ASCII, SBYTE, UNDEFINED), so the
+    entry keeps its layout: text as ASCII, ComponentsConfiguration as CIPA
+    DC-008 types it (UNDEFINED, which Pillow, knowing no type for it,
+    writes as BYTE), and a caller's tags as they came."""
     tiff = bytearray(exif.removeprefix(b"Exif\0\0"))
     order = "<" if tiff[:2] == b"II" else ">"
-    (ifd0,) = struct.unpack_from(order + "I", tiff, 4)
-    sub = next(
-        struct.unpack_from(order + "I", tiff, entry + 8)[0]
-        for entry in _entries(tiff, order, ifd0)
-        if struct.unpack_from(order + "H", tiff, entry)[0] == group
-    )
-    for entry in _entries(tiff, order, sub):
-        kind = types.get(struct.unpack_from(order + "H", tiff, entry)[0])
-        if kind is not None:
-            struct.pack_into(order + "H", tiff, entry + 2, kind)
+    found = _ifd(tiff, order, group)
+    for entry in _entries(tiff, order, found) if found is not None else ():
+        tag, kind = struct.unpack_from(order + "HH", tiff, entry)
+        wanted = types.get(tag, kind)
+        if kind in _ONE_BYTE and wanted in _ONE_BYTE:
+            struct.pack_into(order + "H", tiff, entry + 2, wanted)
     return b"Exif\0\0" + bytes(tiff)
+
+
+def _ifd(tiff: bytes, order: str, group: int | None) -> int | None:
+    """The offset of IFD0 (``group`` None) or of the sub-IFD ``group``."""
+    (ifd0,) = struct.unpack_from(order + "I", tiff, 4)
+    if group is None:
+        return ifd0
+    return next(
+        (
+            struct.unpack_from(order + "I", tiff, entry + 8)[0]
+            for entry in _entries(tiff, order, ifd0)
+            if struct.unpack_from(order + "H", tiff, entry)[0] == group
+        ),
+        None,
+    )
 
 
 def _entries(tiff: bytes, order: str, offset: int) -> range:
