@@ -311,6 +311,13 @@ def test_bad_names_json_and_images_are_refused(tmp_path):
     for kw in ({}, {"halation": False}):
         with pytest.raises(ValueError, match=r"frame_width_mm must be at least 0\.0"):
             film.simulate(np.ones((4, 4, 3), np.float32), frame_width_mm=1e-12, **kw)
+    # Wider than the kernels' widest blur (1000 px), not than this image: the
+    # kernel's refusal spoke of pixels and named no frame width.
+    stock = film.load_stock("generic-negative")
+    frame_mm = stock.halation_um / 1050 * 1200 / 1000  # a 1050 px halation
+    exposure = np.full((2, 1200, 3), 0.18, np.float32)
+    with pytest.raises(ValueError, match=r"wider than 1000 px .* at least 0\.0"):
+        film.develop(exposure, stock, frame_width_mm=frame_mm, grain=False)
     with pytest.raises(ValueError, match="print needs a negative and a paper"):
         film.print(np.ones((2, 2, 3), np.float32), "generic-reversal", "generic-paper")
     # balance_print refuses what print refuses: a negative is no paper.

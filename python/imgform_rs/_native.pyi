@@ -202,6 +202,7 @@ BAYER_DEMOSAIC_METHODS: tuple[str, ...]
 XTRANS_DEMOSAIC_METHODS: tuple[str, ...]
 SCALED_DEMOSAIC_METHODS: tuple[str, ...]
 DEMOSAIC_SAMPLE_LIMIT: float
+FILM_MAX_BLUR: float
 
 def demosaic(
     raw: npt.NDArray[Any],

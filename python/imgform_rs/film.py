@@ -738,22 +738,24 @@ def _pixel_um(frame_width_mm: Any, shape: tuple[int, ...], *spreads_um: float) -
     """The pixel pitch in µm of an image ``shape`` spanning ``frame_width_mm``.
 
     A frame so small that a stock's spread (halation, coupler diffusion) blurs
-    over more pixels than the image has sides is refused: such a blur would
-    only make every pixel the frame's mean, and its taps (three widths each
-    side) would not fit in memory for the tiniest frames.
+    over more pixels than the image has sides, or than the kernels' widest
+    blur (``FILM_MAX_BLUR``, 1000 px), is refused: such a blur would only
+    make every pixel the frame's mean, and its taps (three widths each side)
+    would not fit in memory for the tiniest frames.
     """
     width_mm = real(frame_width_mm, "frame_width_mm")
     if not (np.isfinite(width_mm) and width_mm > 0):
         raise ValueError(f"frame_width_mm must be a finite number > 0, got {frame_width_mm!r}")
     pixel_um = width_mm * 1000.0 / shape[1]
-    side = max(shape[0], shape[1])
+    widest_px = min(max(shape[0], shape[1]), _native.FILM_MAX_BLUR)
     widest = max(spreads_um, default=0.0)
-    if widest / pixel_um > side:
-        least = widest * shape[1] / side / 1000.0
+    if widest / pixel_um > widest_px:
+        least = widest * shape[1] / widest_px / 1000.0
         raise ValueError(
             f"frame_width_mm={width_mm:g} makes a {shape[1]} px wide image's pixels "
-            f"{pixel_um:.3g} µm, and the stock's {widest:g} µm spread wider than the image; "
-            f"frame_width_mm must be at least {least:.3g} for this image"
+            f"{pixel_um:.3g} µm, and the stock's {widest:g} µm spread wider than "
+            f"{widest_px:g} px (the image's side, or the widest blur); frame_width_mm must "
+            f"be at least {least:.3g} for this image"
         )
     return pixel_um
 

@@ -166,5 +166,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(film_print, m)?)?;
     m.add_function(wrap_pyfunction!(film_halation, m)?)?;
     m.add_function(wrap_pyfunction!(film_grain, m)?)?;
+    m.add("FILM_MAX_BLUR", imgform_core::film::diffuse::MAX_SIGMA)?;
     Ok(())
 }

@@ -17,6 +17,12 @@ use crate::parallel::ROWS_PER_TASK;
 /// [`CoreError::Shape`] for a table of the wrong size,
 /// [`CoreError::InvalidArgument`] naming the first bad entry.
 pub fn check_response(response: &[f64], channels: usize, grid_len: usize) -> Result<()> {
+    if grid_len == 0 {
+        // The kernels walk spectra in chunks of the grid: of none, a panic.
+        return Err(invalid!(
+            "a spectral grid needs at least one wavelength, got none"
+        ));
+    }
     if channels == 0 || response.len() != channels * grid_len {
         return Err(CoreError::Shape(format!(
             "the response must be {channels} channels x {grid_len} wavelengths = {} values, \
@@ -132,5 +138,8 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("channel 0 at wavelength index 1"));
+        // No wavelength: chunks of none panicked.
+        let err = integrate(&[], 10, 20, 0, &[], 1, &mut out).unwrap_err();
+        assert!(err.to_string().contains("at least one wavelength"), "{err}");
     }
 }
