@@ -576,7 +576,7 @@ def test_cli_dry_run_lists_and_touches_nothing(tmp_path, capsys, grey_card):
     assert "missing.png exists, kept" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("source", [".", "/"])
+@pytest.mark.parametrize("source", [".", "..", "a/..", "/"])
 def test_cli_refuses_a_folder_as_input_before_anything(tmp_path, capsys, source):
     """Its output was OUTDIR/.png, refused as a path 'that must end in .png'."""
     from imgform_rs.cli import main

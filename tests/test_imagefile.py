@@ -378,6 +378,8 @@ def test_any_name_the_file_system_takes_is_written(tmp_path, stem, suffix):
     assert os.listdir(tmp_path) == [target.name]
     partial = partial_path(target).name
     assert len(partial.encode("utf-8")) <= NAME_MAX and partial.endswith(suffix)
+    # A suffix that leaves no room for the stem: the cut looped for ever.
+    assert partial_stem(tmp_path / ("x" * 20 + "." + "y" * 230)).startswith("~")
     # Cut stems stay apart: the batch finds a target's partial files by them.
     twins = (tmp_path / f"{stem[:-1]}{end}{suffix}" for end in "xy")
     assert len({partial_stem(t) for t in twins}) == 2

@@ -329,8 +329,9 @@ def partial_stem(target: Path) -> str:
     if len(stem) <= room:
         return target.stem
     digest = hashlib.sha256(stem).hexdigest()[:8]
-    cut = target.stem[: room - len(digest) - 1]
-    while len(os.fsencode(cut)) > room - len(digest) - 1:
+    keep = max(room - len(digest) - 1, 0)  # none, beside a suffix of ~200 bytes
+    cut = target.stem[:keep]
+    while len(os.fsencode(cut)) > keep:
         cut = cut[:-1]  # whole characters: a name stays valid UTF-8
     return f"{cut}~{digest}"
 

@@ -352,7 +352,7 @@ def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple
     are one file.
     """
     pairs = [(Path(s), Path(outdir) / f"{Path(s).stem}{suffix}") for s in sources]
-    nameless = [str(source) for source, _ in pairs if not source.stem]
+    nameless = [str(source) for source, _ in pairs if source.name in ("", ".", "..")]
     if nameless:  # ".", "..", "/": their output would be the hidden OUTDIR/.png
         raise ValueError(f"{', '.join(nameless)}: a folder, not a file; nothing was written")
     writers: dict[str, list[Path]] = {}
