@@ -202,7 +202,8 @@ def similarity(a: Any, b: Any, metric: Metric = "ncc") -> float:
     Raises
     ------
     ValueError
-        Different shapes, NaN or infinite samples, an unknown metric.
+        Different shapes, NaN or infinite samples or samples beyond ±2^50
+        (the search sums their products in float32), an unknown metric.
     TypeError
         An unsupported dtype, or two different dtypes.
 
@@ -330,7 +331,8 @@ def align(
         image; images too small for the search (an overlap of fewer than 2
         pixels per axis at some level) or for the motion (fewer than 64
         window pixels per parameter); ``crop`` outside [0, 0.5); NaN or
-        infinite samples; an unknown metric, features, pyramid or motion;
+        infinite samples, or samples beyond ±2^50; an unknown metric,
+        features, pyramid or motion;
         a channel ECC cannot follow (constant, or without texture along
         some parameter) or a warp that leaves the moving image.
     TypeError
@@ -629,8 +631,9 @@ def colorize_plate(
         The channel the others are aligned onto (the lecture uses red).
     max_shift : int, optional
         Default :func:`default_max_shift`: 20 % of the channel's shorter
-        side (at least 15), ~70 for the small published JPGs and ~650 for a
-        full-resolution scan; the coarse-to-fine search keeps it cheap and
+        side (at least 15, or what a small plate's crop leaves), ~70 for
+        the small published JPGs and ~650 for a full-resolution scan; the
+        coarse-to-fine search keeps it cheap and
         exact at full resolution.
     metric, crop, pyramid, subpixel
         As in :func:`align`.

@@ -529,7 +529,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-shift",
         type=_max_shift,
         default=None,
-        help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15)",
+        help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15 "
+        "where the crop leaves room)",
     )
     align.add_argument(
         "--features",
