@@ -22,7 +22,9 @@ makes mandatory.
 Text (make, model, artist, lens) is written as its UTF-8 bytes in the ASCII
 tags, as cameras and exiftool write what ASCII cannot hold, and text in an
 EXIF given to the writers passes with its bytes unchanged: Pillow would write
-every other character as "?", and tifffile refuses it.
+every other character as "?", and tifffile refuses it. Pillow also loads tags
+without their types and writes each by its own table; a given tag of a
+one-byte type (BYTE, ASCII, SBYTE, UNDEFINED) keeps the type it came with.
 
 The tags that describe the written image rather than the shot are added by
 :func:`for_image` as the file is written: its size (PixelXDimension,
