@@ -424,6 +424,26 @@ def test_an_interrupted_batch_reports_the_files_that_finished(tmp_path, client, 
     assert all(f["status"] == "ok" and Path(f["output"]).exists() for f in saved)
 
 
+def test_the_command_line_says_where_an_interrupted_cluster_run_left_its_report(
+    tmp_path, raws, monkeypatch, capsys
+):
+    """It was a traceback from Dask's as_completed."""
+    import contextlib
+
+    from imgform_rs import cli
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli, "_cluster", lambda args: contextlib.nullcontext())
+    monkeypatch.setattr(batch, "develop_many", interrupted)
+    paths, _ = raws
+    out = tmp_path / "out"
+    assert cli.main(["develop", paths[0], "-o", str(out), "--workers", "1"]) == 130
+    report = out / "imgform-develop-report.json"
+    assert capsys.readouterr().err.startswith(f"imgform develop: interrupted; {report} lists")
+
+
 def test_the_report_knows_its_outputs_however_their_paths_were_spelled(
     tmp_path, client, raws, monkeypatch
 ):

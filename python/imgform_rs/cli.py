@@ -103,7 +103,11 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
         from .batch import _report_path
 
         report_file = _report_path(Path(args.out), args.command)
-        print(f"{command}: interrupted; the files done are in {report_file}", file=sys.stderr)
+        print(
+            f"{command}: interrupted; {report_file} lists the files finished before it "
+            "(one a worker was writing may still land, whole)",
+            file=sys.stderr,
+        )
         return 130
     failed = len(batch.failed)
     if failed:
