@@ -649,6 +649,8 @@ def test_cli_says_in_one_line_that_the_output_folder_is_a_file(tmp_path, capsys,
         (["--white-balance", "1,0,1"], "three multipliers R,G,B > 0"),
         (["--white-balance", "tungsten"], "camera, daylight, auto, none"),
         (["--color", "cmyk"], "invalid choice"),
+        (["-j", "x"], "argument -j/--jobs: must be an int >= 1, got 'x'"),  # "invalid _jobs"
+        (["--workers", "0"], "argument --workers: must be an int >= 1, got '0'"),
     ],
 )
 def test_cli_refuses_bad_develop_options(tmp_path, capsys, argv, message):

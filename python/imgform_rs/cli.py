@@ -453,14 +453,20 @@ def _bps(text: str) -> int | str:
     raise argparse.ArgumentTypeError(f'must be 8, 16 or "float", got {text!r}')
 
 
-def _jobs(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an int >= 1, got {text!r}")
-    return value
+def _count(least: int):
+    """An argparse type: an int of at least ``least``, refused saying so (a
+    ValueError let through makes argparse say "invalid count value")."""
+
+    def count(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = least - 1
+        if value < least:
+            raise argparse.ArgumentTypeError(f"must be an int >= {least}, got {text!r}")
+        return value
+
+    return count
 
 
 def _ev(text: str) -> float:
@@ -475,16 +481,6 @@ def _ev(text: str) -> float:
     return value
 
 
-def _max_shift(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an int >= 0, got {text!r}")
-    return value
-
-
 def _add_cluster_options(parser: argparse.ArgumentParser) -> None:
     """--scheduler / --workers: run the files on Dask (pip install imgform-rs[dask])."""
     where = parser.add_mutually_exclusive_group()
@@ -495,7 +491,7 @@ def _add_cluster_options(parser: argparse.ArgumentParser) -> None:
     )
     where.add_argument(
         "--workers",
-        type=_jobs,
+        type=_count(1),
         metavar="N",
         help="run one task per file on a local Dask cluster of N worker processes",
     )
@@ -531,7 +527,7 @@ def build_parser() -> argparse.ArgumentParser:
     align.add_argument("--reference", default="g", choices=["r", "g", "b"])
     align.add_argument(
         "--max-shift",
-        type=_max_shift,
+        type=_count(0),
         default=None,
         help="largest |dy|, |dx| searched (default: 20%% of a channel's shorter side, >= 15 "
         "where the crop leaves room)",
@@ -645,7 +641,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="{8,16,float}",
         help="bits per sample (float: 32-bit float TIFF or EXR, for linear output)",
     )
-    dev.add_argument("-j", "--jobs", type=_jobs, default=1, help="files developed at once")
+    dev.add_argument("-j", "--jobs", type=_count(1), default=1, help="files developed at once")
     dev.add_argument(
         "--overwrite", action="store_true", help="replace existing outputs (default: keep them)"
     )
