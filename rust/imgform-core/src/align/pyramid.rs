@@ -79,17 +79,18 @@ impl<'a, T: Sample> Converted<'a, T> {
                 view.channels()
             )));
         }
-        // One pass: each row's sum in f64 and whether all its samples are
-        // good, rows in parallel, the sums then added in order (the same mean
-        // whatever the thread count).
+        // One pass: each row's sum and whether all its samples are good,
+        // rows in parallel, the sums then added in order (the same mean
+        // whatever the thread count); the first bad sample is found again
+        // only to name it.
         let rows: Vec<(f64, bool)> = (0..view.height())
             .into_par_iter()
             .with_min_len(ROWS_PER_TASK)
             .map(|y| row_sum(view.row(y)))
             .collect();
-        if let Some(y) = rows.iter().position(|&(_, good)| !good) {
-            let x = view.row(y).iter().position(|v| !good(v.to_f32()));
-            let v = view.row(y)[x.unwrap_or_default()].to_f32();
+        if rows.iter().any(|&(_, all_good)| !all_good) {
+            let (y, x) = view.find_first(|v| !good(v.to_f32())).unwrap_or_default();
+            let v = view.row(y)[x].to_f32();
             let (why, v) = if v.is_finite() {
                 (
                     "lie within ±2^50 (the search sums their products in float32)",
@@ -99,8 +100,7 @@ impl<'a, T: Sample> Converted<'a, T> {
                 ("be finite", v.to_string())
             };
             return Err(crate::invalid!(
-                "{name}'s samples must {why}, got {v} at row {y}, column {}",
-                x.unwrap_or_default()
+                "{name}'s samples must {why}, got {v} at row {y}, column {x}"
             ));
         }
         let sums: Vec<f64> = rows.into_iter().map(|(sum, _)| sum).collect();
