@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import imgform_rs as ig
@@ -198,6 +198,34 @@ def test_exhaustive_search_equals_a_brute_force_reference(seed, metric, k, crop,
     i, j = got.shift[0] + k, got.shift[1] + k
     best = want.min() if metric == "ssd" else want.max()
     assert want[i, j] == pytest.approx(best, rel=1e-5, abs=1e-5)
+
+
+@settings(max_examples=30)
+@given(
+    seed=st.integers(0, 10_000),
+    metric=st.sampled_from(["cosine", "ncc"]),
+    k=st.integers(7, 12),
+    crop=st.sampled_from([0.0, 0.1, 0.3]),
+    dtype=st.sampled_from(DTYPES),
+)
+def test_a_wide_search_scored_by_one_correlation_equals_the_brute_force_reference(
+    seed, metric, k, crop, dtype
+):
+    # From 15 x 15 candidates on, cosine and NCC are scored through one FFT
+    # correlation: shifts inside the crop margin, beyond it, down to an
+    # overlap of two rows (the smallest image the search takes, plus 0-8
+    # rows) must all match the direct sums.
+    def fits(h):
+        y0 = math.floor(crop * h)
+        return h - y0 - max(y0, k) >= 2
+
+    rows = next(h for h in range(k + 2, 200) if fits(h)) + seed % 9
+    ref = as_dtype(smooth_field(seed, rows, 31), dtype)
+    mov = as_dtype(smooth_field(seed + 7, *ref.shape), dtype)
+    got = ig.align(ref, mov, max_shift=k, metric=metric, crop=crop, pyramid=0)
+    want = brute_force_surface(ref, mov, k, metric, crop)
+    # The samples are f32 (centred); the sums, the transforms included, f64.
+    np.testing.assert_allclose(got.surface, want, rtol=1e-6, atol=1e-7)
 
 
 def test_pyramid_finds_a_large_shift_with_few_candidates_per_level():

@@ -171,7 +171,7 @@ impl PupilPsf {
 
 /// The smallest `m >= n` whose only prime factors are 2, 3 and 5, the
 /// lengths at which rustfft is fastest.
-pub(super) fn smooth_len(n: usize) -> usize {
+pub(crate) fn smooth_len(n: usize) -> usize {
     (n.max(1)..)
         .find(|&m| {
             let mut r = m;

@@ -11,6 +11,7 @@
 //! at most [`COARSE_RADIUS`] pixels, then refines by [`REFINE_RADIUS`] at each
 //! finer level: a few hundred candidates at the top, 25 per level below.
 
+mod correlate;
 mod ecc;
 mod metric;
 mod motion;
@@ -313,11 +314,25 @@ pub fn align<T: Sample>(
 fn level_surface<S: Rows>(r: &S, m: &S, opts: &Options, cands: Candidates) -> Vec<f64> {
     let window = Window::cropped(r.width(), r.height(), opts.crop);
     match opts.features {
-        Features::Intensity => search::surface(r, m, opts.metric, window, cands),
+        Features::Intensity => scores(r, m, opts.metric, window, cands),
         Features::Gradient => {
             let (gr, gm) = (Plane::gradient(r), Plane::gradient(m));
-            search::surface(&gr, &gm, opts.metric, window, cands)
+            scores(&gr, &gm, opts.metric, window, cands)
         }
+    }
+}
+
+/// The scores of `cands`: by one FFT correlation where that is the faster
+/// ([`correlate::pays`]: a wide search), each scored directly otherwise.
+///
+/// SSD always scores directly: its sums of squared differences are then
+/// exact at a perfect match (0 for an image against itself), where the
+/// correlation's `sum a^2 + sum b^2 - 2 sum a b` leaves rounding.
+fn scores<S: Rows>(r: &S, m: &S, metric: Metric, window: Window, cands: Candidates) -> Vec<f64> {
+    if metric != Metric::Ssd && correlate::pays(window, cands, r.width(), r.height()) {
+        correlate::surface(r, m, metric, window, cands)
+    } else {
+        search::surface(r, m, metric, window, cands)
     }
 }
 

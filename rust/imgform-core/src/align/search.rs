@@ -59,7 +59,7 @@ impl Window {
     /// Rows (or columns) of the overlap for a shift `d` along an axis whose
     /// window is `lo..hi` and whose image has `size` samples.
     #[inline]
-    fn span(lo: usize, hi: usize, size: usize, d: i64) -> (usize, usize) {
+    pub(super) fn span(lo: usize, hi: usize, size: usize, d: i64) -> (usize, usize) {
         let start = (lo as i64).max(d);
         let end = (hi as i64).min(size as i64 + d);
         (start.max(0) as usize, end.max(start).max(0) as usize)
@@ -99,7 +99,7 @@ impl Candidates {
     }
 
     /// The in-limit shifts along one axis, with their index in the square.
-    fn axis(&self, c: i64) -> impl Iterator<Item = (usize, i64)> + '_ {
+    pub(super) fn axis(&self, c: i64) -> impl Iterator<Item = (usize, i64)> + '_ {
         (-self.radius..=self.radius)
             .enumerate()
             .map(move |(i, o)| (i, c + o))
@@ -257,7 +257,7 @@ fn band_sums<S: Rows>(
 /// summing only the segments between breakpoints uses independent
 /// accumulators (SIMD) and is several times faster, and its sums over a span
 /// are exact differences of the same running totals.
-struct Breaks {
+pub(super) struct Breaks {
     /// Sorted, distinct breakpoints.
     points: Vec<usize>,
     /// For each span, the indices of its start and end in `points`.
@@ -267,7 +267,7 @@ struct Breaks {
 }
 
 impl Breaks {
-    fn new(spans: impl Iterator<Item = (usize, usize)> + Clone, rows: usize) -> Self {
+    pub(super) fn new(spans: impl Iterator<Item = (usize, usize)> + Clone, rows: usize) -> Self {
         let mut points: Vec<usize> = spans.clone().flat_map(|(s, e)| [s, e]).collect();
         points.sort_unstable();
         points.dedup();
@@ -280,13 +280,23 @@ impl Breaks {
     /// Stores the running sums of `row` as row `r`.
     fn fill(&mut self, r: usize, row: &[f32]) {
         let n = self.points.len();
-        let cum = &mut self.cum[r * n..(r + 1) * n];
-        let mut acc = (0.0, 0.0);
-        for (k, pair) in self.points.windows(2).enumerate() {
-            let (s, ss) = sums64(&row[pair[0]..pair[1]]);
-            acc = (acc.0 + s, acc.1 + ss);
-            cum[k + 1] = acc;
-        }
+        running(&self.points, row, &mut self.cum[r * n..(r + 1) * n]);
+    }
+
+    /// The breakpoints, and every stored row's running sums to fill (with
+    /// [`running`]), `points.len()` pairs a row.
+    pub(super) fn rows_mut(&mut self) -> (&[usize], &mut [(f64, f64)]) {
+        (&self.points, &mut self.cum)
+    }
+
+    /// How many breakpoints, the length of a stored row.
+    pub(super) fn len(&self) -> usize {
+        self.points.len()
+    }
+
+    /// The first and last breakpoint of span `j`, as indices into a row.
+    pub(super) fn ends(&self, j: usize) -> (usize, usize) {
+        self.index[j]
     }
 
     /// `(sum, sum of squares)` of row `r` over span `j`.
@@ -296,6 +306,17 @@ impl Breaks {
         let (lo, hi) = self.index[j];
         let (a, b) = (self.cum[r * n + lo], self.cum[r * n + hi]);
         (b.0 - a.0, b.1 - a.1)
+    }
+}
+
+/// Writes the running sums of `row` at each of `points` into `cum` (the
+/// first stays `(0, 0)`).
+pub(super) fn running(points: &[usize], row: &[f32], cum: &mut [(f64, f64)]) {
+    let mut acc = (0.0, 0.0);
+    for (k, pair) in points.windows(2).enumerate() {
+        let (s, ss) = sums64(&row[pair[0]..pair[1]]);
+        acc = (acc.0 + s, acc.1 + ss);
+        cum[k + 1] = acc;
     }
 }
 
