@@ -11,7 +11,10 @@ given). The promises that make a large batch safe to run and to re-run:
   output folder and renamed into place (``os.replace``), so a crash or a
   killed worker never leaves a half-written file under its final name;
 - **resumable**: a file whose output exists is skipped (``overwrite=False``),
-  so re-running an interrupted batch only does what is left;
+  so re-running an interrupted batch only does what is left. An interrupt
+  (``KeyboardInterrupt``) drops the files no worker has started, waits for
+  those in progress (a task cannot be stopped) and writes the report with
+  every file that finished; a second interrupt stops the wait;
 - **isolated failures**: a file that cannot be processed is reported with
   the reason, and every other file is still processed;
 - **retries**: tasks are pure functions of their arguments, submitted with
@@ -318,10 +321,15 @@ def _submit_all(
     results: list[FileResult],
 ) -> None:
     """Runs the pairs one task each, appending their results to ``results``
-    in completion order (an interrupted run keeps those that finished). The
-    tasks get absolute paths, since a scheduler's workers may run in another
-    directory than the client; the results, their reasons too, name the
-    paths as given."""
+    in completion order. The tasks get absolute paths, since a scheduler's
+    workers may run in another directory than the client; the results, their
+    reasons too, name the paths as given.
+
+    On ``KeyboardInterrupt`` the tasks no worker has taken are cancelled and
+    those in progress are waited for and recorded, then the interrupt goes
+    on: a task cannot be stopped, so a file being written at the interrupt
+    would otherwise land after the report was written, missing from it. A
+    second interrupt stops the wait."""
     distributed = _distributed()
     futures = {
         client.submit(
@@ -329,7 +337,10 @@ def _submit_all(
         ): (s, t)
         for s, t in pairs
     }
-    for future in distributed.as_completed(futures):
+    seen: set = set()
+
+    def record(future: Any) -> None:
+        seen.add(future)
         source, target = futures[future]
         try:
             result = future.result()
@@ -339,6 +350,18 @@ def _submit_all(
             result = FileResult(str(source), str(target), "failed", f"{source}: {exc!r}", 0.0)
         results.append(result)
         tick(result)
+
+    try:
+        for future in distributed.as_completed(futures):
+            record(future)
+    except KeyboardInterrupt:
+        left = [f for f in futures if f not in seen]
+        taken = {key for keys in client.processing().values() for key in keys}
+        running = [f for f in left if f.done() or f.key in taken]
+        client.cancel([f for f in left if f.key not in taken and not f.done()])
+        for future in distributed.as_completed(running):
+            record(future)
+        raise
 
 
 def output_paths(sources: Iterable[Any], outdir: Any, suffix: str) -> list[tuple[Path, Path]]:

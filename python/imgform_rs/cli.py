@@ -104,8 +104,8 @@ def _on_cluster(args: argparse.Namespace, many, sources: list[str], unit: str, *
 
         report_file = _report_path(Path(args.out), args.command)
         print(
-            f"{command}: interrupted; {report_file} lists the files finished before it "
-            "(one a worker was writing may still land, whole)",
+            f"{command}: interrupted; {report_file} lists the files finished, those in "
+            "progress at the interrupt included",
             file=sys.stderr,
         )
         return 130
