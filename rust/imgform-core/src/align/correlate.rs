@@ -14,12 +14,16 @@
 //! transform serves both: their spectra are separated by conjugate symmetry.
 //! The plane's sides are long enough that no candidate's lag wraps onto
 //! another's samples, so the circular correlation is the exact overlap sum,
-//! and only the candidates' lags are transformed back. Everything is in
-//! `f64`: the rounding of a transform of N samples stays ~1e-15 log N of the
-//! sums, far below any difference between two candidates that the direct
-//! search's `f32` row sums would resolve. Rows and columns are transformed in
-//! tasks fixed by the plane's shape, so the scores are the same whatever the
-//! number of threads.
+//! and only the candidates' lags are transformed back.
+//!
+//! Everything is in `f64`. Unlike the direct search's sums, which add up one
+//! patch's samples, these sums round relative to the whole images' (~1e-16
+//! log N of them): fine for any patch with a variance of its own, but a
+//! constant patch beside far larger values would get rounding for a
+//! variance, and any NCC. So each candidate's sums carry the whole images'
+//! sums of squares as the floor under which a variance counts as none
+//! ([`Sums::floor`]). Rows and columns are transformed in tasks fixed by the
+//! plane's shape, so the scores are the same whatever the number of threads.
 
 use std::sync::Arc;
 
@@ -34,15 +38,21 @@ use crate::aberration::psf::smooth_len;
 
 type C64 = Complex<f64>;
 
-/// In-limit candidates from which one correlation is faster than scoring
-/// each: at 1024 x 1024 (crop 0.1) the two take the same time at ~170
-/// candidates, and the correlation 4x less at 961 (7 against 29 ms on two
-/// cores); on smaller images it wins earlier.
-const MIN_CANDIDATES: usize = 150;
+/// What a correlation costs per sample of its plane, in ns on two cores
+/// (measured at 1024 x 1024 to 4096 x 4096, crop 0.1): 8.5 while the
+/// plane fits [`CACHED_PLANE`] samples (16 MiB), 21 beyond.
+const PLANE_NS: (f64, f64) = (8.5, 21.0);
+const CACHED_PLANE: usize = 1 << 20;
 
-/// The largest plane, in complex samples (512 MiB). Beyond it the direct
-/// search, whose memory does not grow with the image, scores instead.
-const MAX_PLANE: usize = 1 << 25;
+/// What the direct search costs per window pixel and candidate, in ns on
+/// two cores (0.045-0.049 over the same images). The correlation pays from
+/// ~200 candidates at 1024 x 1024 and ~500 at 2048 x 2048 and beyond.
+const DIRECT_NS: f64 = 0.047;
+
+/// The most memory a correlation takes (512 MiB): the plane and the two
+/// images' running sums. Beyond it the direct search, whose memory does
+/// not grow with the image, scores instead.
+const MAX_BYTES: usize = 1 << 29;
 
 /// Rows or columns of the plane per task: ~30 k samples of work (a
 /// transform of ~2 k points each) against rayon's cost of a few µs a task.
@@ -107,33 +117,45 @@ impl Axis {
 /// Sums of an image and of its squares over rectangles: any run of stored
 /// rows, and one of the column spans of a [`Breaks`].
 struct Rectangles {
+    /// Its stored rows turned into running sums down the image: row `r`
+    /// holds the sums over rows `0..=r`.
     breaks: Breaks,
-    /// Running sums down the rows: row `r` holds the sums over rows `0..r`.
-    prefix: Vec<(f64, f64)>,
+    rows: usize,
 }
 
 impl Rectangles {
-    /// Accumulates the rows of `breaks` (filled) down the image.
+    /// Accumulates the first `rows` rows of `breaks` (filled) down the image.
     fn new(mut breaks: Breaks, rows: usize) -> Self {
         let n = breaks.len();
-        let mut prefix = vec![(0.0, 0.0); (rows + 1) * n];
         let (_, cum) = breaks.rows_mut();
-        for r in 0..rows {
-            for k in 0..n {
-                let (above, here) = (prefix[r * n + k], cum[r * n + k]);
-                prefix[(r + 1) * n + k] = (above.0 + here.0, above.1 + here.1);
+        for r in 1..rows {
+            let (above, here) = cum.split_at_mut(r * n);
+            for (h, a) in here[..n].iter_mut().zip(&above[(r - 1) * n..]) {
+                *h = (h.0 + a.0, h.1 + a.1);
             }
         }
-        Self { breaks, prefix }
+        Self { breaks, rows }
     }
 
     /// `(sum, sum of squares)` over stored rows `r0..r1` and span `j`.
     fn sum(&self, r0: usize, r1: usize, j: usize) -> (f64, f64) {
-        let n = self.breaks.len();
-        let (lo, hi) = self.breaks.ends(j);
-        let at = |r: usize, k: usize| self.prefix[r * n + k];
-        let (a, b, c, d) = (at(r1, hi), at(r1, lo), at(r0, hi), at(r0, lo));
-        (a.0 - b.0 - c.0 + d.0, a.1 - b.1 - c.1 + d.1)
+        let upto = |r: usize| match r {
+            0 => (0.0, 0.0),
+            _ => self.breaks.span(r - 1, j),
+        };
+        let (a, b) = (upto(r1), upto(r0));
+        (a.0 - b.0, a.1 - b.1)
+    }
+
+    /// `(n, sum, sum of squares)` over every stored row and column: what
+    /// the rounding of every rectangle's sums, and of the correlation, is
+    /// relative to.
+    fn total(&self) -> (f64, f64, f64) {
+        let (s, ss) = match self.rows {
+            0 => (0.0, 0.0),
+            r => self.breaks.whole(r - 1),
+        };
+        ((self.rows * self.breaks.extent()) as f64, s, ss)
     }
 }
 
@@ -160,11 +182,24 @@ impl Search {
 }
 
 /// Whether [`surface`] is the faster way to score `cands` on an image of
-/// `width x height`, and its plane is within [`MAX_PLANE`].
+/// `width x height` ([`PLANE_NS`] against [`DIRECT_NS`]), within
+/// [`MAX_BYTES`].
 pub fn pays(window: Window, cands: Candidates, width: usize, height: usize) -> bool {
-    Search::new(window, cands, width, height).is_some_and(|s| {
-        s.dys.len() * s.dxs.len() >= MIN_CANDIDATES && s.ay.n.saturating_mul(s.ax.n) <= MAX_PLANE
-    })
+    let Some(s) = Search::new(window, cands, width, height) else {
+        return false;
+    };
+    let plane = s.ay.n.saturating_mul(s.ax.n);
+    let area = s.ay.window_len() * s.ax.window_len();
+    let per_sample = if plane <= CACHED_PLANE {
+        PLANE_NS.0
+    } else {
+        PLANE_NS.1
+    };
+    let direct = (s.dys.len() * s.dxs.len()) as f64 * area as f64 * DIRECT_NS;
+    // Each image's running sums: a pair a row at up to two breakpoints a shift.
+    let sums = 2 * s.ay.window_len().max(s.ay.moving_len()) * (2 * s.dxs.len()) * 16;
+    let bytes = plane.saturating_mul(16).saturating_add(sums);
+    plane as f64 * per_sample < direct && bytes <= MAX_BYTES
 }
 
 /// Scores of every candidate, row-major over the square; NaN for shifts
@@ -185,6 +220,23 @@ pub fn surface<S: Rows>(
     };
     let (plane, ref_sums, mov_sums) = transformed(reference, moving, ay, ax, &dxs);
     let cross = correlation(&plane, ay, ax, &dys, &dxs);
+    // The rounding of every sum below is relative to the whole images', so
+    // a patch is constant when its variance is rounding next to theirs.
+    let ((na, ta, taa), (nb, tb, tbb)) = (ref_sums.total(), mov_sums.total());
+    let (fa, _) = Sums {
+        n: na,
+        sa: ta,
+        saa: taa,
+        ..Sums::default()
+    }
+    .squares(metric, reference.offset());
+    let (_, fb) = Sums {
+        n: nb,
+        sb: tb,
+        sbb: tbb,
+        ..Sums::default()
+    }
+    .squares(metric, reference.offset());
     for (a, &(i, dy)) in dys.iter().enumerate() {
         let (r0, r1) = Window::span(ay.lo, ay.hi, h, dy);
         for (b, &(j, dx)) in dxs.iter().enumerate() {
@@ -203,6 +255,7 @@ pub fn surface<S: Rows>(
                 saa,
                 sbb,
                 cross: cross[a * dxs.len() + b],
+                floor: (fa, fb),
             };
             scores[i * side + j] = sums.score(metric, reference.offset());
         }
@@ -340,9 +393,12 @@ fn correlation(
         .into_par_iter()
         .flat_map_iter(|r| {
             let mut line: Vec<C64> = (0..nx)
-                .map(|kx| match half.get(kx * n + r) {
-                    Some(&v) => v,
-                    None => half[(nx - kx) * n + r].conj(),
+                .map(|kx| {
+                    if kx <= nx / 2 {
+                        half[kx * n + r]
+                    } else {
+                        half[(nx - kx) * n + r].conj()
+                    }
                 })
                 .collect();
             inv_x.process(&mut line);
@@ -399,6 +455,29 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A constant overlap scores NCC's defined 0 however large the rest of
+    /// the image: its sums of squares (1e10 a sample) are rounding next to
+    /// the textured rows' (~1e23), and scored anything up to 1 while only
+    /// the patch's own sums served as the floor.
+    #[test]
+    fn a_constant_overlap_scores_zero_beside_huge_values() {
+        let rough = |x: i64, y: i64| ((x * 7919 + y * 104_729) % 1000) as f32 * 1e9 - 5e11;
+        let r = Plane::from_fn(60, 40, |x, y| if y < 4 { rough(x, y) } else { 1e5 });
+        let m = Plane::from_fn(60, 40, pattern);
+        let win = Window::cropped(60, 40, 0.0);
+        let c = Candidates {
+            center: (0, 0),
+            radius: 15,
+            limit: 15,
+        };
+        let s = surface(&r, &m, Metric::Ncc, win, c);
+        // From dy = 4 on, the reference rows compared are all flat.
+        for (k, &v) in s.iter().enumerate().skip((15 + 4) * 31) {
+            assert_eq!(v, 0.0, "{:?}", c.shift(k / 31, k % 31));
+        }
+        assert!(s[..(15 + 4) * 31].iter().any(|&v| v != 0.0));
     }
 
     #[test]

@@ -67,6 +67,13 @@ pub struct Sums {
     pub saa: f64,
     pub sbb: f64,
     pub cross: f64,
+    /// The sums of squares (as [`Sums::squares`] gives them) whose size
+    /// these sums' rounding is relative to, when larger than their own: 0
+    /// for sums accumulated over the patch alone, the whole images' for sums
+    /// taken as differences of running sums or from a correlation of the
+    /// whole images. A patch whose variance is rounding next to them counts
+    /// as constant.
+    pub floor: (f64, f64),
 }
 
 impl Sums {
@@ -92,23 +99,36 @@ impl Sums {
         if n <= 0.0 {
             return f64::NAN;
         }
+        let (fa, fb) = self.floor;
         match metric {
             Metric::Ssd => self.cross.max(0.0).sqrt(),
             Metric::Cosine => {
                 // Undo the offset: a = a' + c.
                 let c = offset;
                 let sab = self.cross + c * (self.sa + self.sb) + n * c * c;
-                let saa = self.saa + 2.0 * c * self.sa + n * c * c;
-                let sbb = self.sbb + 2.0 * c * self.sb + n * c * c;
-                normalised(sab, saa, sbb)
+                let (saa, sbb) = self.squares(metric, offset);
+                normalised(sab, above(saa, fa), above(sbb, fb))
             }
             Metric::Ncc => {
                 // Mean-free sums are offset-free already.
                 let sab = self.cross - self.sa * self.sb / n;
-                let saa = centred(self.saa, self.sa, n);
-                let sbb = centred(self.sbb, self.sb, n);
+                let saa = centred(self.saa, self.sa, n, fa);
+                let sbb = centred(self.sbb, self.sb, n, fb);
                 normalised(sab, saa, sbb)
             }
+        }
+    }
+
+    /// The sums of squares of `a` and `b` the metric's formula reads: with
+    /// the offset undone for cosine, offset-free for the others.
+    pub fn squares(&self, metric: Metric, offset: f64) -> (f64, f64) {
+        let (c, n) = (offset, self.n);
+        match metric {
+            Metric::Cosine => (
+                self.saa + 2.0 * c * self.sa + n * c * c,
+                self.sbb + 2.0 * c * self.sb + n * c * c,
+            ),
+            Metric::Ssd | Metric::Ncc => (self.saa, self.sbb),
         }
     }
 }
@@ -130,13 +150,18 @@ fn normalised(sab: f64, saa: f64, sbb: f64) -> f64 {
 }
 
 /// The mean-free sum of squares `saa - sa^2 / n`, or 0 when it is rounding
-/// noise (a constant patch) so that NCC then takes its defined value 0.
-fn centred(saa: f64, sa: f64, n: f64) -> f64 {
-    let var = saa - sa * sa / n;
-    if var <= DEGENERATE * saa {
+/// noise next to `saa` or `floor` (a constant patch) so that NCC then takes
+/// its defined value 0.
+fn centred(saa: f64, sa: f64, n: f64, floor: f64) -> f64 {
+    above(saa - sa * sa / n, saa.max(floor))
+}
+
+/// `s`, or 0 when it is rounding noise next to `floor`.
+fn above(s: f64, floor: f64) -> f64 {
+    if s <= DEGENERATE * floor {
         0.0
     } else {
-        var
+        s
     }
 }
 

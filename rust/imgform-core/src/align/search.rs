@@ -294,14 +294,21 @@ impl Breaks {
         self.points.len()
     }
 
-    /// The first and last breakpoint of span `j`, as indices into a row.
-    pub(super) fn ends(&self, j: usize) -> (usize, usize) {
-        self.index[j]
+    /// `(sum, sum of squares)` of stored row `r` from the first breakpoint to
+    /// the last.
+    pub(super) fn whole(&self, r: usize) -> (f64, f64) {
+        let n = self.points.len();
+        self.cum[(r + 1) * n - 1]
+    }
+
+    /// The columns from the first breakpoint to the last.
+    pub(super) fn extent(&self) -> usize {
+        self.points.last().map_or(0, |&e| e - self.points[0])
     }
 
     /// `(sum, sum of squares)` of row `r` over span `j`.
     #[inline]
-    fn span(&self, r: usize, j: usize) -> (f64, f64) {
+    pub(super) fn span(&self, r: usize, j: usize) -> (f64, f64) {
         let n = self.points.len();
         let (lo, hi) = self.index[j];
         let (a, b) = (self.cum[r * n + lo], self.cum[r * n + hi]);
