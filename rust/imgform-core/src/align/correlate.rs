@@ -222,21 +222,16 @@ pub fn surface<S: Rows>(
     let cross = correlation(&plane, ay, ax, &dys, &dxs);
     // The rounding of every sum below is relative to the whole images', so
     // a patch is constant when its variance is rounding next to theirs.
-    let ((na, ta, taa), (nb, tb, tbb)) = (ref_sums.total(), mov_sums.total());
-    let (fa, _) = Sums {
-        n: na,
-        sa: ta,
-        saa: taa,
-        ..Sums::default()
-    }
-    .squares(metric, reference.offset());
-    let (_, fb) = Sums {
-        n: nb,
-        sb: tb,
-        sbb: tbb,
-        ..Sums::default()
-    }
-    .squares(metric, reference.offset());
+    let floor = |(n, sa, saa): (f64, f64, f64)| {
+        let total = Sums {
+            n,
+            sa,
+            saa,
+            ..Sums::default()
+        };
+        total.squares(metric, reference.offset()).0
+    };
+    let (fa, fb) = (floor(ref_sums.total()), floor(mov_sums.total()));
     for (a, &(i, dy)) in dys.iter().enumerate() {
         let (r0, r1) = Window::span(ay.lo, ay.hi, h, dy);
         for (b, &(j, dx)) in dxs.iter().enumerate() {
