@@ -277,6 +277,8 @@ fn transformed<S: Rows>(
         .iter()
         .zip(dxs)
         .map(|(&(s, e), &(_, dx))| ((s as i64 - dx) as usize, (e as i64 - dx) as usize));
+    // Both images' running sums get a row for every plane row read, so that
+    // one task's rows of the plane and of both sums are chunks of one size.
     let rows = ay.window_len().max(ay.moving_len());
     let mut ra = Breaks::new(spans.iter().copied(), rows);
     let mut rb = Breaks::new(moved, rows);
