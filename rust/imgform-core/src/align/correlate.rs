@@ -33,7 +33,7 @@ use rustfft::{Fft, FftPlanner};
 
 use super::metric::{Metric, Sums};
 use super::pyramid::Rows;
-use super::search::{running, Breaks, Candidates, Window};
+use super::search::{column_spans, running, Breaks, Candidates, Window};
 use crate::aberration::psf::smooth_len;
 
 type C64 = Complex<f64>;
@@ -269,19 +269,18 @@ fn transformed<S: Rows>(
     dxs: &[(usize, i64)],
 ) -> (Vec<C64>, Rectangles, Rectangles) {
     let w = reference.width();
-    let spans: Vec<(usize, usize)> = dxs
-        .iter()
-        .map(|&(_, dx)| Window::span(ax.lo, ax.hi, w, dx))
-        .collect();
-    let moved = spans
-        .iter()
-        .zip(dxs)
-        .map(|(&(s, e), &(_, dx))| ((s as i64 - dx) as usize, (e as i64 - dx) as usize));
+    let window = Window {
+        y0: ay.lo,
+        y1: ay.hi,
+        x0: ax.lo,
+        x1: ax.hi,
+    };
+    let (spans, moved) = column_spans(window, w, dxs);
     // Both images' running sums get a row for every plane row read, so that
     // one task's rows of the plane and of both sums are chunks of one size.
     let rows = ay.window_len().max(ay.moving_len());
-    let mut ra = Breaks::new(spans.iter().copied(), rows);
-    let mut rb = Breaks::new(moved, rows);
+    let mut ra = Breaks::new(spans.into_iter(), rows);
+    let mut rb = Breaks::new(moved.into_iter(), rows);
     let mut plane = vec![C64::default(); ay.n * ax.n];
     let fft = FftPlanner::new().plan_fft_forward(ax.n);
     let (pa, ca) = ra.rows_mut();

@@ -168,10 +168,7 @@ fn band_sums<S: Rows>(
     dxs: &[(usize, i64)],
 ) -> Vec<Sums> {
     let (w, h) = (reference.width(), reference.height());
-    let spans: Vec<(usize, usize)> = dxs
-        .iter()
-        .map(|&(_, dx)| Window::span(window.x0, window.x1, w, dx))
-        .collect();
+    let (spans, moved) = column_spans(window, w, dxs);
     // For each candidate row, the rows of this band that have a moving row.
     let ranges: Vec<(usize, usize)> = dys
         .iter()
@@ -198,11 +195,7 @@ fn band_sums<S: Rows>(
     let summed = metric != Metric::Ssd;
     let prows = if summed { hi - lo } else { 0 };
     let mut pa = Breaks::new(spans.iter().copied(), 1);
-    let moved = dxs
-        .iter()
-        .zip(&spans)
-        .map(|(&(_, dx), &(s, e))| ((s as i64 - dx) as usize, (e as i64 - dx) as usize));
-    let mut pb = Breaks::new(moved, prows);
+    let mut pb = Breaks::new(moved.into_iter(), prows);
     // The band's moving rows, converted once; the reference row of the
     // moment in `a`.
     let mut band = vec![0.0f32; (hi - lo) * w];
@@ -248,6 +241,20 @@ fn band_sums<S: Rows>(
         }
     }
     sums
+}
+
+/// Column ranges `(start, end)`, one per candidate `dx`.
+pub(super) type Spans = Vec<(usize, usize)>;
+
+/// For each `dx`, the reference columns of the overlap and the moving
+/// columns they meet.
+pub(super) fn column_spans(window: Window, width: usize, dxs: &[(usize, i64)]) -> (Spans, Spans) {
+    dxs.iter()
+        .map(|&(_, dx)| {
+            let (s, e) = Window::span(window.x0, window.x1, width, dx);
+            ((s, e), ((s as i64 - dx) as usize, (e as i64 - dx) as usize))
+        })
+        .unzip()
 }
 
 /// Running sums of rows (and of their squares) at the few columns where
