@@ -35,10 +35,14 @@ profile = LensProfile(
     ("poly3", (1.001, 0.9995, 0.0, 0.0, -0.0003, 0.0003)),
     (-0.316, 0.0175, 0.0074),
 )
+depth = rng.uniform(700.0, 4000.0, (h, w))
 for dtype, full in ((np.uint8, 255), (np.uint16, 65535), (np.float32, 1.0)):
     img = (rgb * full).astype(dtype)
     out[f"lens {dtype.__name__}"] = digest(profile.correct(img))
     out[f"lens plain {dtype.__name__}"] = digest(profile.correct(img, vignetting=False))
+    out[f"defocus {dtype.__name__}"] = digest(
+        ig.render_defocus(img, depth, f=50.0, N=2.0, focus_distance=1000.0, pixel_pitch=0.03)
+    )
 print(json.dumps(out))
 """
 

@@ -227,6 +227,55 @@ def test_constant_depth_is_a_normalised_disc_filter_like_cv2():
     np.testing.assert_allclose(_defocus(img, depth), want, atol=2e-6)
 
 
+def _reference_defocus(img, depth, pixel_pitch=0.02):
+    """The gather of the module docs in float64, offset by offset over the
+    whole image (the discs' depths, radii and weights rounded to float32, as
+    the kernel keeps them)."""
+    h, w = depth.shape
+    img = img.astype(np.float64).reshape(h, w, -1)
+    coc = ig.circle_of_confusion(LENS["f"], LENS["N"], LENS["focus_distance"], depth)
+    r = (coc / (2 * pixel_pitch)).astype(np.float32).astype(np.float64)
+    z = depth.astype(np.float32).astype(np.float64)
+    g = int(np.ceil(r.max() + 1))
+    dist = np.hypot(*np.mgrid[-g : g + 1, -g : g + 1])
+    area = np.clip(r[..., None, None] + 0.5 - dist, 0.0, 1.0).sum((-2, -1))
+    unit = (1.0 / area).astype(np.float32).astype(np.float64)
+    pad = [(g, g), (g, g)]
+    zq, rq, uq = (np.pad(a, pad, mode="reflect") for a in (z, r, unit))
+    iq = np.pad(img, [*pad, (0, 0)], mode="reflect")
+    weights = np.zeros((3, h, w))
+    light = np.zeros((3, *img.shape))
+    for dy in range(-g, g + 1):
+        for dx in range(-g, g + 1):
+            at = np.s_[g + dy : g + dy + h, g + dx : g + dx + w]
+            d = np.hypot(dy, dx)
+            farther = zq[at] > z
+            wt = np.clip(np.where(farther, np.minimum(rq[at], r), rq[at]) + 0.5 - d, 0, 1)
+            wt = wt * uq[at]
+            front = np.where(zq[at] < z, wt, 0.0)
+            behind = np.where(farther, np.clip(r + 0.5 - d, 0, 1), 0.0)
+            for k, layer in enumerate((front, wt - front, behind)):
+                weights[k] += layer
+                light[k] += layer[..., None] * iq[at]
+    (front, own, behind), (f, s, b) = weights[..., None], light
+    with np.errstate(invalid="ignore", divide="ignore"):
+        surface = np.where((own >= 1) | (behind == 0), s / own, s + (1 - own) * b / behind)
+        return np.where(front >= 1, f / front, f + (1 - front) * surface)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_gather_matches_a_float64_reference(seed):
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(9, 40, 2)
+    img = rng.random((h, w, 3), dtype=np.float32)
+    # Depths on both sides of the focus, in patches, so that pixels have
+    # occluders, surfaces and backgrounds of every radius.
+    depth = rng.uniform(650.0, 2500.0, (h // 4 + 1, w // 4 + 1)).repeat(4, 0).repeat(4, 1)
+    depth = depth[:h, :w] + rng.uniform(0.0, 30.0, (h, w))
+    want = _reference_defocus(img, depth).reshape(img.shape)
+    np.testing.assert_allclose(_defocus(img, depth), want, atol=2e-6)
+
+
 def _fg_scene():
     """A sharp bright square (200, at the focus distance) in front of a dim
     textured background (0..100) far out of focus."""
@@ -310,6 +359,15 @@ def test_depth_may_be_float32_and_inputs_non_contiguous():
     np.testing.assert_array_equal(got, want)
     # Big-endian depths were refused as "not float64".
     np.testing.assert_array_equal(_defocus(img, depth.astype(">f8")), _defocus(img, depth))
+
+
+def test_each_channel_renders_as_it_would_alone():
+    # Four channels go through a pass; a fifth and sixth take another.
+    img = _noise((37, 53, 6), np.uint16, seed=4)
+    depth = np.random.default_rng(4).uniform(600.0, 4000.0, (37, 53))
+    whole = _defocus(img, depth)
+    for k in range(6):
+        np.testing.assert_array_equal(whole[..., k], _defocus(img[..., k], depth))
 
 
 def test_thread_count_does_not_change_the_result():
