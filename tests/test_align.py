@@ -419,6 +419,24 @@ def test_a_nan_of_the_image_stays_nan_where_it_is_read_and_only_outside_is_fill(
     np.testing.assert_array_equal(ig.apply_shift(row, (0, 1), fill=-1), [[-1, 1, np.nan, 3, 4]])
 
 
+@pytest.mark.parametrize("dtype", [np.int64, np.uint64])
+def test_a_fractional_shift_keeps_64_bit_integers_at_their_limits(dtype):
+    """The interpolation ran in float64, whose 2^63 for int64's largest value
+    wrapped round to the most negative in the cast back (uint64's largest
+    became 0), and values beyond 2^53 and a fill near the limits rounded."""
+    info = np.iinfo(dtype)
+    for value in (info.max, info.min, 2**53 + 1):
+        img = np.full((2, 3), value, dtype)
+        got = ig.apply_shift(img, (0, 0.5), fill=info.max)
+        assert got.dtype == dtype
+        if np.finfo(np.longdouble).nmant >= 63:
+            # x86's long double holds every 64-bit integer.
+            assert got[:, 1:].tolist() == [[value] * 2] * 2
+        else:
+            assert np.all(np.sign(got[:, 1:].astype(float)) == np.sign(value))
+        assert got[:, 0].tolist() == [info.max] * 2
+
+
 @pytest.mark.parametrize("shift", [(1, 0), (1.5, 0)])
 def test_apply_shift_refuses_a_fill_the_dtype_cannot_hold(shift):
     """-1 on uint8 was an OverflowError for an integer shift and became 0

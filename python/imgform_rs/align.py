@@ -511,7 +511,7 @@ def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
         return _roll_fill(img, int(dy), int(dx), fill)
     fy, fx = int(np.floor(dy)), int(np.floor(dx))
     ty, tx = dy - fy, dx - fx
-    src = img.astype(np.float64)
+    src = img.astype(_interpolation_type(img.dtype))
     acc = np.zeros_like(src)
     # out(y) = (1 - ty) img(y - fy) + ty img(y - fy - 1), and likewise in x.
     # A mask of the image marks the taps from outside (a NaN of the image's
@@ -523,11 +523,30 @@ def apply_shift(image: Any, shift: Any, *, fill: float = 0) -> np.ndarray:
             if wy * wx > 0.0:
                 acc += wy * wx * _roll_fill(src, oy, ox, 0.0)
                 outside |= ~_roll_fill(inside, oy, ox, False)
-    acc[outside] = fill
     if img.dtype.kind in "iu":
         info = np.iinfo(img.dtype)
-        acc = np.clip(np.floor(acc + 0.5), info.min, info.max)
-    return acc.astype(img.dtype)
+        bounds = [_held(bound, acc.dtype) for bound in (info.min, info.max)]
+        acc = np.clip(np.floor(acc + 0.5), *bounds)
+    out = acc.astype(img.dtype)
+    # After the cast: an integer fill beyond 2^53 would round in float64.
+    out[outside] = fill
+    return out
+
+
+def _interpolation_type(dtype: np.dtype) -> type:
+    """float64, or for 64-bit integers the platform's long double: x86's
+    64-bit significand holds every int64 and uint64 value, where float64 would
+    round those beyond 2^53 (on platforms whose long double is float64 they
+    round as before)."""
+    return np.longdouble if dtype.kind in "iu" and dtype.itemsize == 8 else np.float64
+
+
+def _held(bound: int, ftype: np.dtype) -> np.floating:
+    """``bound`` (an integer type's limit) in ``ftype``, moved towards 0 when
+    it rounds beyond it: float64's 2^63 for int64's 2^63 - 1 would wrap round
+    to the most negative value in the cast back."""
+    value = ftype.type(bound)
+    return np.nextafter(value, ftype.type(0)) if abs(int(value)) > abs(bound) else value
 
 
 def apply_warp(
