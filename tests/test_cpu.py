@@ -43,6 +43,12 @@ for dtype, full in ((np.uint8, 255), (np.uint16, 65535), (np.float32, 1.0)):
     out[f"defocus {dtype.__name__}"] = digest(
         ig.render_defocus(img, depth, f=50.0, N=2.0, focus_distance=1000.0, pixel_pitch=0.03)
     )
+# NaN and infinities spread through the blur: one NaN for every build.
+special = (rgb * 1e30).astype(np.float32)
+special[5, 5], special[20, 30], special[30, 10] = np.nan, np.inf, -np.inf
+out["defocus specials"] = digest(
+    ig.render_defocus(special, depth, f=50.0, N=2.0, focus_distance=1000.0, pixel_pitch=0.03)
+)
 print(json.dumps(out))
 """
 

@@ -263,17 +263,31 @@ def _reference_defocus(img, depth, pixel_pitch=0.02):
         return np.where(front >= 1, f / front, f + (1 - front) * surface)
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_the_gather_matches_a_float64_reference(seed):
+@pytest.mark.parametrize(
+    ("seed", "far", "atol"), [(0, 2500, 2e-6), (1, 2500, 2e-6), (2, 3e4, 3e-5)]
+)
+def test_the_gather_matches_a_float64_reference(seed, far, atol):
     rng = np.random.default_rng(seed)
     h, w = rng.integers(9, 40, 2)
     img = rng.random((h, w, 3), dtype=np.float32)
     # Depths on both sides of the focus, in patches, so that pixels have
-    # occluders, surfaces and backgrounds of every radius.
-    depth = rng.uniform(650.0, 2500.0, (h // 4 + 1, w // 4 + 1)).repeat(4, 0).repeat(4, 1)
+    # occluders, surfaces and backgrounds of every radius (up to 20 px, or
+    # 32 px, the largest, where ~3400 terms a sum round to ~1e-5).
+    depth = rng.uniform(650.0, far, (h // 4 + 1, w // 4 + 1)).repeat(4, 0).repeat(4, 1)
     depth = depth[:h, :w] + rng.uniform(0.0, 30.0, (h, w))
     want = _reference_defocus(img, depth).reshape(img.shape)
-    np.testing.assert_allclose(_defocus(img, depth), want, atol=2e-6)
+    np.testing.assert_allclose(_defocus(img, depth), want, atol=atol)
+
+
+def test_values_near_the_float32_limit_do_not_overflow():
+    """The light is summed as differences from each pixel: of 2e38 and
+    -2e38 that overflowed to NaN, until the differences were halved."""
+    img = np.array([[2e38, -2e38, 0.0, 0.0]], np.float32)
+    depth = np.full(img.shape, 1300.0)
+    got = _defocus(img, depth)
+    assert np.isfinite(got).all()
+    want = _reference_defocus(img, depth)[..., 0]
+    np.testing.assert_allclose(got, want, rtol=1e-5)
 
 
 def _fg_scene():

@@ -53,12 +53,13 @@
 //!
 //! Speed: the pixels of a tile visit the same offsets, so eight or sixteen
 //! adjacent ones are gathered together, one per vector lane, each offset's
-//! neighbours one load per plane of a band's sources converted once to
-//! `f32` planes (depth, radius, weight, channels). Each lane computes its
+//! neighbours one load per plane of their block's sources, converted once
+//! to `f32` planes (depth, radius, weight, channels). Each lane computes its
 //! pixel with the same operations in the same order as any other lane
 //! count, so every instruction set gives the same bits. That made a 12 MP
-//! render 5.1 times faster with AVX-512 than the pixel-by-pixel gather
-//! before it (1.1 against 5.7 s, `benchmarks/optics.py`'s scene).
+//! render 5 times faster with AVX-512 than the pixel-by-pixel gather before
+//! it (1.1 against 5.7 s, `benchmarks/optics.py`'s scene), 3.5 times with
+//! AVX2.
 
 use crate::error::{positive, CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
@@ -254,19 +255,33 @@ fn tile_search_radii(discs: &[Disc], w: usize, h: usize) -> (Vec<usize>, usize) 
 /// sixteen.
 const LANES_WIDE: usize = 16;
 /// Output pixels the other builds gather at once: AVX2's eight lanes.
+/// Images narrower than this go one pixel at a time, rather than leave
+/// most lanes idle.
 const LANES: usize = 8;
-// A row's pixels from a multiple of the lane count lie in one tile, so they
-// visit the same offsets, and each offset's neighbours of all lanes are one
-// contiguous load.
-const _: () = assert!(TILE.is_multiple_of(LANES) && TILE.is_multiple_of(LANES_WIDE));
 
-/// Output rows per band; a band converts its source rows once ([`Sources`]),
-/// `2 g_max` rows more than it renders.
-const BAND_ROWS: usize = 32;
+/// Output rows and columns of the blocks whose sources are converted at
+/// once ([`Sources`]): each block converts `2 g_max` rows and columns of
+/// halo more than it renders, and its sources stay within the L2 cache
+/// whatever the image's shape (under 0.9 MB at the largest radius with four
+/// channels), where sources of whole rows took 375 MB for a 1 x 200000
+/// image.
+const BLOCK_ROWS: usize = 32;
+const BLOCK_COLS: usize = 256;
+// A block's pixels from a multiple of the lane count lie in one tile, so
+// they visit the same offsets, and each offset's neighbours of all lanes
+// are one contiguous load.
+const _: () = assert!(
+    TILE.is_multiple_of(LANES_WIDE)
+        && TILE.is_multiple_of(LANES)
+        && BLOCK_COLS.is_multiple_of(TILE)
+);
 
 /// Channels gathered in one pass: four sums of light per layer stay in
 /// registers with the weights. Images with more channels take more passes.
 const GROUP: usize = 4;
+
+/// Sums of a group of lanes: light by layer and channel, weights by layer.
+type Sums<const C: usize, const L: usize> = ([[[f32; L]; C]; LAYERS], [[f32; L]; LAYERS]);
 
 /// Everything the gather reads, shared by all bands.
 struct Gather<'a, T> {
@@ -281,12 +296,14 @@ struct Gather<'a, T> {
     dist: Vec<f32>,
 }
 
-/// A band's source pixels as the lanes read them, in planes of `pitch`
+/// A block's source pixels as the lanes read them, in planes of `pitch`
 /// floats a row: the discs' depths, radii and light per unit of coverage,
-/// then the channels gathered. Rows run from `g_max` above the band to
-/// `g_max` below it; columns from `g_max` left of the image to `g_max` and a
-/// group of lanes beyond its right edge, mirrored at the borders, so the
-/// inner loop reads every neighbour with neither a bound nor a table.
+/// then the channels gathered. Rows run from `g_max` above the block to
+/// `g_max` below it, columns from `g_max` left of it to `g_max` right of
+/// its width rounded up to whole groups of lanes, mirrored at the image's
+/// borders, so the inner loop reads every neighbour with neither a bound
+/// nor a table. One buffer serves a band's blocks in turn.
+#[derive(Default)]
 struct Sources {
     data: Vec<f32>,
     pitch: usize,
@@ -337,11 +354,14 @@ impl<'a, T: Sample> Gather<'a, T> {
     /// build computes each pixel with the same operations in the same order,
     /// whatever its lane count, so all give the same bits.
     fn run<const C: usize>(&self, first: usize, out: &mut [T]) {
-        let row_len = self.image.width() * self.image.channels();
-        for_each_band(out, row_len, BAND_ROWS, |y0, rows| {
+        let (w, c) = (self.image.width(), self.image.channels());
+        for_each_band(out, w * c, BLOCK_ROWS, |y0, rows| {
+            if w < LANES {
+                return self.band::<C, 1>(first, y0, rows);
+            }
             #[cfg(target_arch = "x86_64")]
             {
-                if crate::cpu::has_avx512() {
+                if crate::cpu::has_avx512() && w >= LANES_WIDE {
                     // SAFETY: AVX-512 support was detected just above.
                     return unsafe { self.band_avx512::<C>(first, y0, rows) };
                 }
@@ -375,51 +395,68 @@ impl<'a, T: Sample> Gather<'a, T> {
     }
 
     /// Renders channels `first..first + C` of the band of rows from `y0`
-    /// into `out` (those rows, every channel), `L` pixels at a time.
+    /// into `out` (those rows, every channel), block by block, `L` pixels
+    /// at a time.
     #[inline(always)]
     fn band<const C: usize, const L: usize>(&self, first: usize, y0: usize, out: &mut [T]) {
         let (w, c) = (self.image.width(), self.image.channels());
-        let src = self.sources::<C, L>(first, y0, out.len() / (w * c));
-        for (dy, out_row) in out.chunks_exact_mut(w * c).enumerate() {
-            let y = y0 + dy;
-            for x0 in (0..w).step_by(L) {
-                let g = self.radii[(y / TILE) * self.tiles_w + x0 / TILE];
-                let pixels = &mut out_row[x0 * c..(x0 + L).min(w) * c];
-                if g == 0 {
-                    // Every disc that reaches these pixels is narrower than one.
-                    for (x, px) in (x0..).zip(pixels.chunks_exact_mut(c)) {
-                        self.copy::<C>(first, x, y, px);
+        let rows = out.len() / (w * c);
+        let mut src = Sources::default();
+        for x0 in (0..w).step_by(BLOCK_COLS) {
+            let x1 = (x0 + BLOCK_COLS).min(w);
+            let radius = |y: usize, x: usize| self.radii[(y / TILE) * self.tiles_w + x / TILE];
+            let blurred = (y0..y0 + rows).any(|y| (x0..x1).step_by(TILE).any(|x| radius(y, x) > 0));
+            if blurred {
+                self.sources::<C, L>(first, (x0, x1), (y0, rows), &mut src);
+            }
+            for (dy, out_row) in out.chunks_exact_mut(w * c).enumerate() {
+                let y = y0 + dy;
+                for gx in (x0..x1).step_by(L) {
+                    let pixels = &mut out_row[gx * c..(gx + L).min(x1) * c];
+                    let g = radius(y, gx);
+                    if g == 0 {
+                        // Every disc that reaches these pixels is narrower than one.
+                        for (x, px) in (gx..).zip(pixels.chunks_exact_mut(c)) {
+                            self.copy::<C>(first, x, y, px);
+                        }
+                        continue;
                     }
-                    continue;
-                }
-                let (light, weights) = self.lanes::<C, L>(&src, (x0, dy), g);
-                for (l, px) in pixels.chunks_exact_mut(c).enumerate() {
-                    let layers = weights.map(|wl| wl[l]);
-                    let light = light.map(|layer| layer.map(|ch| ch[l]));
-                    self.composite::<C>(first, (x0 + l, y), layers, light, px);
+                    let (light, weights) = self.lanes::<C, L>(&src, (gx - x0, dy), g);
+                    for (l, px) in pixels.chunks_exact_mut(c).enumerate() {
+                        let layers = weights.map(|wl| wl[l]);
+                        let light = light.map(|layer| layer.map(|ch| ch[l]));
+                        self.composite::<C>(first, (gx + l, y), layers, light, px);
+                    }
                 }
             }
         }
     }
 
-    /// The band's [`Sources`]: `rows` rows from `y0`, channels `first..first
-    /// + C`, columns padded for groups of `L` lanes.
+    /// Converts into `src` the [`Sources`] of the block of columns `x0..x1`
+    /// and `rows` rows from `y0`, channels `first..first + C`, for groups of
+    /// `L` lanes. The channels are halved, so that no difference of two
+    /// finite values overflows ([`Gather::lanes`]).
     fn sources<const C: usize, const L: usize>(
         &self,
         first: usize,
-        y0: usize,
-        rows: usize,
-    ) -> Sources {
+        (x0, x1): (usize, usize),
+        (y0, rows): (usize, usize),
+        src: &mut Sources,
+    ) {
         let (w, h, c) = (
             self.image.width(),
             self.image.height(),
             self.image.channels(),
         );
         let g = self.g_max as isize;
-        let pitch = w.next_multiple_of(L) + 2 * self.g_max;
-        let plane = (rows + 2 * self.g_max) * pitch;
-        let mut data = vec![0.0f32; plane * (3 + C)];
-        let cols: Vec<usize> = (0..pitch).map(|i| mirror(i as isize - g, w)).collect();
+        src.pitch = (x1 - x0).next_multiple_of(L) + 2 * self.g_max;
+        src.plane = (rows + 2 * self.g_max) * src.pitch;
+        // Every float up to this length is written below.
+        src.data.resize(src.plane * (3 + C), 0.0);
+        let (pitch, plane, data) = (src.pitch, src.plane, &mut src.data);
+        let cols: Vec<usize> = (0..pitch)
+            .map(|i| mirror((x0 + i) as isize - g, w))
+            .collect();
         for r in 0..rows + 2 * self.g_max {
             let y = mirror((y0 + r) as isize - g, h);
             let (discs, image) = (&self.discs[y * w..(y + 1) * w], self.image.row(y));
@@ -429,30 +466,33 @@ impl<'a, T: Sample> Gather<'a, T> {
                 data[plane + at] = d.r;
                 data[2 * plane + at] = d.w;
                 for k in 0..C {
-                    data[(3 + k) * plane + at] = image[x * c + first + k].to_f32();
+                    data[(3 + k) * plane + at] = 0.5 * image[x * c + first + k].to_f32();
                 }
             }
         }
-        Sources { data, pitch, plane }
     }
 
     /// The light and the weights, by layer (occluders, own surface, what lies
-    /// behind it), that the discs around pixels `x0..x0 + L` of the band's
+    /// behind it), that the discs around pixels `x0..x0 + L` of the block's
     /// row `dy` lay on each, over the offsets within `g` (see the module
     /// docs). Lane `l` is pixel `x0 + l`'s gather, in the same operations and
     /// order whatever `L`.
     ///
     /// The light is summed as each neighbour's difference from the pixel
-    /// itself: the sums' rounding then scales with the local contrast, not
-    /// with the level, and a flat region comes back exactly flat.
+    /// itself, in halves ([`Gather::sources`]): the sums' rounding then
+    /// scales with the local contrast, not with the level, and a flat region
+    /// comes back exactly flat. Each sum is one running sum per lane: sums
+    /// per row of offsets, added up at the end, would round less at the
+    /// largest radii (1.1e-5 of the range against 3e-7 on noise at r = 32 px,
+    /// 1 in 65535 for 16-bit images) but spilled the sums out of the
+    /// registers, 1.5 times slower with AVX-512 and 3 times with AVX2.
     #[inline(always)]
-    #[allow(clippy::type_complexity)]
     fn lanes<const C: usize, const L: usize>(
         &self,
         src: &Sources,
         (x0, dy): (usize, usize),
         g: usize,
-    ) -> ([[[f32; L]; C]; LAYERS], [[f32; L]; LAYERS]) {
+    ) -> Sums<C, L> {
         let g_max = self.g_max;
         let side = 2 * g_max + 1;
         let centre = (dy + g_max) * src.pitch + x0 + g_max;
@@ -519,8 +559,8 @@ impl<'a, T: Sample> Gather<'a, T> {
         let at = x * self.image.channels() + first;
         let centre = &self.image.row(y)[at..at + C];
         for (k, (o, c)) in px[first..first + C].iter_mut().zip(centre).enumerate() {
-            // Each layer's light and the results below are differences from
-            // the pixel's own value ([`Gather::lanes`]).
+            // The light, and so `v`, are halves of differences from the
+            // pixel's own value ([`Gather::lanes`]).
             let (f, s, b) = (light[0][k], light[1][k], light[2][k]);
             let surface = if own >= 1.0 || behind == 0.0 {
                 s / own
@@ -532,7 +572,10 @@ impl<'a, T: Sample> Gather<'a, T> {
             } else {
                 f + (1.0 - front) * surface
             };
-            *o = T::from_f32(c.to_f32() + v);
+            let v = c.to_f32() + v + v;
+            // One NaN for every build: vector and scalar instructions make
+            // NaNs of different signs from the same inputs.
+            *o = T::from_f32(if v.is_nan() { f32::NAN } else { v });
         }
     }
 
@@ -544,7 +587,8 @@ impl<'a, T: Sample> Gather<'a, T> {
     }
 }
 
-/// The gather itself: [`GROUP`] channels or fewer a pass.
+/// The gather itself: [`GROUP`] channels or fewer a pass (each pass
+/// converts the discs again, a small share of its time).
 fn gather<T: Sample>(image: ImageView<'_, T>, discs: &[Disc], out: &mut [T]) {
     let g = Gather::new(image, discs);
     let c = image.channels();
@@ -613,8 +657,8 @@ mod tests {
     /// Renders channels `0..C` of `img` band by band with `L` lanes.
     fn render_lanes<const C: usize, const L: usize>(g: &Gather<'_, f32>, w: usize) -> Vec<f32> {
         let mut out = vec![0.0; g.discs.len() * C];
-        for (band, rows) in out.chunks_mut(w * C * BAND_ROWS).enumerate() {
-            g.band::<C, L>(0, band * BAND_ROWS, rows);
+        for (band, rows) in out.chunks_mut(w * C * BLOCK_ROWS).enumerate() {
+            g.band::<C, L>(0, band * BLOCK_ROWS, rows);
         }
         out
     }
@@ -622,24 +666,30 @@ mod tests {
     #[test]
     fn every_lane_count_gives_the_same_bits() {
         // Neither side a multiple of the lanes or the bands; depths on both
-        // sides of the focus, so that every layer takes light.
-        let (w, h) = (45, 70);
-        let img: Vec<f32> = noise(w * h * 3)
+        // sides of the focus, so that every layer takes light; a NaN and
+        // infinities, which spread through the blur.
+        let (w, h) = (45 + BLOCK_COLS, 70);
+        let mut img: Vec<f32> = noise(w * h * 3)
             .iter()
             .map(|&v| f32::from(v) / 255.0)
             .collect();
+        img[3 * (9 * w + 20)] = f32::NAN;
+        img[3 * (40 * w + 100) + 1] = f32::INFINITY;
+        img[3 * (60 * w + 300) + 2] = f32::NEG_INFINITY;
         let discs: Vec<Disc> = noise(w * h)
             .iter()
             .map(|&v| LENS.disc(700.0 + 8.0 * f64::from(v)).unwrap())
             .collect();
         let g = Gather::new(ImageView::contiguous(&img, w, h, 3).unwrap(), &discs);
         assert!(g.g_max > 4, "{}", g.g_max);
-        let one = render_lanes::<3, 1>(&g, w);
-        assert_eq!(render_lanes::<3, LANES>(&g, w), one);
-        assert_eq!(render_lanes::<3, LANES_WIDE>(&g, w), one);
+        let bits = |v: Vec<f32>| v.into_iter().map(f32::to_bits).collect::<Vec<_>>();
+        let one = bits(render_lanes::<3, 1>(&g, w));
+        assert!(one.iter().any(|&b| f32::from_bits(b).is_nan()));
+        assert_eq!(bits(render_lanes::<3, LANES>(&g, w)), one);
+        assert_eq!(bits(render_lanes::<3, LANES_WIDE>(&g, w)), one);
         let mut whole = vec![0.0; img.len()];
         gather(g.image, &discs, &mut whole);
-        assert_eq!(whole, one);
+        assert_eq!(bits(whole), one);
     }
 
     #[test]
