@@ -66,6 +66,7 @@ use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::optics::{circle_of_confusion, try_fill};
 use crate::parallel::for_each_band;
+use rayon::prelude::*;
 use std::sync::OnceLock;
 
 /// Largest accepted circle-of-confusion radius in pixels (a 64 px wide disc).
@@ -103,6 +104,12 @@ struct Disc {
 /// its disc. Exact, from the offsets' distances sorted once: those up to
 /// `r - 1/2` count 1, those below `r + 1/2` the rest of their ramp.
 fn disc_area(r: f64) -> f64 {
+    // A disc at most a pixel wide covers its own pixel alone, by r + 1/2:
+    // what the search below gives too, without it (most pixels of a render
+    // are in focus).
+    if r <= 0.5 {
+        return r + 0.5;
+    }
     static DISTANCES: OnceLock<(Vec<f64>, Vec<f64>)> = OnceLock::new();
     let (dist, prefix) = DISTANCES.get_or_init(|| {
         let reach = MAX_RADIUS as i64 + 2;
@@ -219,12 +226,18 @@ pub fn render_defocus<T: Sample, Z: Copy + Into<f64> + Sync>(
 fn tile_search_radii(discs: &[Disc], w: usize, h: usize) -> (Vec<usize>, usize) {
     let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let mut reach = vec![0.0f32; tw * th];
-    for (y, row) in discs.chunks_exact(w).enumerate() {
-        for (x, d) in row.iter().enumerate() {
-            let t = &mut reach[(y / TILE) * tw + x / TILE];
-            *t = t.max(d.r + 0.5);
-        }
-    }
+    // A row of tiles at a time, in parallel: one pass over every disc.
+    reach
+        .par_chunks_mut(tw)
+        .zip(discs.par_chunks(w * TILE))
+        .for_each(|(tiles, rows)| {
+            for row in rows.chunks_exact(w) {
+                for (x, d) in row.iter().enumerate() {
+                    let t = &mut tiles[x / TILE];
+                    *t = t.max(d.r + 0.5);
+                }
+            }
+        });
     // Tiles whose indices differ by k >= 1 (Chebyshev) have pixels at least
     // (k - 1) TILE + 1 apart; a disc reaching that far must be searched for.
     let k_max = (MAX_RADIUS as usize + 1).div_ceil(TILE) + 1;
