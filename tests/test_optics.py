@@ -256,7 +256,10 @@ def _reference_defocus(img, depth, pixel_pitch=0.02):
             behind = np.where(farther, np.clip(r + 0.5 - d, 0, 1), 0.0)
             for k, layer in enumerate((front, wt - front, behind)):
                 weights[k] += layer
-                light[k] += layer[..., None] * iq[at]
+                # A neighbour whose disc misses the pixel adds nothing, not
+                # 0 x inf.
+                with np.errstate(invalid="ignore"):
+                    light[k] += np.where(layer[..., None] > 0, layer[..., None] * iq[at], 0.0)
     (front, own, behind), (f, s, b) = weights[..., None], light
     with np.errstate(invalid="ignore", divide="ignore"):
         surface = np.where((own >= 1) | (behind == 0), s / own, s + (1 - own) * b / behind)
@@ -281,13 +284,43 @@ def test_the_gather_matches_a_float64_reference(seed, far, atol):
 
 def test_values_near_the_float32_limit_do_not_overflow():
     """The light is summed as differences from each pixel: of 2e38 and
-    -2e38 that overflowed to NaN, until the differences were halved."""
+    -2e38 that overflowed to NaN, until the differences were halved; and
+    what lies behind a pixel was weighed by coverage alone, whose sum reached
+    ~3300 at 32 px, so 1e36 behind a blurred edge overflowed to inf."""
     img = np.array([[2e38, -2e38, 0.0, 0.0]], np.float32)
     depth = np.full(img.shape, 1300.0)
     got = _defocus(img, depth)
     assert np.isfinite(got).all()
+    np.testing.assert_allclose(got, _reference_defocus(img, depth)[..., 0], rtol=1e-5)
+    step = np.zeros((40, 80), np.float32)
+    depth = np.full(step.shape, 20000.0)
+    step[:, 40:], depth[:, 40:] = 1e36, 30000.0
+    got = _defocus(step, depth)
+    assert np.isfinite(got).all()
+    want = _reference_defocus(step, depth)[..., 0]
+    # r ~ 32 px: sums of ~3400 terms round to a few 1e-5 of the range.
+    np.testing.assert_allclose(got, want, rtol=0, atol=5e-5 * 1e36)
+
+
+def test_nan_and_infinities_reach_only_what_their_discs_cover():
+    """Light summed as differences from each pixel made an infinite pixel's
+    neighbours NaN, and 0 x inf spread NaN beyond its disc, into pixels in
+    focus."""
+    img = np.random.default_rng(9).random((40, 90), dtype=np.float32)
+    depth = np.full(img.shape, 1000.0)
+    depth[:, 50:] = 1500.0  # blurred, r ~ 11 px
+    img[10, 5] = np.inf  # in focus, far from the blur
+    img[20, 70] = np.inf  # blurred
+    img[30, 45] = np.nan  # in focus, within the blur's reach
+    got = _defocus(img, depth)
     want = _reference_defocus(img, depth)[..., 0]
-    np.testing.assert_allclose(got, want, rtol=1e-5)
+    np.testing.assert_allclose(got, want, atol=2e-6)
+    assert np.isposinf(got[20, 70]) and np.isnan(got[30, 45])
+    # The sharp side keeps every other pixel as it was.
+    sharp = np.ones(img.shape, bool)
+    sharp[:, 38:] = False
+    sharp[10, 5] = False
+    np.testing.assert_array_equal(got[sharp], img[sharp])
 
 
 def _fg_scene():

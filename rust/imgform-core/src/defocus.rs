@@ -307,6 +307,8 @@ struct Gather<'a, T> {
     g_max: usize,
     /// `|(dy, dx)|` for offsets in `-g_max..=g_max`, row-major.
     dist: Vec<f32>,
+    /// Whether the image holds a NaN or an infinity ([`Gather::lanes`]).
+    specials: bool,
 }
 
 /// A block's source pixels as the lanes read them, in planes of `pitch`
@@ -352,6 +354,9 @@ impl<'a, T: Sample> Gather<'a, T> {
                 (dx * dx + dy * dy).sqrt()
             })
             .collect();
+        let specials = (0..h)
+            .into_par_iter()
+            .any(|y| image.row(y).iter().any(|v| !v.to_f32().is_finite()));
         Self {
             image,
             discs,
@@ -359,6 +364,7 @@ impl<'a, T: Sample> Gather<'a, T> {
             tiles_w: w.div_ceil(TILE),
             g_max,
             dist,
+            specials,
         }
     }
 
@@ -368,7 +374,10 @@ impl<'a, T: Sample> Gather<'a, T> {
     /// whatever its lane count, so all give the same bits.
     fn run<const C: usize>(&self, first: usize, out: &mut [T]) {
         let (w, c) = (self.image.width(), self.image.channels());
-        for_each_band(out, w * c, BLOCK_ROWS, |y0, rows| {
+        // At least 16 bands where the image has the rows, so that a short
+        // image still keeps every core busy.
+        let rows = self.image.height().div_ceil(16).clamp(1, BLOCK_ROWS);
+        for_each_band(out, w * c, rows, |y0, rows| {
             if w < LANES {
                 return self.band::<C, 1>(first, y0, rows);
             }
@@ -434,11 +443,16 @@ impl<'a, T: Sample> Gather<'a, T> {
                         }
                         continue;
                     }
-                    let (light, weights) = self.lanes::<C, L>(&src, (gx - x0, dy), g);
+                    let (light, weights) = if self.specials {
+                        self.lanes::<C, L, true>(&src, (gx - x0, dy), g)
+                    } else {
+                        self.lanes::<C, L, false>(&src, (gx - x0, dy), g)
+                    };
                     for (l, px) in pixels.chunks_exact_mut(c).enumerate() {
                         let layers = weights.map(|wl| wl[l]);
                         let light = light.map(|layer| layer.map(|ch| ch[l]));
-                        self.composite::<C>(first, (gx + l, y), layers, light, px);
+                        let at = (gx + l, y);
+                        self.composite::<C>(first, at, layers, light, !self.specials, px);
                     }
                 }
             }
@@ -494,13 +508,19 @@ impl<'a, T: Sample> Gather<'a, T> {
     /// The light is summed as each neighbour's difference from the pixel
     /// itself, in halves ([`Gather::sources`]): the sums' rounding then
     /// scales with the local contrast, not with the level, and a flat region
-    /// comes back exactly flat. Each sum is one running sum per lane: sums
-    /// per row of offsets, added up at the end, would round less at the
-    /// largest radii (1.1e-5 of the range against 3e-7 on noise at r = 32 px,
-    /// 1 in 65535 for 16-bit images) but spilled the sums out of the
+    /// comes back exactly flat. Where the image holds a NaN or an infinity
+    /// (`SPECIALS`), whose differences would be NaN or infinite for every
+    /// pixel around it, the light is summed as it is, and a neighbour whose
+    /// disc misses the pixel adds nothing at all (not `0 x inf`, a NaN), so
+    /// such values reach only what their discs cover.
+    ///
+    /// Each sum is one running sum per lane. Its rounding grows with the
+    /// radius, on noise ~5e-7 of the range at 5 px, 8e-6 at 22 px and 1.1e-5
+    /// at 32 px (1 in 65535 for 16-bit images); sums per row of offsets,
+    /// added up at the end, kept it at 3e-7 but spilled the sums out of the
     /// registers, 1.5 times slower with AVX-512 and 3 times with AVX2.
     #[inline(always)]
-    fn lanes<const C: usize, const L: usize>(
+    fn lanes<const C: usize, const L: usize, const SPECIALS: bool>(
         &self,
         src: &Sources,
         (x0, dy): (usize, usize),
@@ -510,7 +530,12 @@ impl<'a, T: Sample> Gather<'a, T> {
         let side = 2 * g_max + 1;
         let centre = (dy + g_max) * src.pitch + x0 + g_max;
         let (pz, pr) = (*src.lanes::<L>(0, centre), *src.lanes::<L>(1, centre));
-        let pc: [[f32; L]; C] = std::array::from_fn(|k| *src.lanes::<L>(3 + k, centre));
+        let pw = *src.lanes::<L>(2, centre);
+        let pc: [[f32; L]; C] = if SPECIALS {
+            [[0.0; L]; C]
+        } else {
+            std::array::from_fn(|k| *src.lanes::<L>(3 + k, centre))
+        };
         let mut light = [[[0.0f32; L]; C]; LAYERS];
         let mut weights = [[0.0f32; L]; LAYERS];
         for oy in g_max - g..=g_max + g {
@@ -533,14 +558,23 @@ impl<'a, T: Sample> Gather<'a, T> {
                     // Branch-free: uncovered neighbours add zero weights.
                     let wt = cover(r, d) * qw[l];
                     let front = if qz[l] < pz[l] { wt } else { 0.0 };
-                    let behind = if farther { cover(pr[l], d) } else { 0.0 };
+                    // What lies behind weighs as p's own disc spreads it,
+                    // so that its light sums to no more than its largest
+                    // value (a sum of coverages reached ~3300 at 32 px and
+                    // overflowed beyond 2e35).
+                    let behind = if farther {
+                        cover(pr[l], d) * pw[l]
+                    } else {
+                        0.0
+                    };
                     let layer = [front, wt - front, behind];
                     for (sum, wl) in weights.iter_mut().zip(layer) {
                         sum[l] += wl;
                     }
                     for (acc, wl) in light.iter_mut().zip(layer) {
                         for ((ch, v), c) in acc.iter_mut().zip(q).zip(&pc) {
-                            ch[l] += wl * (v[l] - c[l]);
+                            let add = wl * (v[l] - c[l]);
+                            ch[l] += if SPECIALS && wl == 0.0 { 0.0 } else { add };
                         }
                     }
                 }
@@ -552,6 +586,9 @@ impl<'a, T: Sample> Gather<'a, T> {
     /// Pixel `(x, y)`'s channels `first..first + C`, written into `px` (all
     /// its channels): its occluders' light laid over its own surface's (see
     /// the module docs), or the pixel as it is when nothing else reached it.
+    /// The light is halves of differences from the pixel's own value, or
+    /// halves of the light itself where not `differences`
+    /// ([`Gather::lanes`]).
     #[inline(always)]
     fn composite<const C: usize>(
         &self,
@@ -559,6 +596,7 @@ impl<'a, T: Sample> Gather<'a, T> {
         (x, y): (usize, usize),
         [front, own, behind]: [f32; LAYERS],
         light: [[f32; C]; LAYERS],
+        differences: bool,
         px: &mut [T],
     ) {
         let p = self.discs[y * self.image.width() + x];
@@ -572,8 +610,6 @@ impl<'a, T: Sample> Gather<'a, T> {
         let at = x * self.image.channels() + first;
         let centre = &self.image.row(y)[at..at + C];
         for (k, (o, c)) in px[first..first + C].iter_mut().zip(centre).enumerate() {
-            // The light, and so `v`, are halves of differences from the
-            // pixel's own value ([`Gather::lanes`]).
             let (f, s, b) = (light[0][k], light[1][k], light[2][k]);
             let surface = if own >= 1.0 || behind == 0.0 {
                 s / own
@@ -585,7 +621,11 @@ impl<'a, T: Sample> Gather<'a, T> {
             } else {
                 f + (1.0 - front) * surface
             };
-            let v = c.to_f32() + v + v;
+            let v = if differences {
+                c.to_f32() + v + v
+            } else {
+                v + v
+            };
             // One NaN for every build: vector and scalar instructions make
             // NaNs of different signs from the same inputs.
             *o = T::from_f32(if v.is_nan() { f32::NAN } else { v });
