@@ -15,6 +15,13 @@ pub const ROWS_PER_TASK: usize = 8;
 /// enough that task overhead vanishes and small enough to balance 10 M points.
 pub const POINTS_PER_TASK: usize = 16 * 1024;
 
+/// Appends `n` copies of `value` to `v`, written by every thread: the first
+/// write of a large new buffer faults its pages in from the system, which on
+/// one thread can take as long as the kernel that then overwrites it.
+pub fn extend_filled<T: Clone + Send>(v: &mut Vec<T>, n: usize, value: T) {
+    v.par_extend(rayon::iter::repeat_n(value, n));
+}
+
 /// Calls `f(y, row)` for every row of `out`, a buffer of rows of `row_len`
 /// elements, in parallel over bands of [`ROWS_PER_TASK`] rows.
 pub fn for_each_row<T, F>(out: &mut [T], row_len: usize, f: F)

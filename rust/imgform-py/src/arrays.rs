@@ -55,10 +55,11 @@ pub fn reserved<T>(n: usize, what: &str) -> PyResult<Vec<T>> {
     Ok(v)
 }
 
-/// `n` copies of `value`, or a `MemoryError` naming `what`.
-pub fn filled<T: Clone>(n: usize, value: T, what: &str) -> PyResult<Vec<T>> {
+/// `n` copies of `value`, or a `MemoryError` naming `what`, written by
+/// every thread ([`imgform_core::parallel::extend_filled`]).
+pub fn filled<T: Clone + Send>(n: usize, value: T, what: &str) -> PyResult<Vec<T>> {
     let mut v = reserved(n, what)?;
-    v.resize(n, value);
+    imgform_core::parallel::extend_filled(&mut v, n, value);
     Ok(v)
 }
 
