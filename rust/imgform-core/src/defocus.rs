@@ -65,7 +65,7 @@ use crate::error::{positive, CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
 use crate::invalid;
 use crate::optics::{circle_of_confusion, try_fill};
-use crate::parallel::for_each_band;
+use crate::parallel::{extend_filled, for_each_band};
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
@@ -210,7 +210,8 @@ pub fn render_defocus<T: Sample, Z: Copy + Into<f64> + Sync>(
             out.len()
         )));
     }
-    let mut discs = vec![Disc::default(); w * h];
+    let mut discs = Vec::with_capacity(w * h);
+    extend_filled(&mut discs, w * h, Disc::default());
     try_fill(&mut discs, |i| lens.disc(depth[i].into())).map_err(|(i, e)| match e {
         CoreError::InvalidArgument(msg) => {
             invalid!("{msg} (at pixel row {}, column {})", i / w, i % w)
