@@ -57,7 +57,7 @@
 //! to `f32` planes (depth, radius, weight, channels). Each lane computes its
 //! pixel with the same operations in the same order as any other lane
 //! count, so every instruction set gives the same bits. With the discs'
-//! areas counted rather than searched for ([`Offsets::count`]), that made a
+//! areas counted rather than searched for (`Offsets::count`), that made a
 //! 12 MP render 6 times faster with AVX-512 than the pixel-by-pixel gather
 //! before it (0.97 against 5.9 s, `benchmarks/optics.py`'s scene), 4 times
 //! with AVX2 (1.4 s).
