@@ -56,11 +56,10 @@
 //! neighbours one load per plane of their block's sources, converted once
 //! to `f32` planes (depth, radius, weight, channels). Each lane computes its
 //! pixel with the same operations in the same order as any other lane
-//! count, so every instruction set gives the same bits. With the discs'
-//! areas counted rather than searched for (`Offsets::count`), that made a
-//! 12 MP render 6 times faster with AVX-512 than the pixel-by-pixel gather
-//! before it (0.97 against 5.9 s, `benchmarks/optics.py`'s scene), 4 times
-//! with AVX2 (1.4 s).
+//! count, so every instruction set gives the same bits. A 12 MP render of
+//! `benchmarks/optics.py`'s scene takes 0.97 s with AVX-512 and 1.4 s with
+//! AVX2, where a gather of one pixel at a time took 5.9 s; the discs' areas
+//! are counted rather than searched for (`Offsets::count`).
 
 use crate::error::{positive, CoreError, Result};
 use crate::image::{mirror, ImageView, Sample};
@@ -401,7 +400,7 @@ impl<'a, T: Sample> Gather<'a, T> {
             .collect();
         let specials = (0..h)
             .into_par_iter()
-            .any(|y| image.row(y).iter().any(|v| !v.to_f32().is_finite()));
+            .any(|y| image.row(y).iter().any(|v| !v.is_finite()));
         Self {
             image,
             discs,
